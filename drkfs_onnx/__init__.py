@@ -1,0 +1,19 @@
+"""DR-KFS: a differentiable visual similarity metric for 3D shapes.
+
+The package root imports no torch, so the server runtime (``drkfs_onnx.runtime``) stays
+torch-free; ``drkfs_onnx.DRKFS`` loads the torch path on first use.
+"""
+
+from .config import PipelineConfig
+from .mesh import Mesh, MeshError, check_mesh, load_mesh
+
+__version__ = "0.1.0"
+__all__ = ["DRKFS", "Mesh", "MeshError", "PipelineConfig", "check_mesh", "load_mesh"]
+
+
+def __getattr__(name: str):
+    if name == "DRKFS":
+        from .metric import DRKFS
+
+        return DRKFS
+    raise AttributeError(f"module 'drkfs_onnx' has no attribute {name!r}")

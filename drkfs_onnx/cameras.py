@@ -1,0 +1,68 @@
+"""Cameras as plain data: look-at rotations and a pinhole focal length, in numpy.
+
+Both the torch renderer and the numpy runtime read cameras from here, so the two see the meshes
+from exactly the same places. Camera frame: x right, y down, z forward (into the scene).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .config import PipelineConfig
+
+GOLDEN_ANGLE = math.pi * (3.0 - math.sqrt(5.0))
+WORLD_UP = np.array([0.0, 1.0, 0.0])
+
+
+@dataclass(frozen=True)
+class Cameras:
+    """K pinhole cameras looking at the origin.
+
+    rotations: (K, 3, 3) world-to-camera rotations (rows: camera x, y, z axes in world space).
+    eyes: (K, 3) camera centres in world space.
+    focal: focal length in normalised device units (image spans [-1, 1]).
+    """
+
+    rotations: np.ndarray
+    eyes: np.ndarray
+    focal: float
+
+    def __len__(self) -> int:
+        return len(self.eyes)
+
+    def world_to_camera(self, points: np.ndarray) -> np.ndarray:
+        """(N, 3) world points -> (K, N, 3) camera-frame points."""
+        return np.einsum("kij,knj->kni", self.rotations, points[None] - self.eyes[:, None])
+
+
+def hemisphere_directions(count: int) -> np.ndarray:
+    """(count, 3) unit directions spread evenly over the upper (y > 0) hemisphere.
+
+    A golden-angle spiral with equal-area height steps: any view count is evenly spread, so the
+    25-view paper setting and cheaper 12- or 6-view variants come from one rule.
+    """
+    i = np.arange(count, dtype=np.float64)
+    height = (i + 0.5) / count
+    ring = np.sqrt(1.0 - height**2)
+    azimuth = i * GOLDEN_ANGLE
+    return np.stack([ring * np.cos(azimuth), height, ring * np.sin(azimuth)], axis=1)
+
+
+def look_at(eyes: np.ndarray, target: np.ndarray | None = None) -> np.ndarray:
+    """(K, 3) eyes -> (K, 3, 3) world-to-camera rotations looking at target (default origin)."""
+    target = np.zeros(3) if target is None else target
+    forward = target - eyes
+    forward /= np.linalg.norm(forward, axis=1, keepdims=True)
+    right = np.cross(forward, WORLD_UP)
+    right /= np.linalg.norm(right, axis=1, keepdims=True)
+    down = np.cross(forward, right)
+    return np.stack([right, down, forward], axis=1)
+
+
+def make_cameras(config: PipelineConfig) -> Cameras:
+    eyes = hemisphere_directions(config.num_views) * config.camera_distance
+    focal = 1.0 / math.tan(math.radians(config.fov_degrees) / 2.0)
+    return Cameras(rotations=look_at(eyes), eyes=eyes, focal=focal)

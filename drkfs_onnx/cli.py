@@ -1,0 +1,97 @@
+"""``drkfs``: the torch-side command line (needs the ``torch`` extra)."""
+
+from __future__ import annotations
+
+import json
+import time
+import warnings
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from .config import NORMALIZATIONS, REDUCTIONS
+from .examples import REFERENCE, example_meshes, write_examples
+from .mesh import MeshError, load_mesh
+
+app = typer.Typer(help="DR-KFS visual similarity of 3D meshes (torch path).", no_args_is_help=True)
+
+Normalize = Annotated[
+    str, typer.Option(help=f"Frame of the two meshes: {', '.join(NORMALIZATIONS)}.")
+]
+Reduction = Annotated[str, typer.Option(help=f"Reduce best matches by {' or '.join(REDUCTIONS)}.")]
+Symmetric = Annotated[bool, typer.Option(help="Average the A->B and B->A scores.")]
+
+
+def _metric(normalize: str, reduction: str, symmetric: bool):
+    import torch
+
+    from .metric import DRKFS
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        metric = DRKFS.pretrained(reduction=reduction, symmetric=symmetric, normalization=normalize)
+    for warning in caught:
+        typer.echo(f"note: {warning.message}", err=True)
+    return metric, torch
+
+
+def _score(metric, torch, path_a: Path, path_b: Path) -> float:
+    a, b = load_mesh(path_a), load_mesh(path_b)
+    with torch.no_grad():
+        return float(
+            metric(
+                torch.as_tensor(a.vertices, dtype=torch.float32),
+                torch.as_tensor(a.faces),
+                torch.as_tensor(b.vertices, dtype=torch.float32),
+                torch.as_tensor(b.faces),
+            )
+        )
+
+
+@app.command()
+def score(
+    mesh_a: Path,
+    mesh_b: Annotated[Path, typer.Argument(help="The reference (ground truth).")],
+    normalize: Normalize = "joint",
+    reduction: Reduction = "sum",
+    symmetric: Symmetric = False,
+    as_json: Annotated[bool, typer.Option("--json", help="Print a JSON object.")] = False,
+) -> None:
+    """Score MESH_A against the reference MESH_B (0 for identical meshes)."""
+    metric, torch = _metric(normalize, reduction, symmetric)
+    start = time.perf_counter()
+    try:
+        value = _score(metric, torch, mesh_a, mesh_b)
+    except MeshError as exc:
+        typer.echo(f"error: {exc}", err=True)
+        raise typer.Exit(2) from exc
+    seconds = time.perf_counter() - start
+    if as_json:
+        typer.echo(json.dumps({"score": value, "seconds": seconds}))
+    else:
+        typer.echo(f"{value:.6g}")
+
+
+@app.command()
+def examples(folder: Annotated[Path, typer.Argument()] = Path("examples")) -> None:
+    """Write the bundled example meshes (a chair and its variants) to FOLDER."""
+    for path in write_examples(folder):
+        typer.echo(path)
+
+
+@app.command()
+def demo(
+    folder: Annotated[
+        Path, typer.Option(help="Where the example meshes are (written if absent).")
+    ] = Path("examples"),
+) -> None:
+    """Score every example mesh against the reference chair and print a table."""
+    if not (folder / REFERENCE).is_file():
+        write_examples(folder)
+    metric, torch = _metric("joint", "sum", False)
+    typer.echo(f"{'mesh':28} {'DR-KFS':>10} {'seconds':>8}  change")
+    for name, (change, _) in example_meshes().items():
+        start = time.perf_counter()
+        value = _score(metric, torch, folder / name, folder / REFERENCE)
+        typer.echo(f"{name:28} {value:10.3f} {time.perf_counter() - start:8.2f}  {change}")

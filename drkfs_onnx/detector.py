@@ -1,0 +1,38 @@
+"""Point-of-interest detector with TILDE's piecewise-linear activation."""
+
+from __future__ import annotations
+
+import torch
+import torch.nn.functional as F
+from torch import nn
+
+from .config import PipelineConfig
+
+
+class PoIDetector(nn.Module):
+    """Grey image -> per-pixel keypoint probability.
+
+    score(p) = sum_n delta_n max_m (W_mn * I + b_mn)(p), with N x M filters of size k x k and
+    fixed signs delta_n (+1 for the first half of n, -1 for the rest, as in TILDE); the map is
+    sigmoid(score). The image is padded with the background value, so a region of pure
+    background gives one constant probability wherever it lies, borders included.
+
+    Shapes: (B, 1, S, S) -> (B, 1, S, S).
+    """
+
+    def __init__(self, config: PipelineConfig):
+        super().__init__()
+        self.n, self.m, self.kernel = config.detector_n, config.detector_m, config.detector_kernel
+        self.background = config.background
+        self.conv = nn.Conv2d(1, self.n * self.m, self.kernel)
+        signs = torch.ones(self.n)
+        signs[self.n // 2 :] = -1.0 if self.n > 1 else 1.0
+        self.register_buffer("delta", signs.view(1, self.n, 1, 1), persistent=False)
+
+    def forward(self, images: torch.Tensor) -> torch.Tensor:
+        pad = self.kernel // 2
+        padded = F.pad(images, (pad, pad, pad, pad), value=self.background)
+        response = self.conv(padded)
+        b, _, h, w = response.shape
+        maxout = response.view(b, self.n, self.m, h, w).amax(dim=2)
+        return torch.sigmoid((maxout * self.delta).sum(dim=1, keepdim=True))

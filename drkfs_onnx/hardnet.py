@@ -1,0 +1,52 @@
+"""HardNet descriptor in the L2-Net layout, with a width multiplier."""
+
+from __future__ import annotations
+
+import torch
+from torch import nn
+
+from .config import PipelineConfig
+
+L2NET_CHANNELS = (32, 32, 64, 64, 128, 128)
+L2NET_STRIDES = (1, 1, 2, 1, 2, 1)
+
+
+def l2_normalize(x: torch.Tensor, eps: float = 1e-10) -> torch.Tensor:
+    """x / |x| along dim 1, written as ONNX-friendly primitives (no expand in the graph)."""
+    return x / torch.sqrt(torch.clamp_min((x * x).sum(dim=1, keepdim=True), eps))
+
+
+class HardNet(nn.Module):
+    """Patch -> unit-length descriptor.
+
+    Per-patch mean/std normalisation, six 3x3 convs (two with stride 2) each followed by
+    BatchNorm without affine parameters and ReLU, dropout, a final conv covering the whole
+    remaining map, BatchNorm, L2 normalisation. width=1 is L2-Net's 1.33M parameters.
+
+    Shapes: (N, 1, p, p) -> (N, D).
+    """
+
+    def __init__(self, config: PipelineConfig):
+        super().__init__()
+        self.patch_norm_eps = config.patch_norm_eps
+        channels = [max(1, round(c * config.descriptor_width)) for c in L2NET_CHANNELS]
+        layers: list[nn.Module] = []
+        previous = 1
+        for out, stride in zip(channels, L2NET_STRIDES, strict=True):
+            layers += [
+                nn.Conv2d(previous, out, 3, stride=stride, padding=1, bias=False),
+                nn.BatchNorm2d(out, affine=False),
+                nn.ReLU(),
+            ]
+            previous = out
+        final = config.patch_size // 4
+        layers += [
+            nn.Dropout(0.3),
+            nn.Conv2d(previous, config.descriptor_dim, final, bias=False),
+            nn.BatchNorm2d(config.descriptor_dim, affine=False),
+        ]
+        self.features = nn.Sequential(*layers)
+
+    def forward(self, patches: torch.Tensor) -> torch.Tensor:
+        x = nn.functional.instance_norm(patches, eps=self.patch_norm_eps)
+        return l2_normalize(self.features(x).flatten(1))

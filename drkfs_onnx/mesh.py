@@ -1,0 +1,112 @@
+"""Mesh input through trimesh, with checks that name the file and the reason, and normalisation.
+
+numpy only: the server runtime loads meshes through here without torch.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+from .config import NORMALIZATIONS
+
+AREA_EPS = 1e-14
+
+
+class MeshError(ValueError):
+    """A mesh that cannot be scored; the message names the source and the reason."""
+
+    def __init__(self, source: str, reason: str):
+        super().__init__(f"{source}: {reason}")
+        self.source = source
+        self.reason = reason
+
+
+@dataclass(frozen=True)
+class Mesh:
+    """A checked triangle mesh: vertices (V, 3) float64, faces (F, 3) int64, all finite and
+    non-degenerate."""
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    source: str = "<array>"
+
+
+def load_mesh(path: str | Path) -> Mesh:
+    """Read any format trimesh reads (scenes are merged) and check it with ``check_mesh``."""
+    source = str(path)
+    if not Path(path).is_file():
+        raise MeshError(source, "no such file")
+    try:
+        loaded = trimesh.load(path, force="mesh", process=False)
+    except Exception as exc:  # trimesh raises many types for unreadable input
+        raise MeshError(source, f"unreadable ({type(exc).__name__}: {exc})") from exc
+    faces = getattr(loaded, "faces", None)
+    if faces is None or len(faces) == 0:
+        kind = type(loaded).__name__
+        raise MeshError(source, f"no faces (read as {kind}; a point cloud or empty scene?)")
+    return check_mesh(np.asarray(loaded.vertices), np.asarray(faces), source)
+
+
+def check_mesh(vertices: np.ndarray, faces: np.ndarray, source: str = "<array>") -> Mesh:
+    """Validate arrays and drop degenerate triangles (repeated indices or zero area)."""
+    vertices = np.asarray(vertices, dtype=np.float64)
+    faces = np.asarray(faces)
+    if vertices.ndim != 2 or vertices.shape[1] != 3:
+        raise MeshError(source, f"vertices must be (V, 3), got {vertices.shape}")
+    if faces.ndim != 2 or faces.shape[1] != 3 or len(faces) == 0:
+        raise MeshError(source, f"no faces: triangle faces must be (F, 3), got {faces.shape}")
+    if not np.issubdtype(faces.dtype, np.integer):
+        raise MeshError(source, f"face indices must be integers, got {faces.dtype}")
+    faces = faces.astype(np.int64)
+    if faces.min() < 0 or faces.max() >= len(vertices):
+        raise MeshError(source, f"face indices out of range for {len(vertices)} vertices")
+    bad = ~np.isfinite(vertices).all(axis=1)
+    if bad.any():
+        raise MeshError(source, f"{int(bad.sum())} vertices are NaN or infinite")
+    corners = vertices[faces]
+    cross = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    scale = max(float(np.ptp(vertices, axis=0).max()), 1e-300)
+    area_ok = np.linalg.norm(cross, axis=1) > AREA_EPS * scale * scale
+    if not area_ok.any():
+        raise MeshError(source, "no non-degenerate triangle left (all faces have zero area)")
+    return Mesh(vertices=vertices, faces=faces[area_ok], source=source)
+
+
+def bounding_frame(lower, upper):
+    """(centre, scale) that map the box [lower, upper] into the unit sphere: v' = (v - c) / s.
+
+    Pure arithmetic, so numpy arrays and torch tensors (keeping gradients) both work.
+    """
+    centre = (lower + upper) / 2.0
+    scale = (((upper - lower) ** 2).sum() ** 0.5) / 2.0
+    return centre, scale
+
+
+def check_normalization(mode: str) -> str:
+    if mode not in NORMALIZATIONS:
+        raise ValueError(f"unknown normalization {mode!r}; use one of {', '.join(NORMALIZATIONS)}")
+    return mode
+
+
+def frame_of(vertices):
+    """(centre, scale) of a vertex array's bounding box; numpy or torch (values keep grads)."""
+    lower, upper = vertices.min(0), vertices.max(0)
+    return bounding_frame(getattr(lower, "values", lower), getattr(upper, "values", upper))
+
+
+def normalize_pair(vertices_a, vertices_b, mode: str = "joint"):
+    """Put two meshes (numpy arrays or torch tensors) into the metric's frame; B is the reference.
+
+    joint: both moved and scaled by B's bounding box (reconstructions judged in the truth's frame);
+    each: each by its own bounding box; none: unchanged.
+    """
+    check_normalization(mode)
+    if mode == "none":
+        return vertices_a, vertices_b
+    ref_c, ref_s = frame_of(vertices_b)
+    a_c, a_s = (ref_c, ref_s) if mode == "joint" else frame_of(vertices_a)
+    return (vertices_a - a_c) / a_s, (vertices_b - ref_c) / ref_s

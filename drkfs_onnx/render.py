@@ -1,0 +1,42 @@
+"""Differentiable multi-view renderer: cameras + soft rasteriser + grey shader."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import torch
+
+from .cameras import Cameras, make_cameras
+from .config import PipelineConfig
+from .rasterize import SoftRasterizer, project_faces, to_camera
+from .shade import face_shading, silhouette, soft_blend
+
+RenderMode = Literal["shaded", "silhouette"]
+
+
+class Renderer:
+    """Renders a mesh from the config's cameras.
+
+    ``render(verts (V, 3), faces (F, 3)) -> (K, S, S)`` grey images in [0, 1], differentiable
+    with respect to ``verts``. Faces with a vertex in front of the near plane are dropped.
+    """
+
+    def __init__(self, config: PipelineConfig, cameras: Cameras | None = None):
+        self.config = config
+        self.cameras = cameras if cameras is not None else make_cameras(config)
+        self.rasterizer = SoftRasterizer(config)
+
+    def render(
+        self, verts: torch.Tensor, faces: torch.Tensor, mode: RenderMode = "shaded"
+    ) -> torch.Tensor:
+        num_views = len(self.cameras)
+        verts_cam = to_camera(verts, self.cameras)
+        screen = project_faces(verts_cam, faces, self.cameras.focal, self.config)
+        if mode == "silhouette":
+            fragments = self.rasterizer(screen, depth_cull=False)
+            return silhouette(fragments, num_views, self.config)
+        if mode != "shaded":
+            raise ValueError(f"unknown render mode {mode!r}; use 'shaded' or 'silhouette'")
+        fragments = self.rasterizer(screen, depth_cull=True)
+        colors = face_shading(verts_cam, faces, self.config)
+        return soft_blend(fragments, colors, num_views, self.config)

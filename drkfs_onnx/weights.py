@@ -1,0 +1,35 @@
+"""Where the shipped detector and HardNet weights live (``models/``, installed as
+``drkfs_onnx.models``), and how they are matched to a pipeline config."""
+
+from __future__ import annotations
+
+import json
+from importlib import resources
+
+from .config import PipelineConfig
+
+RANDOM_SEED = 0
+MANIFEST = "manifest.json"
+
+
+def models_dir():
+    """The installed ``models/`` folder (a Traversable)."""
+    return resources.files("drkfs_onnx.models")
+
+
+def load_shipped_state(config: PipelineConfig):
+    """The torch state dict shipped for ``config``, or None when none is shipped.
+
+    The manifest lists each weights file with the config it was trained for.
+    """
+    manifest_file = models_dir() / MANIFEST
+    if not manifest_file.is_file():
+        return None
+    manifest = json.loads(manifest_file.read_text())
+    for entry in manifest.get("weights", []):
+        if PipelineConfig.from_dict(entry["config"]) == config:
+            import torch
+
+            with resources.as_file(models_dir() / entry["file"]) as path:
+                return torch.load(path, map_location="cpu", weights_only=True)
+    return None

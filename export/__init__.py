@@ -1,0 +1,1 @@
+"""ONNX export of the feature and match graphs (installed as ``drkfs_onnx.export``)."""

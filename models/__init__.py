@@ -1,0 +1,1 @@
+"""Shipped weights and ONNX graphs (data only), installed as ``drkfs_onnx.models``."""

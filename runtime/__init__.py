@@ -1,0 +1,2 @@
+"""Evaluation-only scoring with onnxruntime and numpy; never imports torch (installed as
+``drkfs_onnx.runtime``)."""

@@ -1,0 +1,63 @@
+"""The frozen pipeline config and the cameras every path shares."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from drkfs_onnx.cameras import hemisphere_directions, make_cameras
+from drkfs_onnx.config import PipelineConfig
+
+
+def test_defaults_are_the_papers_pipeline():
+    config = PipelineConfig()
+    assert (config.num_views, config.image_size) == (25, 256)
+    assert (config.patch_size, config.patch_stride, config.patches_per_view) == (32, 16, 225)
+    assert config.descriptor_dim == 128
+
+
+def test_config_is_frozen_and_round_trips_through_json():
+    config = PipelineConfig(num_views=12, light_direction=[0, -1, 0])
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        config.num_views = 3
+    assert PipelineConfig.from_json(config.to_json()) == config
+    assert hash(config) == hash(PipelineConfig.from_json(config.to_json()))
+
+
+@pytest.mark.parametrize(
+    "bad",
+    [{"num_views": 0}, {"image_size": 16}, {"detector_kernel": 4}, {"sigma": 0.0},
+     {"camera_distance": 0.9}, {"patch_size": 30}],
+)  # fmt: skip
+def test_invalid_configs_are_refused(bad):
+    with pytest.raises(ValueError):
+        PipelineConfig(**bad)
+
+
+def test_unknown_keys_are_refused():
+    with pytest.raises(ValueError, match="unknown config keys: colour"):
+        PipelineConfig.from_dict({"colour": True})
+
+
+def test_views_cover_the_upper_hemisphere_evenly():
+    dirs = hemisphere_directions(25)
+    assert np.allclose(np.linalg.norm(dirs, axis=1), 1)
+    assert (dirs[:, 1] > 0).all()
+    # even spread: every view has a neighbour within 45 degrees, none closer than 15
+    cos = dirs @ dirs.T
+    np.fill_diagonal(cos, -1)
+    nearest = np.degrees(np.arccos(cos.max(1)))
+    assert nearest.max() < 45 and nearest.min() > 15
+
+
+def test_cameras_look_at_the_origin_with_orthonormal_frames():
+    cams = make_cameras(PipelineConfig())
+    assert len(cams) == 25
+    for rot in cams.rotations:
+        assert np.allclose(rot @ rot.T, np.eye(3), atol=1e-12)
+    origin = cams.world_to_camera(np.zeros((1, 3)))
+    assert np.allclose(origin[:, 0, :2], 0, atol=1e-12)
+    assert np.allclose(origin[:, 0, 2], PipelineConfig().camera_distance)
+    # world up appears as image up (negative camera y) from every view
+    up = cams.world_to_camera(np.array([[0.0, 0.5, 0.0]]))[:, 0]
+    assert (up[:, 1] < 0).all()

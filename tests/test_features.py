@@ -1,0 +1,114 @@
+"""PoI detector, patches, HardNet and matching: shapes and the properties the metric relies on."""
+
+import pytest
+import torch
+
+from drkfs_onnx.config import PipelineConfig
+from drkfs_onnx.detector import PoIDetector
+from drkfs_onnx.hardnet import HardNet
+from drkfs_onnx.matching import best_match_distances, match_score, nearest_indices
+from drkfs_onnx.patches import extract_patches, nonempty_patches
+
+CONFIG = PipelineConfig()
+
+
+def test_detector_maps_images_to_probabilities_of_the_same_size():
+    torch.manual_seed(0)
+    maps = PoIDetector(CONFIG)(torch.rand(3, 1, 256, 256))
+    assert maps.shape == (3, 1, 256, 256)
+    assert ((maps > 0) & (maps < 1)).all()
+
+
+def test_detector_is_piecewise_linear_maxout():
+    """score = sum_n delta_n max_m (W_mn * I + b_mn), checked pixel by pixel."""
+    torch.manual_seed(0)
+    config = CONFIG.replace(detector_kernel=3, detector_n=2, detector_m=3)
+    det = PoIDetector(config)
+    image = torch.rand(1, 1, 6, 6)
+    padded = torch.nn.functional.pad(image, (1, 1, 1, 1), value=config.background)
+    window = padded[0, 0, 3:6, 4:7]  # centred on pixel (3, 4)
+    responses = (det.conv.weight[:, 0] * window).sum((1, 2)) + det.conv.bias
+    score = responses[:3].max() - responses[3:].max()
+    assert torch.isclose(det(image)[0, 0, 3, 4], torch.sigmoid(score), atol=1e-6)
+
+
+def test_background_gives_one_constant_poi_value_everywhere():
+    torch.manual_seed(0)
+    maps = PoIDetector(CONFIG)(torch.zeros(1, 1, 64, 64))
+    assert torch.allclose(maps, maps[0, 0, 0, 0].expand_as(maps), atol=1e-6)
+
+
+def test_patches_are_32px_windows_at_stride_16():
+    maps = torch.arange(2 * 256 * 256, dtype=torch.float32).view(2, 1, 256, 256)
+    patches = extract_patches(maps, CONFIG)
+    assert patches.shape == (2 * 225, 1, 32, 32)
+    assert torch.equal(patches[16, 0], maps[0, 0, 16:48, 16:48])  # row 1, column 1 of view 0
+    assert torch.equal(patches[225 + 14, 0], maps[1, 0, 0:32, 224:256])
+
+
+def test_nonempty_mask_sees_content_within_the_detectors_reach():
+    images = torch.zeros(1, 1, 256, 256)
+    images[0, 0, 100, 40] = 0.5  # column 40 lies in patch columns 1 and 2 only
+    mask = nonempty_patches(images, CONFIG).view(15, 15)
+    reach = CONFIG.detector_kernel // 2
+    for row in range(15):
+        for col in range(15):
+            y0, x0 = 16 * row - reach, 16 * col - reach
+            sees = y0 <= 100 < y0 + 32 + 2 * reach and x0 <= 40 < x0 + 32 + 2 * reach
+            assert bool(mask[row, col]) == sees
+
+
+def test_hardnet_full_width_is_l2net():
+    net = HardNet(CONFIG)
+    assert sum(p.numel() for p in net.parameters()) == 1_334_560
+    half = HardNet(CONFIG.replace(descriptor_width=0.5))
+    assert sum(p.numel() for p in half.parameters()) < 1_334_560 / 2
+
+
+@pytest.mark.parametrize("width", [1.0, 0.25])
+def test_hardnet_gives_unit_descriptors(width):
+    torch.manual_seed(0)
+    net = HardNet(CONFIG.replace(descriptor_width=width)).eval()
+    desc = net(torch.rand(5, 1, 32, 32))
+    assert desc.shape == (5, 128)
+    assert torch.allclose(desc.norm(dim=1), torch.ones(5), atol=1e-5)
+
+
+def test_hardnet_ignores_patch_brightness_and_contrast():
+    torch.manual_seed(0)
+    net = HardNet(CONFIG).eval()
+    patch = torch.rand(1, 1, 32, 32)
+    assert torch.allclose(net(patch), net(0.3 * patch + 0.5), atol=1e-4)
+
+
+def _brute_force(a, b):
+    return torch.cdist(a.double(), b.double()).pow(2).min(1).values
+
+
+def test_best_match_equals_brute_force_across_chunks(monkeypatch):
+    import drkfs_onnx.matching as matching
+
+    torch.manual_seed(0)
+    a, b = torch.randn(700, 16), torch.randn(300, 16)
+    monkeypatch.setattr(matching, "CHUNK_ROWS", 64)
+    assert torch.allclose(best_match_distances(a, b).double(), _brute_force(a, b), atol=1e-4)
+    assert nearest_indices(a[:0], b).shape == (0,)
+
+
+def test_match_score_reductions_and_symmetry():
+    torch.manual_seed(0)
+    a, b = torch.randn(50, 8), torch.randn(30, 8)
+    ab, ba = _brute_force(a, b), _brute_force(b, a)
+    assert torch.isclose(match_score(a, b, "sum").double(), ab.sum(), rtol=1e-5)
+    assert torch.isclose(match_score(a, b, "mean").double(), ab.mean(), rtol=1e-5)
+    both = match_score(a, b, "sum", symmetric=True).double()
+    assert torch.isclose(both, (ab.sum() + ba.sum()) / 2, rtol=1e-5)
+    with pytest.raises(ValueError, match="unknown reduction"):
+        match_score(a, b, "max")
+
+
+def test_match_gradient_reaches_both_sets():
+    a = torch.randn(20, 8, requires_grad=True)
+    b = torch.randn(10, 8, requires_grad=True)
+    match_score(a, b).backward()
+    assert a.grad.abs().sum() > 0 and b.grad.abs().sum() > 0

@@ -1,0 +1,95 @@
+"""Mesh input: every format trimesh reads, clear errors naming file and reason, normalisation."""
+
+import numpy as np
+import pytest
+import trimesh
+
+from drkfs_onnx.mesh import MeshError, check_mesh, load_mesh, normalize_pair
+
+
+@pytest.mark.parametrize("ext", ["obj", "ply", "stl", "off", "glb"])
+def test_loads_common_formats(tmp_path, ext):
+    path = tmp_path / f"box.{ext}"
+    trimesh.creation.box(extents=(1, 2, 3)).export(path)
+    mesh = load_mesh(path)
+    assert mesh.faces.shape == (12, 3)
+    assert np.allclose(np.ptp(mesh.vertices, axis=0), [1, 2, 3])
+    assert mesh.source == str(path)
+
+
+def test_scenes_are_merged(tmp_path):
+    scene = trimesh.Scene(
+        [
+            trimesh.creation.box(),
+            trimesh.creation.icosphere(subdivisions=1).apply_translation([3, 0, 0]),
+        ]
+    )
+    path = tmp_path / "scene.glb"
+    scene.export(path)
+    assert len(load_mesh(path).faces) == 12 + 80
+
+
+def _error(path) -> MeshError:
+    with pytest.raises(MeshError) as info:
+        load_mesh(path)
+    assert str(path) in str(info.value)
+    return info.value
+
+
+def test_missing_file(tmp_path):
+    assert "no such file" in _error(tmp_path / "nope.obj").reason
+
+
+def test_unreadable_file(tmp_path):
+    path = tmp_path / "junk.ply"
+    path.write_bytes(b"ply\nformat nonsense\n\x00\x01\x02")
+    assert "unreadable" in _error(path).reason
+
+
+def test_point_cloud_has_no_faces(tmp_path):
+    path = tmp_path / "cloud.ply"
+    trimesh.PointCloud(np.random.default_rng(0).random((20, 3))).export(path)
+    assert "no faces" in _error(path).reason
+
+
+def test_nan_and_inf_vertices(tmp_path):
+    path = tmp_path / "nan.obj"
+    path.write_text("v 0 0 0\nv 1 0 0\nv nan 1 0\nv 0 inf 1\nf 1 2 3\nf 1 2 4\n")
+    assert "NaN or infinite" in _error(path).reason
+
+
+def test_all_degenerate_faces(tmp_path):
+    path = tmp_path / "flat.obj"
+    path.write_text("v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\nf 1 1 2\n")
+    assert "no non-degenerate triangle" in _error(path).reason
+
+
+def test_degenerate_faces_are_dropped():
+    verts = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [2, 0, 0]], dtype=float)
+    mesh = check_mesh(verts, np.array([[0, 1, 2], [0, 1, 3], [1, 1, 2]]))
+    assert mesh.faces.tolist() == [[0, 1, 2]]
+
+
+def test_out_of_range_indices():
+    with pytest.raises(MeshError, match="out of range"):
+        check_mesh(np.zeros((3, 3)), np.array([[0, 1, 5]]))
+
+
+def test_joint_normalisation_uses_the_reference_frame():
+    ref = np.array([[0, 0, 0], [2, 0, 0], [0, 2, 0], [0, 0, 2.0]]) + 5
+    other = ref * 1.1
+    a, b = normalize_pair(other, ref, "joint")
+    assert np.isclose(np.linalg.norm(b.max(0) - b.min(0)), 2.0)
+    assert np.allclose(b.min(0) + b.max(0), 0)
+    assert np.allclose(a, (other - 6) / np.sqrt(3))  # same map as the reference
+
+
+def test_each_and_none_normalisation():
+    ref = np.array([[0, 0, 0], [2, 0, 0], [0, 2, 0.0]])
+    other = ref * 3 + 7
+    a, b = normalize_pair(other, ref, "each")
+    assert np.allclose(a, b)
+    a, b = normalize_pair(other, ref, "none")
+    assert a is other and b is ref
+    with pytest.raises(ValueError, match="unknown normalization"):
+        normalize_pair(other, ref, "unit")

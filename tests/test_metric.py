@@ -1,0 +1,120 @@
+"""The DRKFS module: a differentiable, deterministic metric with exact zero on identical meshes."""
+
+import json
+import warnings
+
+import pytest
+import torch
+from conftest import icosphere
+
+import drkfs_onnx
+import drkfs_onnx.weights as weights
+from drkfs_onnx import DRKFS, PipelineConfig
+from drkfs_onnx.shapes import assemble, chair, without
+
+FAST = PipelineConfig(num_views=4, image_size=128, descriptor_width=0.25)
+
+
+@pytest.fixture(scope="module")
+def metric() -> DRKFS:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return DRKFS.pretrained(FAST)
+
+
+def _mesh(parts=None, dtype=torch.float32):
+    verts, faces = assemble(parts if parts is not None else chair(), 1)
+    return torch.tensor(verts, dtype=dtype), torch.tensor(faces)
+
+
+def test_features_at_the_paper_config_have_225_descriptors_per_view():
+    torch.manual_seed(0)
+    verts, faces = icosphere(1)
+    metric = DRKFS(PipelineConfig(descriptor_width=0.25))
+    feats = metric.features(torch.tensor(verts, dtype=torch.float32), torch.tensor(faces))
+    assert feats.shape == (25 * 225, 128)
+
+
+def test_identical_meshes_score_exactly_zero(metric):
+    verts, faces = _mesh()
+    assert metric(verts, faces, verts.clone(), faces).item() == 0.0
+
+
+def test_score_is_deterministic_and_positive_for_a_change(metric):
+    a, b = _mesh(without(chair(), "leg_0")), _mesh()
+    first = metric(*a, *b)
+    assert first.item() > 0
+    assert torch.equal(first, metric(*a, *b))
+
+
+def test_gradients_reach_both_meshes_vertices():
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        metric = DRKFS.pretrained(FAST, symmetric=True)
+    verts_a, faces_a = _mesh(without(chair(), "back"))
+    verts_b, faces_b = _mesh()
+    verts_a.requires_grad_(True)
+    verts_b.requires_grad_(True)
+    metric(verts_a, faces_a, verts_b, faces_b).backward()
+    for grad in (verts_a.grad, verts_b.grad):
+        assert torch.isfinite(grad).all()
+        assert grad.abs().sum() > 0
+
+
+def test_skipping_empty_patches_is_exact(metric):
+    """Describing only patches that see the mesh equals describing all of them."""
+    from drkfs_onnx.patches import extract_patches
+
+    verts, faces = _mesh()
+    images = metric.render(verts - verts.mean(0), faces)
+    every = metric.descriptor(extract_patches(metric.detector(images), FAST))
+    assert torch.allclose(metric.describe(images), every, atol=1e-5)
+
+
+def test_each_normalisation_ignores_pose_scale():
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        metric = DRKFS.pretrained(FAST, normalization="each")
+    verts, faces = _mesh()
+    moved = verts * 3.0 + torch.tensor([5.0, -2.0, 1.0])
+    assert (
+        metric(moved, faces, verts, faces).item()
+        < 1e-3 * metric(*_mesh(without(chair(), "back")), verts, faces).item()
+    )
+
+
+def test_nets_stay_frozen_in_eval_mode(metric):
+    metric.train()
+    assert not metric.detector.training and not metric.descriptor.training
+    assert not any(p.requires_grad for p in metric.parameters())
+
+
+def test_pretrained_without_shipped_weights_is_seeded_random():
+    with pytest.warns(UserWarning, match="random weights"):
+        first = DRKFS.pretrained(FAST)
+    with pytest.warns(UserWarning):
+        second = DRKFS.pretrained(FAST)
+    for a, b in zip(first.state_dict().values(), second.state_dict().values(), strict=True):
+        assert torch.equal(a, b)
+
+
+def test_pretrained_loads_weights_listed_for_its_config(tmp_path, monkeypatch):
+    torch.manual_seed(123)
+    trained = DRKFS(FAST)
+    torch.save(trained.state_dict(), tmp_path / "fast.pt")
+    manifest = {"weights": [{"file": "fast.pt", "config": FAST.to_dict()}]}
+    (tmp_path / "manifest.json").write_text(json.dumps(manifest))
+    monkeypatch.setattr(weights, "models_dir", lambda: tmp_path)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        loaded = DRKFS.pretrained(FAST)
+    for a, b in zip(trained.state_dict().values(), loaded.state_dict().values(), strict=True):
+        assert torch.equal(a, b)
+    with pytest.warns(UserWarning, match="random weights"):
+        DRKFS.pretrained(FAST.replace(num_views=5))
+
+
+def test_package_root_exposes_drkfs_lazily():
+    assert drkfs_onnx.DRKFS is DRKFS
+    with pytest.raises(AttributeError):
+        drkfs_onnx.NoSuchThing  # noqa: B018

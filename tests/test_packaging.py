@@ -1,0 +1,66 @@
+"""What a user installs: a torch-free runtime, the examples, the command line."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import trimesh
+from typer.testing import CliRunner
+
+from drkfs_onnx.cli import app
+from drkfs_onnx.examples import example_meshes
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_runtime_imports_where_torch_cannot_be_imported():
+    code = (
+        "import sys; sys.modules['torch'] = None\n"
+        "import drkfs_onnx, drkfs_onnx.runtime, drkfs_onnx.cameras, drkfs_onnx.mesh\n"
+        "from drkfs_onnx import PipelineConfig, load_mesh\n"
+        "from drkfs_onnx.cameras import make_cameras\n"
+        f"mesh = load_mesh({str(ROOT / 'examples' / 'chair.obj')!r})\n"
+        "assert len(make_cameras(PipelineConfig())) == 25 and len(mesh.faces) > 0\n"
+        "try:\n    drkfs_onnx.DRKFS\nexcept ImportError:\n    print('torch-free')\n"
+    )
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.strip() == "torch-free"
+
+
+def test_no_bare_export_or_runtime_module_is_installed(tmp_path):
+    """Outside the checkout, only drkfs_onnx.export and drkfs_onnx.runtime exist."""
+    code = (
+        "import importlib.util as u\n"
+        "print([u.find_spec(n) is None for n in ('export', 'runtime')],"
+        " [u.find_spec(n) is None for n in ('drkfs_onnx.export', 'drkfs_onnx.runtime')])"
+    )
+    result = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path
+    )
+    assert result.stdout.strip() == "[True, True] [False, False]", result.stderr
+
+
+def test_bundled_examples_are_what_the_code_generates():
+    for name, (_, mesh) in example_meshes().items():
+        shipped = trimesh.load(ROOT / "examples" / name, force="mesh", process=False)
+        assert np.allclose(shipped.vertices, mesh.vertices, atol=1e-7), name
+        assert np.array_equal(shipped.faces, mesh.faces), name
+
+
+def test_cli_scores_a_pair_as_json():
+    chair = str(ROOT / "examples" / "chair.obj")
+    result = CliRunner().invoke(app, ["score", chair, chair, "--json"])
+    assert result.exit_code == 0, result.output
+    report = json.loads(result.stdout.strip().splitlines()[-1])
+    assert report["score"] == 0.0 and report["seconds"] > 0
+
+
+def test_cli_names_the_bad_file(tmp_path):
+    bad = tmp_path / "cloud.ply"
+    trimesh.PointCloud(np.random.default_rng(0).random((10, 3))).export(bad)
+    result = CliRunner().invoke(app, ["score", str(bad), str(ROOT / "examples" / "chair.obj")])
+    assert result.exit_code == 2
+    assert str(bad) in result.output and "no faces" in result.output
