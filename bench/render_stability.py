@@ -60,9 +60,8 @@ def main() -> None:
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     Path(args.out).write_text(json.dumps(report, indent=2) + "\n")
     for row in rows:
-        print(
-            f"{row['mesh']:28} mean {row['mean_abs']:.2e}  max {row['max_abs']:.3f}  {row['change']}"
-        )
+        mesh, mean, peak = row["mesh"], row["mean_abs"], row["max_abs"]
+        print(f"{mesh:28} mean {mean:.2e}  max {peak:.3f}  {row['change']}")
 
 
 if __name__ == "__main__":
