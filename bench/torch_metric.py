@@ -26,13 +26,18 @@ CASES = {"1k": "woody.obj", "5k": "cow.obj", "20k": "rocker-arm.obj"}
 WIDTHS = (1.0, 0.5, 0.25)
 
 
-def _best(fn, repeats: int) -> float:
+def _timed(fn, repeats: int):
+    """(best seconds over repeats, the last call's output)."""
     times = []
     for _ in range(repeats):
         start = time.perf_counter()
-        fn()
+        output = fn()
         times.append(time.perf_counter() - start)
-    return min(times)
+    return min(times), output
+
+
+def _best(fn, repeats: int) -> float:
+    return _timed(fn, repeats)[0]
 
 
 def _rss_mb() -> float:
@@ -114,14 +119,11 @@ def run_dense_comparison(repeats: int) -> dict:
     faces = torch.tensor(sphere.faces)
     renderer = Renderer(config)
     with torch.no_grad():
-        sparse_s = _best(lambda: renderer.render(verts, faces), repeats)
-        dense_s = _best(
+        sparse_s, sparse = _timed(lambda: renderer.render(verts, faces), repeats)
+        dense_s, dense = _timed(
             lambda: dense_render(verts, faces, renderer.cameras, config, "shaded"), repeats
         )
-        diff = (
-            renderer.render(verts, faces)
-            - dense_render(verts, faces, renderer.cameras, config, "shaded")
-        ).abs()
+        diff = (sparse - dense).abs()
     return {
         "faces": len(faces),
         "views": config.num_views,
