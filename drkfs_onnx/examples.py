@@ -6,7 +6,8 @@ from pathlib import Path
 
 import trimesh
 
-from .shapes import assemble, chair, shifted, without
+from .shapes import assemble, chair
+from .variants import shifted, without
 
 REFERENCE = "chair.obj"
 

@@ -1,11 +1,14 @@
-"""Procedural part-based shapes: the project's own example meshes, built from code.
+"""Procedural part-based shapes: the project's example meshes and training data, built from code.
 
-A shape is a list of named parts (closed boxes), so variants can drop, move or reshape one part.
+A shape is a list of named parts (boxes and cylinders), so variants can drop, add, move or
+reshape one part (see ``variants.py``). Every family draws its parameters from a numpy Generator,
+so a seed fixes the shape.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -21,18 +24,53 @@ _CUBE_FACES = np.array(
     ],
     dtype=np.int64,
 )  # fmt: skip
+CYLINDER_SEGMENTS = 16
+
+
+def _unit_cylinder(segments: int = CYLINDER_SEGMENTS) -> tuple[np.ndarray, np.ndarray]:
+    """A closed cylinder of diameter 1 and height 1 along y, centred on the origin."""
+    angle = 2 * np.pi * np.arange(segments) / segments
+    ring = np.stack([0.5 * np.cos(angle), np.zeros(segments), 0.5 * np.sin(angle)], axis=1)
+    verts = np.concatenate([ring - [0, 0.5, 0], ring + [0, 0.5, 0], [[0, -0.5, 0], [0, 0.5, 0]]])
+    i = np.arange(segments)
+    j = (i + 1) % segments
+    bottom, top = 2 * segments, 2 * segments + 1
+    faces = np.concatenate(
+        [
+            np.stack([i, segments + i, segments + j], axis=1),
+            np.stack([i, segments + j, j], axis=1),
+            np.stack([np.full(segments, bottom), i, j], axis=1),
+            np.stack([np.full(segments, top), segments + j, segments + i], axis=1),
+        ]
+    )
+    return verts, faces
+
+
+_CYLINDER = _unit_cylinder()
+_AXIS_ORDER = {0: [1, 0, 2], 1: [0, 1, 2], 2: [0, 2, 1]}  # put the cylinder's y onto the axis
 
 
 @dataclass(frozen=True)
-class Box:
-    """An axis-aligned box part: centre and full size, y up."""
+class Part:
+    """An axis-aligned box or cylinder: centre and full size (x, y, z), y up.
+
+    A cylinder's axis is ``axis`` (0, 1, 2 for x, y, z); its cross-section is the ellipse
+    inscribed in the box's other two sides.
+    """
 
     name: str
     center: tuple[float, float, float]
     size: tuple[float, float, float]
+    kind: str = "box"
+    axis: int = 1
 
     def mesh(self, subdivisions: int = 0) -> tuple[np.ndarray, np.ndarray]:
-        verts, faces = _CUBE_CORNERS, _CUBE_FACES
+        if self.kind == "box":
+            verts, faces = _CUBE_CORNERS, _CUBE_FACES
+        else:
+            verts, faces = _CYLINDER[0][:, _AXIS_ORDER[self.axis]], _CYLINDER[1]
+            if self.axis != 1:  # swapping two coordinates mirrors the mesh: keep faces outward
+                faces = faces[:, ::-1]
         for _ in range(subdivisions):
             verts, faces = _subdivide(verts, faces)
         return verts * np.array(self.size) + np.array(self.center), faces
@@ -50,7 +88,7 @@ def _subdivide(verts: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.nda
     return verts, children.transpose(2, 0, 1).reshape(-1, 3)
 
 
-def assemble(parts: list[Box], subdivisions: int = 0) -> tuple[np.ndarray, np.ndarray]:
+def assemble(parts: list[Part], subdivisions: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """Concatenate part meshes into one (V, 3) float64, (F, 3) int64 mesh."""
     verts, faces, offset = [], [], 0
     for part in parts:
@@ -61,30 +99,200 @@ def assemble(parts: list[Box], subdivisions: int = 0) -> tuple[np.ndarray, np.nd
     return np.concatenate(verts), np.concatenate(faces)
 
 
+def _legs(prefix: str, half_x: float, half_z: float, height: float, thick: float) -> list[Part]:
+    corners = [(-1, -1), (1, -1), (-1, 1), (1, 1)]
+    return [
+        Part(f"{prefix}_{i}", (sx * half_x, height / 2, sz * half_z), (thick, height, thick))
+        for i, (sx, sz) in enumerate(corners)
+    ]
+
+
 def chair(
     seat_height: float = 0.45, seat_width: float = 0.5, back_height: float = 0.5, leg: float = 0.05
-) -> list[Box]:
+) -> list[Part]:
     """A four-legged chair with a backrest."""
     half = seat_width / 2 - leg / 2
-    legs = [
-        Box(f"leg_{i}", (sx * half, seat_height / 2, sz * half), (leg, seat_height, leg))
-        for i, (sx, sz) in enumerate([(-1, -1), (1, -1), (-1, 1), (1, 1)])
-    ]
-    seat = Box("seat", (0.0, seat_height + 0.025, 0.0), (seat_width, 0.05, seat_width))
-    back = Box(
-        "back",
-        (0.0, seat_height + 0.05 + back_height / 2, -half),
-        (seat_width, back_height, leg),
+    seat = Part("seat", (0.0, seat_height + 0.025, 0.0), (seat_width, 0.05, seat_width))
+    back = Part(
+        "back", (0.0, seat_height + 0.05 + back_height / 2, -half), (seat_width, back_height, leg)
     )
-    return [*legs, seat, back]
+    return [*_legs("leg", half, half, seat_height, leg), seat, back]
 
 
-def without(parts: list[Box], name: str) -> list[Box]:
-    return [p for p in parts if p.name != name]
+def random_chair(rng: np.random.Generator) -> list[Part]:
+    parts = chair(
+        seat_height=rng.uniform(0.35, 0.55),
+        seat_width=rng.uniform(0.4, 0.6),
+        back_height=rng.uniform(0.3, 0.6),
+        leg=rng.uniform(0.03, 0.07),
+    )
+    if rng.random() < 0.5:  # bars between the front and back legs
+        seat_width = parts[4].size[0]
+        height = rng.uniform(0.1, 0.25)
+        for side, x in (("left", parts[0].center[0]), ("right", parts[1].center[0])):
+            parts.append(Part(f"bar_{side}", (x, height, 0.0), (0.03, 0.03, seat_width)))
+    return parts
 
 
-def shifted(parts: list[Box], name: str, offset: tuple[float, float, float]) -> list[Box]:
-    return [
-        replace(p, center=tuple(np.add(p.center, offset).tolist())) if p.name == name else p
-        for p in parts
+def table(rng: np.random.Generator) -> list[Part]:
+    width, depth = rng.uniform(0.8, 1.4), rng.uniform(0.5, 0.9)
+    height, leg, top = rng.uniform(0.5, 0.8), rng.uniform(0.04, 0.1), rng.uniform(0.03, 0.08)
+    top_part = Part("top", (0.0, height + top / 2, 0.0), (width, top, depth))
+    if rng.random() < 0.3:  # pedestal table
+        radius = rng.uniform(0.3, 0.5) * depth
+        return [
+            Part("base", (0.0, 0.02, 0.0), (2 * radius, 0.04, 2 * radius), "cylinder"),
+            Part("pedestal", (0.0, height / 2, 0.0), (leg * 1.5, height, leg * 1.5), "cylinder"),
+            top_part,
+        ]
+    return [*_legs("leg", width / 2 - leg, depth / 2 - leg, height, leg), top_part]
+
+
+def lamp(rng: np.random.Generator) -> list[Part]:
+    base, pole = rng.uniform(0.25, 0.45), rng.uniform(0.6, 1.2)
+    shade_w, shade_h = rng.uniform(0.25, 0.5), rng.uniform(0.15, 0.3)
+    arm = rng.uniform(0.0, 0.3)
+    parts = [
+        Part("base", (0.0, 0.025, 0.0), (base, 0.05, base), "cylinder"),
+        Part("pole", (0.0, 0.05 + pole / 2, 0.0), (0.03, pole, 0.03), "cylinder"),
     ]
+    top = 0.05 + pole
+    if arm > 0.1:
+        parts.append(Part("arm", (arm / 2, top, 0.0), (arm, 0.03, 0.03), "cylinder", axis=0))
+    shade_x = arm if arm > 0.1 else 0.0
+    parts.append(
+        Part("shade", (shade_x, top - shade_h / 3, 0.0), (shade_w, shade_h, shade_w), "cylinder")
+    )
+    return parts
+
+
+def airplane(rng: np.random.Generator) -> list[Part]:
+    length, body = rng.uniform(1.2, 1.8), rng.uniform(0.12, 0.2)
+    span, chord = rng.uniform(1.0, 1.8), rng.uniform(0.2, 0.35)
+    wing_x = rng.uniform(-0.1, 0.15) * length
+    tail_x = -0.42 * length
+    parts = [
+        Part("fuselage", (0.0, 0.0, 0.0), (length, body, body), "cylinder", axis=0),
+        Part("wings", (wing_x, 0.0, 0.0), (chord, 0.03, span)),
+        Part("stabilizer", (tail_x, 0.0, 0.0), (chord * 0.6, 0.02, span * 0.35)),
+        Part("fin", (tail_x, body * 1.2, 0.0), (chord * 0.6, body * 1.6, 0.02)),
+    ]
+    if rng.random() < 0.6:
+        for side in (-1, 1):
+            parts.append(
+                Part(
+                    f"engine_{'lr'[side > 0]}",
+                    (wing_x + 0.05, -body * 0.7, side * span * 0.25),
+                    (0.25, 0.09, 0.09),
+                    "cylinder",
+                    axis=0,
+                )
+            )
+    return parts
+
+
+def car(rng: np.random.Generator) -> list[Part]:
+    length, width = rng.uniform(1.2, 1.8), rng.uniform(0.6, 0.8)
+    body_h, cabin_h = rng.uniform(0.2, 0.35), rng.uniform(0.18, 0.3)
+    wheel = rng.uniform(0.22, 0.32)
+    clearance = wheel * 0.5
+    cabin_len = rng.uniform(0.4, 0.6) * length
+    parts = [
+        Part("body", (0.0, clearance + body_h / 2, 0.0), (length, body_h, width)),
+        Part(
+            "cabin",
+            (rng.uniform(-0.1, 0.05) * length, clearance + body_h + cabin_h / 2, 0.0),
+            (cabin_len, cabin_h, width * 0.9),
+        ),
+    ]
+    for i, (sx, sz) in enumerate([(-1, -1), (1, -1), (-1, 1), (1, 1)]):
+        parts.append(
+            Part(
+                f"wheel_{i}",
+                (sx * length * 0.32, wheel / 2, sz * (width / 2)),
+                (wheel, wheel, 0.1),
+                "cylinder",
+                axis=2,
+            )
+        )
+    return parts
+
+
+def mug(rng: np.random.Generator) -> list[Part]:
+    radius, height = rng.uniform(0.3, 0.45), rng.uniform(0.5, 0.9)
+    reach, thick = rng.uniform(0.12, 0.2), 0.04
+    low, high = height * rng.uniform(0.2, 0.3), height * rng.uniform(0.7, 0.8)
+    outer = radius + reach
+    return [
+        Part("body", (0.0, height / 2, 0.0), (2 * radius, height, 2 * radius), "cylinder"),
+        Part("handle_low", (radius + reach / 2, low, 0.0), (reach, thick, thick)),
+        Part("handle_high", (radius + reach / 2, high, 0.0), (reach, thick, thick)),
+        Part("handle_grip", (outer, (low + high) / 2, 0.0), (thick, high - low + thick, thick)),
+    ]
+
+
+def shelf(rng: np.random.Generator) -> list[Part]:
+    width, height, depth = rng.uniform(0.6, 1.0), rng.uniform(0.8, 1.6), rng.uniform(0.25, 0.4)
+    board = 0.03
+    count = int(rng.integers(2, 6))
+    parts = [
+        Part("side_left", (-width / 2, height / 2, 0.0), (board, height, depth)),
+        Part("side_right", (width / 2, height / 2, 0.0), (board, height, depth)),
+    ]
+    if rng.random() < 0.5:
+        parts.append(Part("back", (0.0, height / 2, -depth / 2), (width, height, board)))
+    for i in range(count):
+        y = board / 2 + i * (height - board) / (count - 1)
+        parts.append(Part(f"board_{i}", (0.0, y, 0.0), (width, board, depth)))
+    return parts
+
+
+def sofa(rng: np.random.Generator) -> list[Part]:
+    width, depth = rng.uniform(1.2, 2.0), rng.uniform(0.6, 0.9)
+    seat_h, back_h, arm_w = rng.uniform(0.3, 0.45), rng.uniform(0.3, 0.5), rng.uniform(0.1, 0.2)
+    seats = int(rng.integers(1, 4))
+    inner = width - 2 * arm_w
+    parts = [
+        Part("base", (0.0, seat_h / 2, 0.0), (width, seat_h, depth)),
+        Part("back", (0.0, seat_h + back_h / 2, -depth / 2 + 0.08), (width, back_h, 0.16)),
+        Part("arm_left", (-(width - arm_w) / 2, seat_h + 0.12, 0.0), (arm_w, 0.24, depth)),
+        Part("arm_right", ((width - arm_w) / 2, seat_h + 0.12, 0.0), (arm_w, 0.24, depth)),
+    ]
+    for i in range(seats):
+        x = -inner / 2 + (i + 0.5) * inner / seats
+        size = (inner / seats * 0.95, 0.1, depth - 0.2)
+        parts.append(Part(f"cushion_{i}", (x, seat_h + 0.05, 0.06), size))
+    return parts
+
+
+def primitives(rng: np.random.Generator) -> list[Part]:
+    """3 to 6 random boxes and cylinders, each touching the previous one."""
+    parts: list[Part] = []
+    center = np.zeros(3)
+    for i in range(int(rng.integers(3, 7))):
+        size = rng.uniform(0.1, 0.6, size=3)
+        if parts:
+            step = rng.normal(size=3)
+            center = center + 0.5 * (np.abs(step) / np.abs(step).max() * size) * np.sign(step)
+        kind = "cylinder" if rng.random() < 0.4 else "box"
+        axis = int(rng.integers(0, 3))
+        parts.append(Part(f"part_{i}", tuple(center.tolist()), tuple(size.tolist()), kind, axis))
+    return parts
+
+
+FAMILIES: dict[str, Callable[[np.random.Generator], list[Part]]] = {
+    "chair": random_chair,
+    "table": table,
+    "lamp": lamp,
+    "airplane": airplane,
+    "car": car,
+    "mug": mug,
+    "shelf": shelf,
+    "sofa": sofa,
+    "primitives": primitives,
+}
+
+
+def random_shape(family: str, seed: int | np.random.Generator) -> list[Part]:
+    """A shape of ``family`` with parameters drawn from ``seed``."""
+    return FAMILIES[family](np.random.default_rng(seed))

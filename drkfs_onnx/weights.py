@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import json
 from importlib import resources
 
@@ -31,5 +32,8 @@ def load_shipped_state(config: PipelineConfig):
             import torch
 
             with resources.as_file(models_dir() / entry["file"]) as path:
+                digest = hashlib.sha256(path.read_bytes()).hexdigest()
+                if digest != entry["sha256"]:
+                    raise ValueError(f"{path}: sha256 {digest} does not match the manifest")
                 return torch.load(path, map_location="cpu", weights_only=True)
     return None

@@ -1,5 +1,6 @@
 """The DRKFS module: a differentiable, deterministic metric with exact zero on identical meshes."""
 
+import hashlib
 import json
 import warnings
 
@@ -10,7 +11,8 @@ from conftest import icosphere
 import drkfs_onnx
 import drkfs_onnx.weights as weights
 from drkfs_onnx import DRKFS, PipelineConfig
-from drkfs_onnx.shapes import assemble, chair, without
+from drkfs_onnx.shapes import assemble, chair
+from drkfs_onnx.variants import without
 
 FAST = PipelineConfig(num_views=4, image_size=128, descriptor_width=0.25)
 
@@ -102,7 +104,8 @@ def test_pretrained_loads_weights_listed_for_its_config(tmp_path, monkeypatch):
     torch.manual_seed(123)
     trained = DRKFS(FAST)
     torch.save(trained.state_dict(), tmp_path / "fast.pt")
-    manifest = {"weights": [{"file": "fast.pt", "config": FAST.to_dict()}]}
+    digest = hashlib.sha256((tmp_path / "fast.pt").read_bytes()).hexdigest()
+    manifest = {"weights": [{"file": "fast.pt", "sha256": digest, "config": FAST.to_dict()}]}
     (tmp_path / "manifest.json").write_text(json.dumps(manifest))
     monkeypatch.setattr(weights, "models_dir", lambda: tmp_path)
     with warnings.catch_warnings():
@@ -112,6 +115,9 @@ def test_pretrained_loads_weights_listed_for_its_config(tmp_path, monkeypatch):
         assert torch.equal(a, b)
     with pytest.warns(UserWarning, match="random weights"):
         DRKFS.pretrained(FAST.replace(num_views=5))
+    (tmp_path / "fast.pt").write_bytes(b"tampered")
+    with pytest.raises(ValueError, match="does not match the manifest"):
+        DRKFS.pretrained(FAST)
 
 
 def test_package_root_exposes_drkfs_lazily():

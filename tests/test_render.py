@@ -110,7 +110,7 @@ def test_back_faces_render_like_front_faces():
 def test_retessellation_barely_changes_the_image():
     """Splitting every triangle into four keeps the surface, so the render stays nearly equal,
     far closer than moving one leg by 2%."""
-    from drkfs_onnx.shapes import shifted
+    from drkfs_onnx.variants import shifted
 
     base = chair()
     renderer = Renderer(PipelineConfig(num_views=6, image_size=128))

@@ -1,0 +1,405 @@
+"""``drkfs train``: synthetic data -> detector sweep -> HardNet width sweep -> held-out evaluation
+-> shipped weights and manifest. Every stage checkpoints to a work folder and resumes from it."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import subprocess
+import sys
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+import torch
+import typer
+from torch import nn
+
+from ..config import PipelineConfig
+from ..detector import PoIDetector
+from ..hardnet import HardNet
+from ..metric import DRKFS
+from ..shapes import FAMILIES
+from ..weights import MANIFEST, RANDOM_SEED
+from .data import ViewPairs, crops, render_pairs, sample_matches
+from .evaluate import (
+    conv_flops,
+    descriptor_fpr95,
+    difference_of_gaussians,
+    harris,
+    repeatability,
+    variant_ranking,
+)
+from .objectives import detector_loss, hardest_triplet_loss, same_place
+
+BORDER = 20  # matches stay this far inside the image: 16 for a 32-pixel patch, plus jitter
+JITTER = 3  # pixels a positive patch is moved by, for the metric's grid misalignment
+FPR95_TOLERANCE = 1.0  # ship the smallest net within this many FPR95 points of the best
+REPEAT_TOLERANCE = 0.01  # and the smallest detector within this repeatability of the best
+
+
+@dataclass(frozen=True)
+class TrainPlan:
+    """Everything that decides the shipped weights, besides the code."""
+
+    seed: int = 0
+    shapes_per_family: int = 16
+    pairs_per_shape: int = 4
+    heldout_shapes_per_family: int = 4
+    heldout_pairs_per_shape: int = 2
+    matches_per_pair: int = 256
+    detector_sizes: tuple[tuple[int, int, int], ...] = ((4, 4, 9), (2, 2, 9), (4, 4, 5))
+    detector_steps: int = 250
+    detector_batch: int = 8
+    detector_lr: float = 1e-2
+    widths: tuple[float, ...] = (1.0, 0.5, 0.25)
+    hardnet_steps: int = 500
+    hardnet_batch: int = 256
+    hardnet_lr: float = 1e-3
+    ranking_shapes_per_family: int = 1
+    checkpoint_every: int = 50
+    config: dict = field(default_factory=lambda: PipelineConfig().to_dict())
+
+    @property
+    def pipeline(self) -> PipelineConfig:
+        return PipelineConfig.from_dict(self.config)
+
+
+QUICK = TrainPlan(
+    shapes_per_family=1,
+    pairs_per_shape=2,
+    heldout_shapes_per_family=1,
+    heldout_pairs_per_shape=1,
+    matches_per_pair=64,
+    detector_sizes=((4, 4, 9), (2, 2, 5)),
+    detector_steps=6,
+    detector_batch=4,
+    widths=(0.25, 0.125),
+    hardnet_steps=6,
+    hardnet_batch=32,
+    checkpoint_every=3,
+    config=PipelineConfig(num_views=4, image_size=128).to_dict(),
+)
+
+
+def sha256(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def plan_key(plan: TrainPlan) -> str:
+    """A short hash of the plan: checkpoints of different plans never mix in one work folder."""
+    return hashlib.sha256(json.dumps(asdict(plan), sort_keys=True).encode()).hexdigest()[:12]
+
+
+def _git_commit() -> str:
+    try:
+        head = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True)
+        dirty = subprocess.run(
+            ["git", "status", "--porcelain", "--untracked-files=no"], capture_output=True, text=True
+        )
+    except OSError:
+        return "unknown"
+    if head.returncode != 0:
+        return "unknown"
+    return head.stdout.strip() + ("-dirty" if dirty.stdout.strip() else "")
+
+
+def fit(model: nn.Module, loss_fn, steps: int, lr: float, checkpoint: Path, every: int) -> None:
+    """Adam with a cosine learning rate, resumable: the optimiser, the step and the model are
+    saved every ``every`` steps; batches and dropout are seeded by the step, so a resumed run
+    takes the same steps as an uninterrupted one."""
+    optimizer = torch.optim.Adam(model.parameters(), lr=lr)
+    start = 0
+    if checkpoint.exists():
+        state = torch.load(checkpoint, weights_only=True)
+        model.load_state_dict(state["model"])
+        optimizer.load_state_dict(state["optimizer"])
+        start = state["step"]
+    model.train()
+    with typer.progressbar(
+        range(start, steps), length=steps - start, label=checkpoint.stem, file=sys.stderr
+    ) as bar:
+        for step in bar:
+            for group in optimizer.param_groups:
+                group["lr"] = lr * 0.5 * (1 + math.cos(math.pi * step / steps))
+            torch.manual_seed(step)
+            loss = loss_fn(model, step)
+            optimizer.zero_grad()
+            loss.backward()
+            optimizer.step()
+            if (step + 1) % every == 0 or step + 1 == steps:
+                state = {"model": model.state_dict(), "optimizer": optimizer.state_dict()}
+                partial = checkpoint.with_suffix(".partial")
+                torch.save({**state, "step": step + 1}, partial)
+                partial.replace(checkpoint)
+    model.eval()
+
+
+def _pair_slices(matches: torch.Tensor, count: int) -> list[torch.Tensor]:
+    """Matches (sorted by pair id) split per pair."""
+    ends = torch.searchsorted(matches[:, 0].contiguous(), torch.arange(1, count + 1))
+    return list(torch.tensor_split(matches, ends[:-1]))
+
+
+def _detector_config(config: PipelineConfig, size: tuple[int, int, int]) -> PipelineConfig:
+    n, m, kernel = size
+    return config.replace(detector_n=n, detector_m=m, detector_kernel=kernel)
+
+
+def _size_name(size: tuple[int, int, int]) -> str:
+    return "n{}m{}k{}".format(*size)
+
+
+@torch.no_grad()
+def _maps(detector: nn.Module, pairs: ViewPairs) -> torch.Tensor:
+    n, _, s, _ = pairs.images.shape
+    return detector(pairs.images.view(-1, 1, s, s)).view(n, 2, s, s)
+
+
+def _params(net: nn.Module) -> int:
+    return sum(p.numel() for p in net.parameters())
+
+
+class Training:
+    """One run of the plan, with its work folder."""
+
+    def __init__(self, plan: TrainPlan, work: Path):
+        self.plan, self.work = plan, work
+        self.config = plan.pipeline
+        work.mkdir(parents=True, exist_ok=True)
+        self.times_file = work / "seconds.json"
+        self.times = json.loads(self.times_file.read_text()) if self.times_file.exists() else {}
+
+    def _timed(self, name: str, start: float) -> None:
+        self.times[name] = self.times.get(name, 0.0) + time.perf_counter() - start
+        self.times_file.write_text(json.dumps(self.times, indent=1))
+
+    def data(self) -> dict:
+        """Training and held-out view pairs (different seeds, so different shapes) and matches."""
+        path = self.work / "data.pt"
+        if path.exists():
+            saved = torch.load(path, weights_only=True)
+            return {k: ViewPairs(**v) if k.endswith("pairs") else v for k, v in saved.items()}
+        start = time.perf_counter()
+        p, families = self.plan, list(FAMILIES)
+        train = render_pairs(
+            self.config, families, p.shapes_per_family, p.pairs_per_shape, seed=p.seed
+        )
+        heldout = render_pairs(
+            self.config,
+            families,
+            p.heldout_shapes_per_family,
+            p.heldout_pairs_per_shape,
+            seed=p.seed + 1,
+        )
+        data = {
+            "train_pairs": train,
+            "heldout_pairs": heldout,
+            "train_matches": sample_matches(train, self.config, p.matches_per_pair, BORDER, p.seed),
+            "heldout_matches": sample_matches(
+                heldout, self.config, p.matches_per_pair, BORDER, p.seed + 1
+            ),
+        }
+        torch.save(
+            {k: v.to_dict() if isinstance(v, ViewPairs) else v for k, v in data.items()}, path
+        )
+        self._timed("data", start)
+        return data
+
+    def detector(self, size: tuple[int, int, int], data: dict) -> PoIDetector:
+        p = self.plan
+        torch.manual_seed(p.seed)
+        detector = PoIDetector(_detector_config(self.config, size))
+        pairs = data["train_pairs"]
+        per_pair = _pair_slices(data["train_matches"], len(pairs))
+        s = self.config.image_size
+
+        def loss_fn(model: nn.Module, step: int) -> torch.Tensor:
+            rng = np.random.default_rng([p.seed, 1, step])
+            batch = rng.choice(len(pairs), p.detector_batch, replace=False)
+            matches = torch.cat(
+                [
+                    torch.cat([torch.full((len(m), 1), i), m[:, 1:]], 1)
+                    for i, m in enumerate(per_pair[j] for j in batch)
+                ]
+            )
+            images = pairs.images[batch].view(-1, 1, s, s)
+            maps = model(images).view(len(batch), 2, s, s)
+            gen = torch.Generator().manual_seed(int(rng.integers(2**31)))
+            return detector_loss(maps, pairs.depth[batch] > 0, matches, gen)[0]
+
+        start = time.perf_counter()
+        checkpoint = self.work / f"detector_{_size_name(size)}.pt"
+        fit(detector, loss_fn, p.detector_steps, p.detector_lr, checkpoint, p.checkpoint_every)
+        self._timed(checkpoint.stem, start)
+        return detector
+
+    def hardnet(self, width: float, maps: torch.Tensor, matches: torch.Tensor) -> HardNet:
+        p = self.plan
+        torch.manual_seed(p.seed)
+        net = HardNet(self.config.replace(descriptor_width=width))
+        size = self.config.patch_size
+
+        def loss_fn(model: nn.Module, step: int) -> torch.Tensor:
+            rng = np.random.default_rng([p.seed, 2, step])
+            batch = matches[torch.as_tensor(rng.choice(len(matches), p.hardnet_batch, False))]
+            moved = batch[:, [0, 3, 4]].clone()
+            moved[:, 1:] += torch.as_tensor(rng.integers(-JITTER, JITTER + 1, (len(batch), 2)))
+            first = crops(maps[:, 0], batch[:, [0, 1, 2]], size)
+            second = crops(maps[:, 1], moved, size)
+            out = model(torch.cat([first, second]).unsqueeze(1))
+            anchors, positives = out.chunk(2)
+            return hardest_triplet_loss(anchors, positives, same_place(batch))
+
+        start = time.perf_counter()
+        checkpoint = self.work / f"hardnet_w{width:g}.pt"
+        fit(net, loss_fn, p.hardnet_steps, p.hardnet_lr, checkpoint, p.checkpoint_every)
+        self._timed(checkpoint.stem, start)
+        return net
+
+
+def train(plan: TrainPlan, out: Path, work: Path, command: str) -> dict:
+    """Run the plan; write ``out/drkfs_w*.pt`` and ``out/manifest.json``; return the manifest."""
+    run = Training(plan, work / plan_key(plan))
+    config = run.config
+    data = run.data()
+    heldout, heldout_matches = data["heldout_pairs"], data["heldout_matches"]
+    s = config.image_size
+    view = torch.zeros(1, 1, s, s)
+
+    # Detector sweep: repeatability on held-out pairs against classical detectors.
+    images = heldout.images.view(-1, 1, s, s)
+    shape = heldout.images.shape
+    detector_rows = [
+        {
+            "detector": "harris",
+            "repeatability": repeatability(harris(images).view(shape), heldout, config),
+        },
+        {
+            "detector": "dog",
+            "repeatability": repeatability(
+                difference_of_gaussians(images).view(shape), heldout, config
+            ),
+        },
+    ]
+    detectors = {}
+    for size in plan.detector_sizes:
+        torch.manual_seed(plan.seed)
+        untrained = PoIDetector(_detector_config(config, size))
+        detectors[size] = run.detector(size, data)
+        detector_rows.append(
+            {
+                "detector": _size_name(size),
+                "params": _params(detectors[size]),
+                "flops_per_view": conv_flops(detectors[size], view),
+                "repeatability": repeatability(_maps(detectors[size], heldout), heldout, config),
+                "repeatability_untrained": repeatability(
+                    _maps(untrained, heldout), heldout, config
+                ),
+            }
+        )
+    best = max(r["repeatability"] for r in detector_rows if "params" in r)
+    size = min(
+        (
+            s_
+            for s_, r in zip(plan.detector_sizes, detector_rows[2:], strict=True)
+            if r["repeatability"] >= best - REPEAT_TOLERANCE
+        ),
+        key=lambda s_: _params(detectors[s_]),
+    )
+    detector = detectors[size]
+    train_maps, heldout_maps = _maps(detector, data["train_pairs"]), _maps(detector, heldout)
+
+    # HardNet width sweep on the chosen detector's maps.
+    nets, descriptor_rows = {}, []
+    patch = torch.zeros(1, 1, config.patch_size, config.patch_size)
+    for width in plan.widths:
+        nets[width] = run.hardnet(width, train_maps, data["train_matches"])
+        torch.manual_seed(plan.seed)
+        untrained = HardNet(config.replace(descriptor_width=width)).eval()
+        descriptor_rows.append(
+            {
+                "width": width,
+                "params": _params(nets[width]),
+                "flops_per_patch": conv_flops(nets[width], patch),
+                "fpr95": descriptor_fpr95(
+                    nets[width], heldout_maps, heldout_matches, config.patch_size, plan.seed
+                ),
+                "fpr95_untrained": descriptor_fpr95(
+                    untrained, heldout_maps, heldout_matches, config.patch_size, plan.seed
+                ),
+            }
+        )
+    best_fpr = min(r["fpr95"] for r in descriptor_rows)
+    width = min(r["width"] for r in descriptor_rows if r["fpr95"] <= best_fpr + FPR95_TOLERANCE)
+
+    # Ship every width with the chosen detector.
+    out.mkdir(parents=True, exist_ok=True)
+    entries = []
+    for w, net in nets.items():
+        shipped = _detector_config(config, size).replace(descriptor_width=w)
+        metric = DRKFS(shipped)
+        metric.detector.load_state_dict(detector.state_dict())
+        metric.descriptor.load_state_dict(net.state_dict())
+        path = out / f"drkfs_w{w:g}.pt"
+        torch.save(metric.state_dict(), path)
+        entries.append(
+            {
+                "file": path.name,
+                "sha256": sha256(path),
+                "config": shipped.to_dict(),
+                "default": w == width,
+            }
+        )
+
+    # Does training help the metric rank structural edits above mild ones?
+    start = time.perf_counter()
+    chosen = _detector_config(config, size).replace(descriptor_width=width)
+    trained = DRKFS(chosen)
+    trained.load_state_dict(torch.load(out / f"drkfs_w{width:g}.pt", weights_only=True))
+    with torch.random.fork_rng():
+        torch.manual_seed(RANDOM_SEED)
+        untrained_metric = DRKFS(chosen)
+    ranking = {}
+    for name, metric in (("trained", trained), ("untrained", untrained_metric)):
+        with torch.no_grad():
+            ranking[name] = variant_ranking(
+                metric.features, plan.seed + 2, plan.ranking_shapes_per_family
+            )
+    run._timed("ranking", start)
+
+    manifest = {
+        "command": command,
+        "seed": plan.seed,
+        "commit": _git_commit(),
+        "torch": torch.__version__,
+        "plan": asdict(plan),
+        "data": {
+            "families": list(FAMILIES),
+            "train": {
+                "shapes": plan.shapes_per_family * len(FAMILIES),
+                "view_pairs": len(data["train_pairs"]),
+                "matches": len(data["train_matches"]),
+            },
+            "heldout": {
+                "shapes": plan.heldout_shapes_per_family * len(FAMILIES),
+                "view_pairs": len(heldout),
+                "matches": len(heldout_matches),
+            },
+        },
+        "seconds": run.times,
+        "detectors": detector_rows,
+        "descriptors": descriptor_rows,
+        "choice": {
+            "detector": _size_name(size),
+            "width": width,
+            "rule": f"smallest detector within {REPEAT_TOLERANCE} repeatability and smallest "
+            f"width within {FPR95_TOLERANCE} FPR95 point of the best",
+        },
+        "ranking": ranking,
+        "weights": entries,
+    }
+    (out / MANIFEST).write_text(json.dumps(manifest, indent=1) + "\n")
+    return manifest

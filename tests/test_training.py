@@ -1,0 +1,150 @@
+"""Training: procedural shapes and variants, ground-truth correspondences, objectives, the
+resumable optimiser loop, a quick end-to-end run and the shipped weights' manifest."""
+
+import hashlib
+import json
+import warnings
+
+import numpy as np
+import pytest
+import torch
+import trimesh
+from typer.testing import CliRunner
+
+from drkfs_onnx import DRKFS, PipelineConfig
+from drkfs_onnx.cli import app
+from drkfs_onnx.shapes import FAMILIES, assemble, random_shape
+from drkfs_onnx.training.data import ViewPairs, correspond, render_pairs, sample_matches
+from drkfs_onnx.training.objectives import detector_loss, hardest_triplet_loss
+from drkfs_onnx.training.run import fit
+from drkfs_onnx.variants import MILD, STRUCTURAL, make_variants
+from drkfs_onnx.weights import MANIFEST, models_dir
+
+
+@pytest.mark.parametrize("family", list(FAMILIES))
+def test_every_family_makes_closed_outward_parts_that_vary_with_the_seed(family):
+    first, second = random_shape(family, 1), random_shape(family, 2)
+    assert len(first) >= 3 and first != second
+    for part in first:
+        mesh = trimesh.Trimesh(*part.mesh(), process=False)
+        assert mesh.is_watertight and mesh.volume > 0
+    assert first == random_shape(family, 1)
+
+
+def test_variants_edit_one_shape_structurally_and_mildly():
+    parts = random_shape("chair", 0)
+    variants = make_variants(parts, np.random.default_rng(0))
+    assert [v.name for v in variants] == [*STRUCTURAL, *MILD]
+    base_faces = len(assemble(parts, 1)[1])
+    by_name = {v.name: v for v in variants}
+    assert len(by_name["part_removed"].faces) < base_faces < len(by_name["part_added"].faces)
+    assert len(by_name["retessellated"].faces) == 4 * base_faces
+    for name in ("jittered", "part_shifted", "part_thickened", "rotated"):
+        assert len(by_name[name].faces) == base_faces
+
+
+@pytest.fixture(scope="module")
+def pairs():
+    return render_pairs(PipelineConfig(image_size=128), ["chair", "mug"], 1, 2, seed=3)
+
+
+def test_correspondences_map_back_to_where_they_came_from(pairs):
+    config = PipelineConfig(image_size=128)
+    matches = sample_matches(pairs, config, 200, 8, seed=0)
+    assert len(matches) > 200
+    swapped = ViewPairs(
+        pairs.images.flip(1), pairs.depth.flip(1), pairs.rotations.flip(1), pairs.eyes.flip(1),
+        pairs.family, pairs.shape,
+    )  # fmt: skip
+    back, seen = correspond(swapped, matches[:, 0], matches[:, 3:5], config)
+    error = (back - matches[:, 1:3]).abs().amax(1)[seen]
+    assert seen.float().mean() > 0.95 and error.float().mean() < 0.5 and error.max() <= 2
+
+
+def test_hidden_points_have_no_correspondence(pairs):
+    config = PipelineConfig(image_size=128)
+    background = torch.nonzero(pairs.depth[0, 0] == 0)[:50]
+    _, seen = correspond(pairs, torch.zeros(len(background), dtype=torch.long), background, config)
+    assert not seen.any()
+
+
+def test_triplet_loss_is_zero_for_matching_and_far_descriptors():
+    eye = torch.eye(4)
+    same = torch.eye(4, dtype=torch.bool)
+    assert hardest_triplet_loss(eye, eye, same) == 0
+    assert hardest_triplet_loss(eye, eye.roll(1, 0), same) > 1
+
+
+def test_detector_loss_penalises_flat_maps():
+    matches = torch.tensor([[0, 30, 30, 32, 31]])
+    foreground = torch.ones(1, 2, 64, 64, dtype=torch.bool)
+    flat, parts = detector_loss(torch.full((1, 2, 64, 64), 0.5), foreground, matches)
+    assert parts["peakiness"] == pytest.approx(1.0)
+    peaks = torch.zeros(1, 2, 64, 64)
+    peaks[0, 0, ::8, ::8] = peaks[0, 1, 2::8, 1::8] = 1.0
+    assert detector_loss(peaks, foreground, matches)[0] < flat
+
+
+def test_an_interrupted_fit_resumes_to_the_same_weights(tmp_path):
+    data = torch.randn(64, 3)
+
+    def loss_fn(model, step):
+        rows = torch.as_tensor(np.random.default_rng(step).choice(64, 8, replace=False))
+        return (torch.nn.functional.dropout(model(data[rows]), 0.5) ** 2).mean()
+
+    def fresh():
+        torch.manual_seed(0)
+        return torch.nn.Linear(3, 2)
+
+    straight = fresh()
+    fit(straight, loss_fn, 6, 0.1, tmp_path / "straight.pt", every=2)
+
+    def killed_at_step_3(model, step):
+        if step == 3:
+            raise KeyboardInterrupt
+        return loss_fn(model, step)
+
+    resumed = fresh()
+    with pytest.raises(KeyboardInterrupt):
+        fit(resumed, killed_at_step_3, 6, 0.1, tmp_path / "resumed.pt", every=2)
+    assert torch.load(tmp_path / "resumed.pt")["step"] == 2
+    resumed = fresh()
+    fit(resumed, loss_fn, 6, 0.1, tmp_path / "resumed.pt", every=2)
+    for a, b in zip(straight.parameters(), resumed.parameters(), strict=True):
+        assert torch.equal(a, b)
+
+
+def _check_manifest(folder):
+    manifest = json.loads((folder / MANIFEST).read_text())
+    assert {"command", "seed", "commit", "data", "seconds", "detectors", "descriptors"} <= set(
+        manifest
+    )
+    assert sum(entry["default"] for entry in manifest["weights"]) == 1
+    for entry in manifest["weights"]:
+        path = folder / entry["file"]
+        assert hashlib.sha256(path.read_bytes()).hexdigest() == entry["sha256"]
+        metric = DRKFS(PipelineConfig.from_dict(entry["config"]))
+        metric.load_state_dict(torch.load(path, weights_only=True))
+    return manifest
+
+
+def test_quick_training_writes_weights_that_match_their_manifest(tmp_path):
+    result = CliRunner().invoke(
+        app, ["train", "--quick", "--out", str(tmp_path / "out"), "--work", str(tmp_path / "w")]
+    )
+    assert result.exit_code == 0, result.output
+    assert "FPR95" in result.output
+    manifest = _check_manifest(tmp_path / "out")
+    assert manifest["command"].startswith("drkfs train") and "--quick" in manifest["command"]
+    assert {row["detector"] for row in manifest["detectors"]} >= {"harris", "dog"}
+    for row in manifest["descriptors"]:
+        assert 0 <= row["fpr95"] <= 100 and row["params"] > 0 and row["flops_per_patch"] > 0
+
+
+def test_shipped_weights_match_the_manifest_and_load_by_default():
+    manifest = _check_manifest(models_dir())
+    default = next(e for e in manifest["weights"] if e["default"])
+    assert PipelineConfig.from_dict(default["config"]) == PipelineConfig()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        DRKFS.pretrained()
