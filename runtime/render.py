@@ -1,0 +1,132 @@
+"""The torch renderer's evaluation images, in numpy.
+
+The same soft equations as ``drkfs_onnx.rasterize`` and ``drkfs_onnx.shade`` (coverage
+D' = (sigmoid(+-d^2 / sigma) - eps) / (1 - eps), depth from the face plane clamped to the face's
+range, SoftRas' softmax blend with the background, the same depth cull), evaluated once without
+autograd, so runtime images equal the torch path's to float rounding. Pixel-face pairs are listed
+per face over its bounding box grown by the cut-off radius, in chunks, as in the torch rasteriser.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from drkfs_onnx.cameras import Cameras, make_cameras
+from drkfs_onnx.config import PipelineConfig
+
+DEPTH_CULL = 30.0
+PAIR_CHUNK = 1 << 18
+TINY = 1e-12
+
+
+def _pair_terms(tri: np.ndarray, px: np.ndarray, py: np.ndarray, config: PipelineConfig):
+    """Coverage and normalised inverse depth of pairs; tri (9, P), px and py (P,) in NDC."""
+    x0, y0, x1, y1, x2, y2, w0, w1, w2 = tri
+    dist2 = None
+    edge_fn = []
+    for ax, ay, bx, by in ((x0, y0, x1, y1), (x1, y1, x2, y2), (x2, y2, x0, y0)):
+        ex, ey = bx - ax, by - ay
+        qx, qy = px - ax, py - ay
+        edge_fn.append(ex * qy - ey * qx)
+        t = np.clip((qx * ex + qy * ey) / (ex * ex + ey * ey + TINY), 0.0, 1.0)
+        rx, ry = qx - t * ex, qy - t * ey
+        d2 = rx * rx + ry * ry
+        dist2 = d2 if dist2 is None else np.minimum(dist2, d2)
+    c0, c1, c2 = edge_fn
+    inside = ((c0 > 0) & (c1 > 0) & (c2 > 0)) | ((c0 < 0) & (c1 < 0) & (c2 < 0))
+    signed = np.where(inside, dist2, -dist2) / config.sigma
+    eps = config.coverage_eps
+    with np.errstate(over="ignore"):
+        sigmoid = 1.0 / (1.0 + np.exp(-signed))
+    coverage = np.maximum((sigmoid - eps) / (1.0 - eps), 0.0)
+    area2 = c0 + c1 + c2
+    area_safe = np.where(np.abs(area2) > TINY, area2, TINY)
+    plane = (c1 * w0 + c2 * w1 + c0 * w2) / area_safe
+    lowest = np.minimum(np.minimum(w0, w1), w2)
+    highest = np.maximum(np.maximum(w0, w1), w2)
+    return coverage, np.maximum(np.minimum(plane, highest), lowest)
+
+
+def _face_shading(verts_cam: np.ndarray, faces: np.ndarray, config: PipelineConfig) -> np.ndarray:
+    """(K, V, 3), (F, 3) -> (K*F,) flat two-sided Lambertian grey."""
+    v0, v1, v2 = (verts_cam[:, faces[:, i]] for i in range(3))
+    normal = np.cross(v1 - v0, v2 - v0)
+    normal /= np.sqrt((normal * normal).sum(-1, keepdims=True) + 1e-20)
+    centroid = (v0 + v1 + v2) / 3.0
+    towards = np.where((normal * centroid).sum(-1, keepdims=True) > 0, -1.0, 1.0)
+    light = np.asarray(config.light_direction, dtype=np.float64)
+    lambert = np.maximum((normal * towards) @ (light / np.linalg.norm(light)), 0.0)
+    return (config.ambient + config.diffuse * lambert).reshape(-1)
+
+
+class NumpyRenderer:
+    """``render(verts (V, 3), faces (F, 3)) -> (K, S, S)`` float32 grey views."""
+
+    def __init__(self, config: PipelineConfig, cameras: Cameras | None = None):
+        self.config = config
+        self.cameras = cameras if cameras is not None else make_cameras(config)
+
+    def render(self, verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
+        cfg, size = self.config, self.config.image_size
+        k = len(self.cameras)
+        verts_cam = self.cameras.world_to_camera(np.asarray(verts, dtype=np.float64))
+        z = verts_cam[..., 2]
+        near_ok = z > cfg.near
+        z_safe = np.where(near_ok, z, cfg.near)
+        xy = self.cameras.focal * verts_cam[..., :2] / z_safe[..., None]
+        inv_near, inv_far = 1.0 / cfg.near, 1.0 / cfg.far
+        inv_depth = (1.0 / z_safe - inv_far) / (inv_near - inv_far)
+        f = len(faces)
+        params = np.concatenate(
+            [xy[:, faces].reshape(k * f, 6), inv_depth[:, faces].reshape(k * f, 3)], axis=1
+        ).T
+        visible = near_ok[:, faces].all(axis=2).reshape(k * f)
+        pixel, face, logit = self._pairs(params, visible, k, f)
+        logit_max = np.full(k * size * size, cfg.background_eps / cfg.gamma)
+        np.maximum.at(logit_max, pixel, logit)
+        kept = logit >= logit_max[pixel] - DEPTH_CULL
+        pixel, face, logit = pixel[kept], face[kept], logit[kept]
+        weight = np.exp(logit - logit_max[pixel])
+        colors = _face_shading(verts_cam, faces, cfg)
+        numerator = np.bincount(pixel, weight * colors[face], minlength=k * size * size)
+        denominator = np.bincount(pixel, weight, minlength=k * size * size)
+        background = np.exp(cfg.background_eps / cfg.gamma - logit_max)
+        image = (numerator + background * cfg.background) / (denominator + background)
+        return image.reshape(k, size, size).astype(np.float32)
+
+    def _pairs(self, params: np.ndarray, visible: np.ndarray, k: int, f: int):
+        """Covered pixel-face pairs: flat pixel index, flat face index, softmax logit."""
+        cfg, size = self.config, self.config.image_size
+        radius = cfg.coverage_radius
+        xs, ys = params[0:6:2], params[1:6:2]
+
+        def to_index(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            first = np.clip(np.ceil((lo - radius + 1.0) * size / 2.0 - 0.5), 0, size)
+            last = np.clip(np.floor((hi + radius + 1.0) * size / 2.0 - 0.5), -1, size - 1)
+            first, last = first.astype(np.int64), last.astype(np.int64)
+            return first, np.maximum(last - first + 1, 0)
+
+        i0, width = to_index(xs.min(0), xs.max(0))
+        j0, height = to_index(ys.min(0), ys.max(0))
+        counts = width * height * visible
+        first_row = np.repeat(np.arange(k), f) * size + j0
+        ids = np.nonzero(counts)[0]
+        out_pixel, out_face, out_logit = [], [], []
+        bucket = (np.cumsum(counts[ids]) - 1) // PAIR_CHUNK
+        for chunk in np.split(ids, np.nonzero(np.diff(bucket))[0] + 1) if len(ids) else []:
+            n = counts[chunk]
+            pair_face = np.repeat(chunk, n)
+            local = np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n)
+            w = width[pair_face]
+            row = first_row[pair_face] + local // w
+            col = i0[pair_face] + local % w
+            px = (2 * col + 1) / size - 1.0
+            py = (2 * (row % size) + 1) / size - 1.0
+            coverage, depth = _pair_terms(params[:, pair_face], px, py, cfg)
+            keep = coverage > 0
+            out_pixel.append((row * size + col)[keep])
+            out_face.append(pair_face[keep])
+            out_logit.append(np.log(coverage[keep]) + depth[keep] / cfg.gamma)
+        if not out_pixel:
+            return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
+        return np.concatenate(out_pixel), np.concatenate(out_face), np.concatenate(out_logit)

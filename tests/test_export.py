@@ -1,0 +1,63 @@
+"""ONNX export: the feature and match graphs pass onnx's checks, carry the pipeline config, and
+agree with the torch modules in onnxruntime for any batch and patch count."""
+
+import json
+
+import numpy as np
+import onnx
+import onnxruntime as ort
+import pytest
+import torch
+
+from drkfs_onnx import DRKFS, PipelineConfig
+from drkfs_onnx.export import export_features, export_match, weights_digest
+from drkfs_onnx.export.onnx_files import CONFIG_KEY, WEIGHTS_KEY
+from drkfs_onnx.patches import extract_patches
+
+CONFIG = PipelineConfig(num_views=4, image_size=96, descriptor_width=0.25)
+
+
+@pytest.fixture(scope="module")
+def exported(tmp_path_factory):
+    torch.manual_seed(0)
+    metric = DRKFS(CONFIG)
+    folder = tmp_path_factory.mktemp("onnx")
+    features = export_features(metric, folder / "features.onnx", weights_digest(metric))
+    match = export_match(folder / "match.onnx", CONFIG.descriptor_dim)
+    return metric, features, match
+
+
+def test_graphs_pass_the_checker_and_carry_config_and_weights_hash(exported):
+    metric, features, match = exported
+    for path in (features, match):
+        onnx.checker.check_model(onnx.load(path), full_check=True)
+    meta = ort.InferenceSession(features).get_modelmeta().custom_metadata_map
+    assert PipelineConfig.from_dict(json.loads(meta[CONFIG_KEY])) == CONFIG
+    assert meta[WEIGHTS_KEY] == weights_digest(metric)
+
+
+@pytest.mark.parametrize("views", [1, 3])
+def test_feature_graph_matches_torch_for_any_batch_and_patch_selection(exported, views):
+    metric, features, _ = exported
+    images = torch.rand(views, 1, CONFIG.image_size, CONFIG.image_size)
+    count = views * CONFIG.patches_per_view
+    index = torch.randperm(count)[: max(1, count // 3)]
+    with torch.no_grad():
+        expected = metric.descriptor(extract_patches(metric.detector(images), CONFIG)[index])
+    got = ort.InferenceSession(features).run(
+        None, {"views": images.numpy(), "patch_index": index.numpy()}
+    )[0]
+    assert np.abs(got - expected.numpy()).max() <= 1e-4
+
+
+def test_match_graph_gives_each_rows_best_squared_distance(exported):
+    *_, match = exported
+    rng = np.random.default_rng(0)
+    a, b = rng.normal(size=(9, 128)), rng.normal(size=(5, 128))
+    a /= np.linalg.norm(a, axis=1, keepdims=True)
+    b /= np.linalg.norm(b, axis=1, keepdims=True)
+    got = ort.InferenceSession(match).run(
+        None, {"a": a.astype(np.float32), "b": b.astype(np.float32)}
+    )[0]
+    expected = ((a[:, None] - b[None]) ** 2).sum(-1).min(1)
+    assert np.abs(got - expected).max() <= 1e-5
