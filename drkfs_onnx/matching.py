@@ -7,8 +7,8 @@ import torch
 from .config import REDUCTIONS
 
 CHUNK_ROWS = 2048
-# Candidates re-ranked by exact distance: the matmul form rounds at ~1e-7, enough to prefer a
-# near-duplicate over an exact duplicate and make identical meshes score 6e-8 instead of 0.
+# Candidates re-ranked by exact distance: the matmul form rounds, enough to prefer a
+# near-duplicate over an exact duplicate and make identical meshes score above 0.
 RERANK = 4
 
 
@@ -16,8 +16,11 @@ def nearest_indices(queries: torch.Tensor, targets: torch.Tensor) -> torch.Tenso
     """(N, D), (M, D) -> (N,) index of each query's nearest target (squared Euclidean).
 
     Ranks by |t|^2 - 2 q.t (|q|^2 is constant per row) on CHUNK_ROWS rows at a time, so the
-    distance matrix never exceeds CHUNK_ROWS x M, then re-ranks the best RERANK exactly.
+    distance matrix never exceeds CHUNK_ROWS x M, then re-ranks the best RERANK exactly. The
+    ranking runs in float64: trained descriptors of flat patches nearly coincide, and in float32
+    dozens of near-duplicates can outrank an exact duplicate.
     """
+    queries, targets = queries.double(), targets.double()
     target_sq = (targets * targets).sum(1)
     k = min(RERANK, len(targets))
     parts = []
