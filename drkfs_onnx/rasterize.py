@@ -24,11 +24,11 @@ import torch
 
 from .cameras import Cameras
 from .config import PipelineConfig
+from .coverage import pair_terms
 
 DEPTH_CULL = 30.0
 # Pairs per chunk of the candidate pass: small enough for elementwise work to stay in cache.
 PAIR_CHUNK = 1 << 17
-TINY = 1e-12
 
 
 @dataclass
@@ -94,43 +94,6 @@ def project_faces(
     return ScreenFaces(params=params, visible=visible, num_views=k, num_faces=f)
 
 
-def pair_terms(
-    tri: torch.Tensor, px: torch.Tensor, py: torch.Tensor, config: PipelineConfig
-) -> tuple[torch.Tensor, torch.Tensor]:
-    """Coverage D' and normalised inverse depth of P pixel-face pairs.
-
-    tri: (9, P) face params (see ScreenFaces); px, py: (P,) pixel centres in NDC.
-    Depth is the face's plane at the pixel (inverse depth is affine in screen space), clamped to
-    the face's own depth range. Coplanar pieces of a surface then agree on depth however it is
-    tessellated; SoftRas' clipped barycentrics instead jump to far vertices outside a face and
-    let a barely-covering face win the depth softmax.
-    """
-    x0, y0, x1, y1, x2, y2, w0, w1, w2 = tri
-    edges = ((x0, y0, x1, y1), (x1, y1, x2, y2), (x2, y2, x0, y0))
-    edge_fn = []
-    dist2 = None
-    for ax, ay, bx, by in edges:
-        ex, ey = bx - ax, by - ay
-        qx, qy = px - ax, py - ay
-        edge_fn.append(ex * qy - ey * qx)
-        t = ((qx * ex + qy * ey) / (ex * ex + ey * ey + TINY)).clamp(0.0, 1.0)
-        rx, ry = qx - t * ex, qy - t * ey
-        d2 = rx * rx + ry * ry
-        dist2 = d2 if dist2 is None else torch.minimum(dist2, d2)
-    c0, c1, c2 = edge_fn
-    inside = ((c0 > 0) & (c1 > 0) & (c2 > 0)) | ((c0 < 0) & (c1 < 0) & (c2 < 0))
-    signed = torch.where(inside, dist2, -dist2) / config.sigma
-    eps = config.coverage_eps
-    coverage = ((torch.sigmoid(signed) - eps) / (1.0 - eps)).clamp_min(0.0)
-
-    area2 = c0 + c1 + c2
-    area_safe = torch.where(area2.abs() > TINY, area2, torch.full_like(area2, TINY))
-    plane = (c1 * w0 + c2 * w1 + c0 * w2) / area_safe
-    lowest = torch.minimum(torch.minimum(w0, w1), w2)
-    highest = torch.maximum(torch.maximum(w0, w1), w2)
-    return coverage, torch.maximum(torch.minimum(plane, highest), lowest)
-
-
 class SoftRasterizer:
     """Lists the pixel-face pairs of K views with coverage and depth, differentiably."""
 
@@ -143,7 +106,7 @@ class SoftRasterizer:
         size = self.config.image_size
         tri = screen.params.index_select(1, face)
         px, py = self._pixel_ndc(pixel % size, pixel // size, tri.dtype)
-        coverage, depth = pair_terms(tri, px, py, self.config)
+        coverage, depth = pair_terms(tri, px, py, self.config, torch)
         return Fragments(pixel, face, coverage, depth, logit_max)
 
     def _pixel_ndc(
@@ -201,7 +164,7 @@ class SoftRasterizer:
             row = first_row.index_select(0, pair_face) + local // w
             col = i0.index_select(0, pair_face) + local % w
             px, py = self._pixel_ndc(col, row, params.dtype)
-            coverage, depth = pair_terms(params.index_select(1, pair_face), px, py, cfg)
+            coverage, depth = pair_terms(params.index_select(1, pair_face), px, py, cfg, torch)
             kept = torch.nonzero(coverage > 0).squeeze(1)
             pixel = (row * size + col).index_select(0, kept)
             logit = (

@@ -8,7 +8,7 @@ import torch
 
 from .cameras import Cameras, make_cameras
 from .config import PipelineConfig
-from .rasterize import SoftRasterizer, project_faces, to_camera
+from .rasterize import Fragments, SoftRasterizer, project_faces, to_camera
 from .shade import face_shading, silhouette, soft_blend
 
 RenderMode = Literal["shaded", "silhouette"]
@@ -30,13 +30,19 @@ class Renderer:
         self, verts: torch.Tensor, faces: torch.Tensor, mode: RenderMode = "shaded"
     ) -> torch.Tensor:
         num_views = len(self.cameras)
-        verts_cam = to_camera(verts, self.cameras)
-        screen = project_faces(verts_cam, faces, self.cameras.focal, self.config)
         if mode == "silhouette":
-            fragments = self.rasterizer(screen, depth_cull=False)
+            _, fragments = self.rasterize(verts, faces, depth_cull=False)
             return silhouette(fragments, num_views, self.config)
         if mode != "shaded":
             raise ValueError(f"unknown render mode {mode!r}; use 'shaded' or 'silhouette'")
-        fragments = self.rasterizer(screen, depth_cull=True)
+        verts_cam, fragments = self.rasterize(verts, faces, depth_cull=True)
         colors = face_shading(verts_cam, faces, self.config)
         return soft_blend(fragments, colors, num_views, self.config)
+
+    def rasterize(
+        self, verts: torch.Tensor, faces: torch.Tensor, depth_cull: bool
+    ) -> tuple[torch.Tensor, Fragments]:
+        """(V, 3), (F, 3) -> (K, V, 3) camera-frame vertices and the views' fragments."""
+        verts_cam = to_camera(verts, self.cameras)
+        screen = project_faces(verts_cam, faces, self.cameras.focal, self.config)
+        return verts_cam, self.rasterizer(screen, depth_cull=depth_cull)

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import hashlib
+import io
 import json
 from importlib import resources
 
@@ -31,9 +32,10 @@ def load_shipped_state(config: PipelineConfig):
         if PipelineConfig.from_dict(entry["config"]) == config:
             import torch
 
-            with resources.as_file(models_dir() / entry["file"]) as path:
-                digest = hashlib.sha256(path.read_bytes()).hexdigest()
-                if digest != entry["sha256"]:
-                    raise ValueError(f"{path}: sha256 {digest} does not match the manifest")
-                return torch.load(path, map_location="cpu", weights_only=True)
+            path = models_dir() / entry["file"]
+            data = path.read_bytes()
+            digest = hashlib.sha256(data).hexdigest()
+            if digest != entry["sha256"]:
+                raise ValueError(f"{path}: sha256 {digest} does not match the manifest")
+            return torch.load(io.BytesIO(data), map_location="cpu", weights_only=True)
     return None

@@ -13,38 +13,10 @@ import numpy as np
 
 from drkfs_onnx.cameras import Cameras, make_cameras
 from drkfs_onnx.config import PipelineConfig
+from drkfs_onnx.coverage import NUMPY_OPS, pair_terms
 
 DEPTH_CULL = 30.0
 PAIR_CHUNK = 1 << 18
-TINY = 1e-12
-
-
-def _pair_terms(tri: np.ndarray, px: np.ndarray, py: np.ndarray, config: PipelineConfig):
-    """Coverage and normalised inverse depth of pairs; tri (9, P), px and py (P,) in NDC."""
-    x0, y0, x1, y1, x2, y2, w0, w1, w2 = tri
-    dist2 = None
-    edge_fn = []
-    for ax, ay, bx, by in ((x0, y0, x1, y1), (x1, y1, x2, y2), (x2, y2, x0, y0)):
-        ex, ey = bx - ax, by - ay
-        qx, qy = px - ax, py - ay
-        edge_fn.append(ex * qy - ey * qx)
-        t = np.clip((qx * ex + qy * ey) / (ex * ex + ey * ey + TINY), 0.0, 1.0)
-        rx, ry = qx - t * ex, qy - t * ey
-        d2 = rx * rx + ry * ry
-        dist2 = d2 if dist2 is None else np.minimum(dist2, d2)
-    c0, c1, c2 = edge_fn
-    inside = ((c0 > 0) & (c1 > 0) & (c2 > 0)) | ((c0 < 0) & (c1 < 0) & (c2 < 0))
-    signed = np.where(inside, dist2, -dist2) / config.sigma
-    eps = config.coverage_eps
-    with np.errstate(over="ignore"):
-        sigmoid = 1.0 / (1.0 + np.exp(-signed))
-    coverage = np.maximum((sigmoid - eps) / (1.0 - eps), 0.0)
-    area2 = c0 + c1 + c2
-    area_safe = np.where(np.abs(area2) > TINY, area2, TINY)
-    plane = (c1 * w0 + c2 * w1 + c0 * w2) / area_safe
-    lowest = np.minimum(np.minimum(w0, w1), w2)
-    highest = np.maximum(np.maximum(w0, w1), w2)
-    return coverage, np.maximum(np.minimum(plane, highest), lowest)
 
 
 def _face_shading(verts_cam: np.ndarray, faces: np.ndarray, config: PipelineConfig) -> np.ndarray:
@@ -122,7 +94,7 @@ class NumpyRenderer:
             col = i0[pair_face] + local % w
             px = (2 * col + 1) / size - 1.0
             py = (2 * (row % size) + 1) / size - 1.0
-            coverage, depth = _pair_terms(params[:, pair_face], px, py, cfg)
+            coverage, depth = pair_terms(params[:, pair_face], px, py, cfg, NUMPY_OPS)
             keep = coverage > 0
             out_pixel.append((row * size + col)[keep])
             out_face.append(pair_face[keep])

@@ -14,7 +14,7 @@ from typer.testing import CliRunner
 from drkfs_onnx import DRKFS, PipelineConfig
 from drkfs_onnx.cli import app
 from drkfs_onnx.shapes import FAMILIES, assemble, random_shape
-from drkfs_onnx.training.data import ViewPairs, correspond, render_pairs, sample_matches
+from drkfs_onnx.training.data import correspond, render_pairs, sample_matches
 from drkfs_onnx.training.objectives import detector_loss, hardest_triplet_loss
 from drkfs_onnx.training.run import fit
 from drkfs_onnx.variants import MILD, STRUCTURAL, make_variants
@@ -52,11 +52,7 @@ def test_correspondences_map_back_to_where_they_came_from(pairs):
     config = PipelineConfig(image_size=128)
     matches = sample_matches(pairs, config, 200, 8, seed=0)
     assert len(matches) > 200
-    swapped = ViewPairs(
-        pairs.images.flip(1), pairs.depth.flip(1), pairs.rotations.flip(1), pairs.eyes.flip(1),
-        pairs.family, pairs.shape,
-    )  # fmt: skip
-    back, seen = correspond(swapped, matches[:, 0], matches[:, 3:5], config)
+    back, seen = correspond(pairs.swapped(), matches[:, 0], matches[:, 3:5], config)
     error = (back - matches[:, 1:3]).abs().amax(1)[seen]
     assert seen.float().mean() > 0.95 and error.float().mean() < 0.5 and error.max() <= 2
 

@@ -18,7 +18,6 @@ import torch
 from ..cameras import Cameras, look_at, make_cameras
 from ..config import PipelineConfig
 from ..mesh import frame_of
-from ..rasterize import project_faces, to_camera
 from ..render import Renderer
 from ..shapes import assemble, random_shape
 
@@ -43,6 +42,18 @@ class ViewPairs:
 
     def to_dict(self) -> dict[str, torch.Tensor]:
         return dict(vars(self))
+
+    def swapped(self) -> ViewPairs:
+        """The same pairs with view 1 first."""
+        order = [1, 0]
+        return ViewPairs(
+            self.images[:, order],
+            self.depth[:, order],
+            self.rotations[:, order],
+            self.eyes[:, order],
+            self.family,
+            self.shape,
+        )
 
 
 def _random_direction(rng: np.random.Generator) -> np.ndarray:
@@ -73,9 +84,7 @@ def random_light(config: PipelineConfig, rng: np.random.Generator) -> tuple[floa
 def hard_depth(renderer: Renderer, verts: torch.Tensor, faces: torch.Tensor) -> torch.Tensor:
     """(K, S, S) normalised inverse depth of the nearest face covering each pixel centre, else 0."""
     cfg = renderer.config
-    verts_cam = to_camera(verts, renderer.cameras)
-    screen = project_faces(verts_cam, faces, renderer.cameras.focal, cfg)
-    frags = renderer.rasterizer(screen, depth_cull=True)
+    _, frags = renderer.rasterize(verts, faces, depth_cull=True)
     # D' >= (0.5 - eps) / (1 - eps) exactly where the pixel centre lies inside the face
     inside = frags.coverage >= (0.5 - cfg.coverage_eps) / (1 - cfg.coverage_eps)
     depth = torch.zeros(len(renderer.cameras) * cfg.image_size**2, dtype=verts.dtype)

@@ -68,22 +68,13 @@ def repeatability(response: torch.Tensor, pairs: ViewPairs, config: PipelineConf
     """
     foreground = pairs.depth > 0
     repeated, covisible = 0, 0
-    for direction in (0, 1):
-        order = [direction, 1 - direction]
-        swapped = ViewPairs(
-            pairs.images[:, order],
-            pairs.depth[:, order],
-            pairs.rotations[:, order],
-            pairs.eyes[:, order],
-            pairs.family,
-            pairs.shape,
-        )
+    for direction, oriented in enumerate((pairs, pairs.swapped())):
         source = keypoints(response[:, direction], foreground[:, direction])
         target = keypoints(response[:, 1 - direction], foreground[:, 1 - direction])
         for i, (points, others) in enumerate(zip(source, target, strict=True)):
             if len(points) == 0:
                 continue
-            mapped, seen = correspond(swapped, torch.full((len(points),), i), points, config)
+            mapped, seen = correspond(oriented, torch.full((len(points),), i), points, config)
             mapped = mapped[seen].float()
             covisible += len(mapped)
             if len(mapped) and len(others):
