@@ -112,6 +112,17 @@ def train(
 
 
 @app.command()
+def export(
+    out: Annotated[Path, typer.Option(help="Where the ONNX files go.")] = Path("models"),
+) -> None:
+    """Export the feature graph of every shipped weights file, and the match graph, to ONNX."""
+    from .export import export_shipped
+
+    for path in export_shipped(out):
+        typer.echo(path)
+
+
+@app.command()
 def examples(folder: Annotated[Path, typer.Argument()] = Path("examples")) -> None:
     """Write the bundled example meshes (a chair and its variants) to FOLDER."""
     for path in write_examples(folder):

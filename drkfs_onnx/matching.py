@@ -4,25 +4,22 @@ from __future__ import annotations
 
 import torch
 
-from .config import REDUCTIONS
+from .config import MATCH_CANDIDATES, REDUCTIONS
 
 CHUNK_ROWS = 2048
-# Candidates re-ranked by exact distance: the matmul form rounds, enough to prefer a
-# near-duplicate over an exact duplicate and make identical meshes score above 0.
-RERANK = 4
 
 
 def nearest_indices(queries: torch.Tensor, targets: torch.Tensor) -> torch.Tensor:
     """(N, D), (M, D) -> (N,) index of each query's nearest target (squared Euclidean).
 
     Ranks by |t|^2 - 2 q.t (|q|^2 is constant per row) on CHUNK_ROWS rows at a time, so the
-    distance matrix never exceeds CHUNK_ROWS x M, then re-ranks the best RERANK exactly. The
-    ranking runs in float64: trained descriptors of flat patches nearly coincide, and in float32
-    dozens of near-duplicates can outrank an exact duplicate.
+    distance matrix never exceeds CHUNK_ROWS x M, then re-ranks the best MATCH_CANDIDATES
+    exactly. The ranking runs in float64: trained descriptors of flat patches nearly coincide,
+    and in float32 dozens of near-duplicates can outrank an exact duplicate.
     """
     queries, targets = queries.double(), targets.double()
     target_sq = (targets * targets).sum(1)
-    k = min(RERANK, len(targets))
+    k = min(MATCH_CANDIDATES, len(targets))
     parts = []
     for chunk in queries.split(CHUNK_ROWS):
         candidates = (target_sq - 2.0 * chunk @ targets.T).topk(k, dim=1, largest=False).indices

@@ -5,6 +5,7 @@ from __future__ import annotations
 import torch
 import torch.nn.functional as F
 
+from . import patch_grid
 from .config import PipelineConfig
 
 
@@ -16,14 +17,7 @@ def extract_patches(maps: torch.Tensor, config: PipelineConfig) -> torch.Tensor:
 
 
 def nonempty_patches(images: torch.Tensor, config: PipelineConfig) -> torch.Tensor:
-    """(B, 1, S, S) rendered images -> (B * P,) bool: does the patch's PoI map see anything?
-
-    A patch whose window, grown by the detector's reach, holds only background pixels has the
-    constant PoI map of an empty scene, hence one shared descriptor: computing it once is exact.
-    """
-    reach = config.detector_kernel // 2
-    seen = (images != config.background).to(images.dtype)
-    hit = F.max_pool2d(
-        seen, kernel_size=config.patch_size + 2 * reach, stride=config.patch_stride, padding=reach
-    )
-    return hit.reshape(-1) > 0
+    """(B, 1, S, S) rendered images -> (B * P,) bool on the images' device; see
+    ``patch_grid.nonempty_patches``."""
+    mask = patch_grid.nonempty_patches(images.detach()[:, 0].cpu().numpy(), config)
+    return torch.from_numpy(mask).to(images.device)

@@ -19,16 +19,17 @@ def models_dir():
     return resources.files("drkfs_onnx.models")
 
 
-def load_shipped_state(config: PipelineConfig):
-    """The torch state dict shipped for ``config``, or None when none is shipped.
-
-    The manifest lists each weights file with the config it was trained for.
-    """
+def shipped_weights() -> list[dict]:
+    """The manifest's weights entries: file, sha256 and the config each was trained for."""
     manifest_file = models_dir() / MANIFEST
     if not manifest_file.is_file():
-        return None
-    manifest = json.loads(manifest_file.read_text())
-    for entry in manifest.get("weights", []):
+        return []
+    return json.loads(manifest_file.read_text()).get("weights", [])
+
+
+def load_shipped_state(config: PipelineConfig):
+    """The torch state dict shipped for ``config``, or None when none is shipped."""
+    for entry in shipped_weights():
         if PipelineConfig.from_dict(entry["config"]) == config:
             import torch
 

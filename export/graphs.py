@@ -7,6 +7,7 @@ import copy
 import torch
 from torch import nn
 
+from drkfs_onnx.config import MATCH_CANDIDATES
 from drkfs_onnx.metric import DRKFS
 from drkfs_onnx.patches import extract_patches
 
@@ -32,12 +33,14 @@ class FeatureGraph(nn.Module):
 
 
 class MatchGraph(nn.Module):
-    """Squared distance of each descriptor of A to its best match in B.
+    """Each descriptor of A's MATCH_CANDIDATES nearest candidates in B.
 
-    ``forward(a (N, D), b (M, D)) -> (N,)``, as |a|^2 + |b|^2 - 2 a.b (torch.cdist does not
-    convert), clamped at 0.
+    ``forward(a (N, D), b (M, D)) -> (N, MATCH_CANDIDATES)`` int64, ranked by |b|^2 - 2 a.b in
+    float32 (torch.cdist does not convert); needs M >= MATCH_CANDIDATES. The caller re-ranks the
+    candidates by exact distance, as ``drkfs_onnx.matching`` does: near-duplicate descriptors
+    round to the same matmul distance.
     """
 
     def forward(self, a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
-        squared = (a * a).sum(1, keepdim=True) + (b * b).sum(1)[None] - 2.0 * a @ b.t()
-        return squared.amin(dim=1).clamp_min(0.0)
+        ranking = (b * b).sum(1)[None] - 2.0 * a @ b.t()
+        return ranking.topk(MATCH_CANDIDATES, dim=1, largest=False).indices

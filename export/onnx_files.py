@@ -10,25 +10,30 @@ from pathlib import Path
 import onnx
 import torch
 
+from drkfs_onnx.config import PipelineConfig
 from drkfs_onnx.metric import DRKFS
+from drkfs_onnx.model_files import (
+    CONFIG_KEY,
+    MATCH_FILE,
+    VERSION_KEY,
+    WEIGHTS_KEY,
+    features_file,
+)
+from drkfs_onnx.weights import shipped_weights
 
 from .graphs import FeatureGraph, MatchGraph
 
 OPSET = 18
-FEATURES_FILE = "features_w{width:g}.onnx"
-MATCH_FILE = "match.onnx"
-# Metadata keys the runtime reads.
-CONFIG_KEY, VERSION_KEY, WEIGHTS_KEY = "drkfs_config", "drkfs_model_version", "drkfs_weights_sha256"
 
 
 def weights_digest(metric: DRKFS) -> str:
-    """sha256 of the metric's state dict as torch.save writes it."""
+    """sha256 of the metric's state dict as torch.save writes it (for unshipped weights)."""
     buffer = io.BytesIO()
     torch.save(metric.state_dict(), buffer)
     return hashlib.sha256(buffer.getvalue()).hexdigest()
 
 
-def _export(module: torch.nn.Module, args: tuple, names: list[str], dims: dict, path: Path):
+def _export(module: torch.nn.Module, args: tuple, names: list[str], dims: dict):
     program = torch.onnx.export(
         module.eval(),
         args,
@@ -65,11 +70,7 @@ def export_features(metric: DRKFS, path: Path, weights_sha256: str) -> Path:
     }
     with torch.no_grad():
         model = _export(
-            FeatureGraph(metric),
-            (views, index),
-            ["views", "patch_index", "descriptors"],
-            dims,
-            path,
+            FeatureGraph(metric), (views, index), ["views", "patch_index", "descriptors"], dims
         )
     metadata = {
         CONFIG_KEY: metric.config.to_json(),
@@ -80,11 +81,27 @@ def export_features(metric: DRKFS, path: Path, weights_sha256: str) -> Path:
 
 
 def export_match(path: Path, dim: int) -> Path:
-    """a (N, D), b (M, D) -> best squared distances (N,); N and M dynamic."""
-    a, b = torch.zeros(3, dim), torch.zeros(4, dim)
+    """a (N, D), b (M, D) -> candidate indices (N, MATCH_CANDIDATES); N and M dynamic."""
+    a, b = torch.zeros(3, dim), torch.zeros(5, dim)
     dims = {
         "a": {0: torch.export.Dim("rows_a", min=1)},
-        "b": {0: torch.export.Dim("rows_b", min=1)},
+        "b": {0: torch.export.Dim("rows_b", min=4)},
     }
-    model = _export(MatchGraph(), (a, b), ["a", "b", "best"], dims, path)
+    model = _export(MatchGraph(), (a, b), ["a", "b", "candidates"], dims)
     return _write(model, path, {VERSION_KEY: f"drkfs-onnx {version('drkfs-onnx')} match"})
+
+
+def export_shipped(folder: Path) -> list[Path]:
+    """One feature graph per weights file in the manifest, and the match graph, into folder."""
+    written = []
+    dims = set()
+    for entry in shipped_weights():
+        config = PipelineConfig.from_dict(entry["config"])
+        metric = DRKFS.pretrained(config)
+        path = folder / features_file(config)
+        written.append(export_features(metric, path, entry["sha256"]))
+        dims.add(config.descriptor_dim)
+    if len(dims) > 1:
+        raise ValueError(f"shipped descriptors differ in size ({sorted(dims)}); one match graph")
+    written.append(export_match(folder / MATCH_FILE, dims.pop() if dims else 128))
+    return written

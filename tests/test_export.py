@@ -1,5 +1,6 @@
 """ONNX export: the feature and match graphs pass onnx's checks, carry the pipeline config, and
-agree with the torch modules in onnxruntime for any batch and patch count."""
+agree with the torch modules in onnxruntime for any batch and patch count; the shipped graphs are
+current."""
 
 import json
 
@@ -10,9 +11,11 @@ import pytest
 import torch
 
 from drkfs_onnx import DRKFS, PipelineConfig
+from drkfs_onnx.config import MATCH_CANDIDATES
 from drkfs_onnx.export import export_features, export_match, weights_digest
-from drkfs_onnx.export.onnx_files import CONFIG_KEY, WEIGHTS_KEY
+from drkfs_onnx.model_files import CONFIG_KEY, MATCH_FILE, WEIGHTS_KEY, features_file
 from drkfs_onnx.patches import extract_patches
+from drkfs_onnx.weights import models_dir, shipped_weights
 
 CONFIG = PipelineConfig(num_views=4, image_size=96, descriptor_width=0.25)
 
@@ -50,14 +53,34 @@ def test_feature_graph_matches_torch_for_any_batch_and_patch_selection(exported,
     assert np.abs(got - expected.numpy()).max() <= 1e-4
 
 
-def test_match_graph_gives_each_rows_best_squared_distance(exported):
+def test_match_graph_ranks_each_rows_nearest_first(exported):
     *_, match = exported
     rng = np.random.default_rng(0)
-    a, b = rng.normal(size=(9, 128)), rng.normal(size=(5, 128))
+    a, b = rng.normal(size=(9, 128)), rng.normal(size=(6, 128))
     a /= np.linalg.norm(a, axis=1, keepdims=True)
     b /= np.linalg.norm(b, axis=1, keepdims=True)
     got = ort.InferenceSession(match).run(
         None, {"a": a.astype(np.float32), "b": b.astype(np.float32)}
     )[0]
-    expected = ((a[:, None] - b[None]) ** 2).sum(-1).min(1)
-    assert np.abs(got - expected).max() <= 1e-5
+    distances = ((a[:, None] - b[None]) ** 2).sum(-1)
+    assert got.shape == (9, MATCH_CANDIDATES)
+    assert np.array_equal(got, np.argsort(distances, axis=1)[:, :MATCH_CANDIDATES])
+
+
+def test_shipped_graphs_are_current_exports_of_the_shipped_weights(tmp_path):
+    """Every weights file in the manifest has its feature graph, tagged with its sha256, and
+    re-exporting the default one gives the shipped graph's outputs."""
+    for entry in shipped_weights():
+        config = PipelineConfig.from_dict(entry["config"])
+        shipped = models_dir() / features_file(config)
+        meta = ort.InferenceSession(shipped.read_bytes()).get_modelmeta().custom_metadata_map
+        assert meta[WEIGHTS_KEY] == entry["sha256"]
+        assert PipelineConfig.from_json(meta[CONFIG_KEY]) == config
+    config = PipelineConfig()
+    fresh = export_features(DRKFS.pretrained(config), tmp_path / "f.onnx", "sha")
+    views = np.random.default_rng(1).random((2, 1, 256, 256), dtype=np.float32)
+    inputs = {"views": views, "patch_index": np.arange(0, 450, 7)}
+    got = ort.InferenceSession(fresh).run(None, inputs)[0]
+    shipped = ort.InferenceSession((models_dir() / features_file(config)).read_bytes())
+    assert np.abs(got - shipped.run(None, inputs)[0]).max() <= 1e-6
+    assert (models_dir() / MATCH_FILE).is_file()

@@ -1,0 +1,16 @@
+"""Names of the shipped ONNX files and the metadata keys they carry (shared by export and
+runtime; torch-free)."""
+
+from __future__ import annotations
+
+from .config import PipelineConfig
+
+MATCH_FILE = "match.onnx"
+CONFIG_KEY = "drkfs_config"
+VERSION_KEY = "drkfs_model_version"
+WEIGHTS_KEY = "drkfs_weights_sha256"
+
+
+def features_file(config: PipelineConfig) -> str:
+    """File name of the feature graph for a config's descriptor width."""
+    return f"features_w{config.descriptor_width:g}.onnx"

@@ -1,0 +1,189 @@
+"""``drkfs-score``: DR-KFS on servers with onnxruntime (base install; torch never imported)."""
+
+from __future__ import annotations
+
+import csv
+import json
+import time
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from drkfs_onnx.config import NORMALIZATIONS, REDUCTIONS, PipelineConfig
+from drkfs_onnx.mesh import MeshError
+
+from .features import MeshFeatures
+from .scorer import Scorer
+from .sessions import ModelMismatch
+
+app = typer.Typer(
+    help="DR-KFS visual similarity of 3D meshes, scored with onnxruntime.", no_args_is_help=True
+)
+
+Threads = Annotated[
+    int | None, typer.Option(help="onnxruntime and renderer threads (default: all cores).")
+]
+Normalize = Annotated[
+    str, typer.Option(help=f"Frame of the two meshes: {', '.join(NORMALIZATIONS)}.")
+]
+Symmetric = Annotated[bool, typer.Option(help="Average the A->B and B->A scores.")]
+Reduction = Annotated[str, typer.Option(help=f"Reduce best matches by {' or '.join(REDUCTIONS)}.")]
+Width = Annotated[
+    float, typer.Option(help="HardNet width of the shipped model: 1, 0.5 or 0.25 (faster).")
+]
+Model = Annotated[
+    Path | None, typer.Option(help="A feature-graph ONNX file instead of the shipped one.")
+]
+
+BATCH_COLUMNS = ["row", "mesh_a", "mesh_b", "score", "seconds", "error"]
+
+
+def _scorer(threads, normalize, symmetric, reduction, width, model) -> Scorer:
+    try:
+        return Scorer(
+            PipelineConfig(descriptor_width=width),
+            model=model,
+            threads=threads,
+            normalization=normalize,
+            reduction=reduction,
+            symmetric=symmetric,
+        )
+    except (ModelMismatch, FileNotFoundError, ValueError) as exc:
+        typer.echo(f"error: {exc}", err=True)
+        raise typer.Exit(2) from exc
+
+
+def _reference(path: Path):
+    """A mesh path, or a features file written by ``drkfs-score features``."""
+    return MeshFeatures.load(path) if path.suffix == ".npz" else path
+
+
+@app.command()
+def pair(
+    mesh_a: Path,
+    mesh_b: Annotated[
+        Path, typer.Argument(help="The reference (ground truth): a mesh or a features .npz.")
+    ],
+    as_json: Annotated[bool, typer.Option("--json", help="Print a JSON object.")] = False,
+    threads: Threads = None,
+    normalize: Normalize = "joint",
+    symmetric: Symmetric = False,
+    reduction: Reduction = "sum",
+    width: Width = 1.0,
+    model: Model = None,
+) -> None:
+    """Score MESH_A against the reference MESH_B (0 for identical meshes)."""
+    scorer = _scorer(threads, normalize, symmetric, reduction, width, model)
+    start = time.perf_counter()
+    try:
+        value = scorer.score(mesh_a, _reference(mesh_b))
+    except (MeshError, ValueError) as exc:
+        typer.echo(f"error: {exc}", err=True)
+        raise typer.Exit(2) from exc
+    seconds = time.perf_counter() - start
+    if as_json:
+        report = {"score": value, "seconds": seconds, "model_version": scorer.model_version}
+        report.update(mesh_a=str(mesh_a), mesh_b=str(mesh_b), normalize=normalize)
+        report.update(symmetric=symmetric, reduction=reduction)
+        typer.echo(json.dumps(report))
+    else:
+        typer.echo(f"{value:.6g}")
+
+
+@app.command()
+def features(
+    mesh: Path,
+    out: Annotated[Path, typer.Option(help="The .npz file to write.")],
+    threads: Threads = None,
+    normalize: Normalize = "joint",
+    width: Width = 1.0,
+    model: Model = None,
+) -> None:
+    """Describe a reference mesh once; pass the .npz as MESH_B to ``pair`` or in a batch CSV."""
+    scorer = _scorer(threads, normalize, False, "sum", width, model)
+    try:
+        result = scorer.features(mesh)
+    except MeshError as exc:
+        typer.echo(f"error: {exc}", err=True)
+        raise typer.Exit(2) from exc
+    result.save(out)
+    typer.echo(f"{out}: {len(result.descriptors)} patch descriptors, {result.empty} empty patches")
+
+
+def _pairs(path: Path) -> list[tuple[str, str]]:
+    """The CSV's (mesh_a, mesh_b) rows: columns named mesh_a and mesh_b, or the first two."""
+    with open(path, newline="") as handle:
+        rows = [row for row in csv.reader(handle) if row and any(cell.strip() for cell in row)]
+    if not rows:
+        return []
+    header = [cell.strip() for cell in rows[0]]
+    if "mesh_a" in header and "mesh_b" in header:
+        a, b = header.index("mesh_a"), header.index("mesh_b")
+        return [(row[a].strip(), row[b].strip()) for row in rows[1:]]
+    return [(row[0].strip(), row[1].strip() if len(row) > 1 else "") for row in rows]
+
+
+def _done(out: Path) -> dict[int, dict]:
+    """Rows already in OUT (the last record of each row wins); a line cut by a kill is dropped."""
+    if not out.exists() or out.stat().st_size == 0:
+        return {}
+    text = out.read_text()
+    if not text.endswith("\n"):
+        text = text[: text.rfind("\n") + 1]
+        out.write_text(text)
+    records = {}
+    for record in csv.DictReader(text.splitlines()):
+        if record.get("row", "").isdigit():
+            records[int(record["row"])] = record
+    return records
+
+
+@app.command()
+def batch(
+    pairs: Annotated[Path, typer.Argument(help="CSV with columns mesh_a, mesh_b (B: reference).")],
+    out: Annotated[Path, typer.Option(help="CSV of results; rerunning resumes it.")],
+    threads: Threads = None,
+    normalize: Normalize = "joint",
+    symmetric: Symmetric = False,
+    reduction: Reduction = "sum",
+    width: Width = 1.0,
+    model: Model = None,
+) -> None:
+    """Score every row of PAIRS; results are appended and flushed row by row.
+
+    Rows already scored in OUT are skipped, failed rows are tried again; a row that fails records
+    its error and the others go on. Exits 1 when any row failed.
+    """
+    todo = _pairs(pairs)
+    done = _done(out)
+    scorer = _scorer(threads, normalize, symmetric, reduction, width, model)
+    fresh = not out.exists() or out.stat().st_size == 0
+    failed, scored, skipped = [], 0, 0
+    with open(out, "a", newline="") as handle:
+        writer = csv.DictWriter(handle, BATCH_COLUMNS)
+        if fresh:
+            writer.writeheader()
+        with typer.progressbar(list(enumerate(todo)), label="scoring", file=None) as rows:
+            for index, (a, b) in rows:
+                if index in done and done[index]["error"] == "":
+                    skipped += 1
+                    continue
+                record = {"row": index, "mesh_a": a, "mesh_b": b, "score": "", "error": ""}
+                start = time.perf_counter()
+                try:
+                    record["score"] = repr(scorer.score(Path(a), _reference(Path(b))))
+                    scored += 1
+                except (MeshError, ValueError, OSError) as exc:
+                    record["error"] = str(exc) or type(exc).__name__
+                    failed.append(index)
+                record["seconds"] = f"{time.perf_counter() - start:.4f}"
+                writer.writerow(record)
+                handle.flush()
+    typer.echo(
+        f"{scored} scored, {len(failed)} failed, {skipped} already done; results in {out}",
+        err=True,
+    )
+    if failed:
+        typer.echo(f"failed rows: {', '.join(map(str, failed))} (see the error column)", err=True)
+        raise typer.Exit(1)

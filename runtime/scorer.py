@@ -1,0 +1,177 @@
+"""Evaluation-only DR-KFS with onnxruntime: mesh -> numpy views -> ONNX features -> ONNX match.
+
+Scores equal the torch path's (``drkfs_onnx.DRKFS`` in evaluation mode) to float rounding, for
+meshes within the face budget.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+from collections import OrderedDict
+from pathlib import Path
+
+import numpy as np
+
+from drkfs_onnx.config import REDUCTIONS, PipelineConfig
+from drkfs_onnx.mesh import Mesh, check_normalization, frame_of, load_mesh
+from drkfs_onnx.patch_grid import nonempty_patches
+
+from .decimate import decimate
+from .features import MeshFeatures
+from .render import NumpyRenderer
+from .sessions import open_features, open_match
+
+MeshLike = Mesh | str | Path
+
+
+class Scorer:
+    """DR-KFS between meshes, scored with onnxruntime; torch is never imported.
+
+    ``score(a, b) -> float`` scores A against the reference B (a mesh, a path, or B's
+    ``MeshFeatures``); ``features(mesh) -> MeshFeatures`` describes a reference once. Descriptors
+    are cached by mesh content (after normalisation) and model hash, so many predictions scored
+    against one ground truth render and describe it once.
+
+    threads: onnxruntime intra-op threads and renderer threads (None: all cores).
+    view_batch: views per feature-graph run (bounds memory; the score does not depend on it).
+    face_budget: meshes with more faces are simplified first (``decimate``); None for the
+    default budget tied to the image size, 0 to never simplify.
+    """
+
+    def __init__(
+        self,
+        config: PipelineConfig | None = None,
+        model: str | Path | None = None,
+        threads: int | None = None,
+        normalization: str = "joint",
+        reduction: str = "sum",
+        symmetric: bool = False,
+        view_batch: int | None = None,
+        face_budget: int | None = None,
+        cache_size: int = 32,
+    ):
+        if reduction not in REDUCTIONS:
+            raise ValueError(f"unknown reduction {reduction!r}; use one of {', '.join(REDUCTIONS)}")
+        self.config = config or PipelineConfig()
+        self.normalization = check_normalization(normalization)
+        self.reduction, self.symmetric = reduction, symmetric
+        self.view_batch = view_batch or self.config.num_views
+        self.face_budget = face_budget
+        self.features_graph = open_features(self.config, model, threads)
+        self.match_graph = open_match(threads=threads)
+        self.renderer = NumpyRenderer(self.config, threads=threads or os.cpu_count() or 1)
+        self.cache: OrderedDict[str, MeshFeatures] = OrderedDict()
+        self.cache_size = cache_size
+        self._empty = self._describe_views(
+            np.full((1, self.config.image_size, self.config.image_size), self.config.background),
+            np.array([0]),
+        )
+
+    @property
+    def model_version(self) -> str:
+        return self.features_graph.version
+
+    def features(self, mesh: MeshLike, frame: tuple[np.ndarray, float] | None = None):
+        """Descriptors of a mesh placed in ``frame`` (default: its own normalisation frame)."""
+        mesh = mesh if isinstance(mesh, Mesh) else load_mesh(mesh)
+        if frame is None:
+            frame = self._own_frame(mesh.vertices)
+        centre, scale = frame
+        vertices = (mesh.vertices - centre) / scale
+        if self.face_budget != 0:
+            vertices, faces = decimate(vertices, mesh.faces, self.config, self.face_budget)
+        else:
+            faces = mesh.faces
+        key = self._key(vertices, faces)
+        if key in self.cache:
+            self.cache.move_to_end(key)
+            return self.cache[key]
+        images = self.renderer.render(vertices, faces)
+        mask = nonempty_patches(images, self.config)
+        result = MeshFeatures(
+            descriptors=self._describe_views(images, np.nonzero(mask)[0]),
+            empty=int(len(mask) - mask.sum()),
+            centre=np.asarray(centre, dtype=np.float64),
+            scale=float(scale),
+            model=self.features_graph.sha256,
+        )
+        self.cache[key] = result
+        if len(self.cache) > self.cache_size:
+            self.cache.popitem(last=False)
+        return result
+
+    def score(self, a: MeshLike, b: MeshLike | MeshFeatures) -> float:
+        """DR-KFS of A against the reference B (0 for identical meshes)."""
+        a = a if isinstance(a, Mesh) else load_mesh(a)  # a bad A fails before B's work
+        reference = b if isinstance(b, MeshFeatures) else self.features(b)
+        if reference.model != self.features_graph.sha256:
+            raise ValueError(
+                "reference features were computed by another feature graph "
+                f"({reference.model[:12]}, this scorer has {self.features_graph.sha256[:12]})"
+            )
+        frame = (reference.centre, reference.scale) if self.normalization == "joint" else None
+        return self.match(self.features(a, frame), reference)
+
+    def match(self, a: MeshFeatures, b: MeshFeatures) -> float:
+        """Reduce A's best-match distances into B (both directions averaged when symmetric)."""
+        directions = [(a, b), (b, a)] if self.symmetric else [(a, b)]
+        return float(np.mean([self._best_matches(q, t) for q, t in directions]))
+
+    def _own_frame(self, vertices: np.ndarray) -> tuple[np.ndarray, float]:
+        if self.normalization == "none":
+            return np.zeros(3), 1.0
+        centre, scale = frame_of(vertices)
+        return centre, float(scale)
+
+    def _key(self, vertices: np.ndarray, faces: np.ndarray) -> str:
+        digest = hashlib.sha256(self.features_graph.sha256.encode())
+        digest.update(np.ascontiguousarray(vertices, dtype=np.float64).tobytes())
+        digest.update(np.ascontiguousarray(faces, dtype=np.int64).tobytes())
+        return digest.hexdigest()
+
+    def _describe_views(self, images: np.ndarray, index: np.ndarray) -> np.ndarray:
+        """(K, S, S) views and sorted flat patch indices -> (len(index), D) descriptors, run
+        ``view_batch`` views at a time."""
+        per_view = self.config.patches_per_view
+        parts = [np.zeros((0, self.config.descriptor_dim), np.float32)]
+        for start in range(0, len(images), self.view_batch):
+            stop = min(start + self.view_batch, len(images))
+            chosen = index[(index >= start * per_view) & (index < stop * per_view)]
+            if len(chosen):
+                views = images[start:stop, None].astype(np.float32)
+                inputs = {"views": views, "patch_index": chosen - start * per_view}
+                parts.append(self.features_graph.session.run(None, inputs)[0])
+        return np.concatenate(parts)
+
+    def _with_empty(self, features: MeshFeatures) -> tuple[np.ndarray, np.ndarray]:
+        """Distinct descriptor rows and how many patches each stands for."""
+        rows, weights = features.descriptors, np.ones(len(features.descriptors))
+        if features.empty:
+            rows = np.concatenate([rows, self._empty])
+            weights = np.append(weights, features.empty)
+        return rows, weights
+
+    def _best_matches(self, queries: MeshFeatures, targets: MeshFeatures) -> float:
+        """Weighted best-match distances. A row with an exact copy in B matches at 0 (most rows,
+        for small changes); the graph ranks the others' candidates in float32 and the exact
+        float64 distance picks among them, as the torch path does."""
+        q, weights = self._with_empty(queries)
+        t, _ = self._with_empty(targets)
+        best = np.zeros(len(q))
+        rest = np.nonzero(~np.isin(_row_keys(q), _row_keys(t)))[0]
+        if len(rest):
+            k = self.match_graph.session.get_outputs()[0].shape[1]
+            padded = np.resize(t, (max(len(t), k), t.shape[1]))  # repeats change no minimum
+            inputs = {"a": q[rest], "b": padded}
+            candidates = self.match_graph.session.run(None, inputs)[0]
+            diff = q[rest, None, :].astype(np.float64) - padded[candidates].astype(np.float64)
+            best[rest] = (diff * diff).sum(-1).min(1)
+        total = float((weights * best).sum())
+        return total / weights.sum() if self.reduction == "mean" else total
+
+
+def _row_keys(rows: np.ndarray) -> np.ndarray:
+    """(N, D) -> (N,) one opaque value per row, equal exactly when the rows' bytes are equal."""
+    rows = np.ascontiguousarray(rows)
+    return rows.view(np.dtype((np.void, rows.dtype.itemsize * rows.shape[1]))).ravel()
