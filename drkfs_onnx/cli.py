@@ -24,8 +24,6 @@ Symmetric = Annotated[bool, typer.Option(help="Average the A->B and B->A scores.
 
 
 def _metric(normalize: str, reduction: str, symmetric: bool):
-    import torch
-
     from .metric import DRKFS
 
     with warnings.catch_warnings(record=True) as caught:
@@ -33,20 +31,11 @@ def _metric(normalize: str, reduction: str, symmetric: bool):
         metric = DRKFS.pretrained(reduction=reduction, symmetric=symmetric, normalization=normalize)
     for warning in caught:
         typer.echo(f"note: {warning.message}", err=True)
-    return metric, torch
+    return metric
 
 
-def _score(metric, torch, path_a: Path, path_b: Path) -> float:
-    a, b = load_mesh(path_a), load_mesh(path_b)
-    with torch.no_grad():
-        return float(
-            metric(
-                torch.as_tensor(a.vertices, dtype=torch.float32),
-                torch.as_tensor(a.faces),
-                torch.as_tensor(b.vertices, dtype=torch.float32),
-                torch.as_tensor(b.faces),
-            )
-        )
+def _score(metric, path_a: Path, path_b: Path) -> float:
+    return metric.score_meshes(load_mesh(path_a), load_mesh(path_b))
 
 
 @app.command()
@@ -59,10 +48,10 @@ def score(
     as_json: Annotated[bool, typer.Option("--json", help="Print a JSON object.")] = False,
 ) -> None:
     """Score MESH_A against the reference MESH_B (0 for identical meshes)."""
-    metric, torch = _metric(normalize, reduction, symmetric)
+    metric = _metric(normalize, reduction, symmetric)
     start = time.perf_counter()
     try:
-        value = _score(metric, torch, mesh_a, mesh_b)
+        value = _score(metric, mesh_a, mesh_b)
     except MeshError as exc:
         typer.echo(f"error: {exc}", err=True)
         raise typer.Exit(2) from exc
@@ -138,9 +127,9 @@ def demo(
     """Score every example mesh against the reference chair and print a table."""
     if not (folder / REFERENCE).is_file():
         write_examples(folder)
-    metric, torch = _metric("joint", "sum", False)
+    metric = _metric("joint", "sum", False)
     typer.echo(f"{'mesh':28} {'DR-KFS':>10} {'seconds':>8}  change")
     for name, (change, _) in example_meshes().items():
         start = time.perf_counter()
-        value = _score(metric, torch, folder / name, folder / REFERENCE)
+        value = _score(metric, folder / name, folder / REFERENCE)
         typer.echo(f"{name:28} {value:10.3f} {time.perf_counter() - start:8.2f}  {change}")

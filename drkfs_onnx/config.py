@@ -47,9 +47,9 @@ class PipelineConfig:
     ambient: float = 0.3
     diffuse: float = 0.7
     # PoI detector: sum_n delta_n max_m (W_mn * I + b_mn)
-    detector_kernel: int = 9
-    detector_n: int = 2
-    detector_m: int = 2
+    detector_kernel: int = 5
+    detector_n: int = 4
+    detector_m: int = 4
     # Patches and HardNet
     patch_size: int = 32
     patch_stride: int = 16

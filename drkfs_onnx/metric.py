@@ -12,7 +12,7 @@ from .config import PipelineConfig
 from .detector import PoIDetector
 from .hardnet import HardNet
 from .matching import match_score
-from .mesh import check_normalization, normalize_pair
+from .mesh import Mesh, check_normalization, normalize_pair
 from .patches import extract_patches, nonempty_patches
 from .render import Renderer
 from .weights import RANDOM_SEED, load_shipped_state
@@ -104,6 +104,18 @@ class DRKFS(nn.Module):
     def features(self, verts: torch.Tensor, faces: torch.Tensor) -> torch.Tensor:
         """Descriptors of a mesh already in the metric's frame: (V, 3), (F, 3) -> (K * P, D)."""
         return self.describe(self.render(verts, faces))
+
+    def score_meshes(self, a: Mesh, b: Mesh) -> float:
+        """Evaluation-only score of checked meshes (float32, no autograd), as ``forward``."""
+        with torch.no_grad():
+            return float(
+                self(
+                    torch.as_tensor(a.vertices, dtype=torch.float32),
+                    torch.as_tensor(a.faces),
+                    torch.as_tensor(b.vertices, dtype=torch.float32),
+                    torch.as_tensor(b.faces),
+                )
+            )
 
     def forward(
         self,

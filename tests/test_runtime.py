@@ -1,0 +1,106 @@
+"""The onnxruntime scorer computes the torch metric's scores (parity), skips what a scene does not
+need (empty patches, fine tessellation, repeated references) and refuses foreign models."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+from conftest import icosphere
+
+from drkfs_onnx import DRKFS, PipelineConfig, check_mesh, load_mesh
+from drkfs_onnx.model_files import features_file
+from drkfs_onnx.runtime import MeshFeatures, ModelMismatch, Scorer
+from drkfs_onnx.runtime.decimate import decimate, face_budget, pixel_footprint
+from drkfs_onnx.weights import models_dir
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+VARIANTS = ["chair_retessellated.obj", "chair_leg_shifted.obj", "chair_no_leg.obj"]
+
+
+@pytest.fixture(scope="module")
+def scorer():
+    return Scorer(threads=2)
+
+
+@pytest.fixture(scope="module")
+def metric():
+    return DRKFS.pretrained()
+
+
+def test_same_images_give_the_torch_descriptors(scorer, metric):
+    chair = load_mesh(EXAMPLES / "chair.obj")
+    features = scorer.features(chair)
+    centre, scale = features.centre, features.scale
+    verts = torch.tensor((chair.vertices - centre) / scale, dtype=torch.float32)
+    with torch.no_grad():
+        expected = metric.features(verts, torch.tensor(chair.faces)).numpy()
+    empty = (expected == expected[0]).all(1)  # the corner patch sees only background
+    assert features.empty == empty.sum() and len(features.descriptors) == (~empty).sum()
+    assert np.abs(features.descriptors - expected[~empty]).max() <= 1e-4
+
+
+def test_scores_equal_the_torch_scores_and_rank_the_same(scorer, metric):
+    reference = EXAMPLES / "chair.obj"
+    runtime = [scorer.score(EXAMPLES / name, reference) for name in VARIANTS]
+    truth = load_mesh(reference)
+    torch_scores = [metric.score_meshes(load_mesh(EXAMPLES / n), truth) for n in VARIANTS]
+    assert np.allclose(runtime, torch_scores, rtol=1e-3, atol=0)
+    assert np.array_equal(np.argsort(runtime), np.argsort(torch_scores))
+    assert scorer.score(reference, reference) == 0.0
+
+
+def test_scores_do_not_depend_on_view_batch_or_threads(scorer):
+    a, b = EXAMPLES / "chair_no_leg.obj", EXAMPLES / "chair.obj"
+    other = Scorer(threads=1, view_batch=3, symmetric=False)
+    assert other.score(a, b) == pytest.approx(scorer.score(a, b), rel=1e-5)
+
+
+def test_a_reference_is_rendered_once_for_many_predictions(scorer):
+    reference = EXAMPLES / "chair.obj"
+    renders = []
+    original = scorer.renderer.render
+    scorer.renderer.render = lambda *args: renders.append(1) or original(*args)
+    try:
+        scorer.cache.clear()
+        for name in VARIANTS[:2]:
+            scorer.score(EXAMPLES / name, reference)
+    finally:
+        scorer.renderer.render = original
+    assert len(renders) == 1 + 2
+
+
+def test_precomputed_reference_features_round_trip(scorer, tmp_path):
+    reference = EXAMPLES / "chair.obj"
+    scorer.features(reference).save(tmp_path / "chair.npz")
+    loaded = MeshFeatures.load(tmp_path / "chair.npz")
+    a = EXAMPLES / "chair_no_leg.obj"
+    assert scorer.score(a, loaded) == scorer.score(a, reference)
+    config = PipelineConfig()
+    assert len(loaded.descriptors) + loaded.empty == config.num_views * config.patches_per_view
+
+
+def test_background_patches_share_the_blank_view_descriptor(scorer, metric):
+    size = metric.config.patch_size
+    with torch.no_grad():
+        blank = metric.descriptor(metric.detector(torch.zeros(1, 1, size, size))).numpy()
+    assert np.abs(scorer._empty - blank).max() <= 1e-4
+
+
+def test_a_model_for_another_config_is_refused_with_the_difference():
+    shipped = models_dir() / features_file(PipelineConfig())
+    with pytest.raises(ModelMismatch, match=r"num_views 25 \(asked 12\)"):
+        Scorer(PipelineConfig(num_views=12), model=shipped)
+
+
+def test_decimation_keeps_meshes_within_budget_and_near_the_surface():
+    config = PipelineConfig()
+    verts, faces = icosphere(6)  # 81,920 faces, above the 32,768 budget at 256 px
+    assert len(faces) > face_budget(config)
+    small_verts, small_faces = decimate(verts, faces, config)
+    assert len(small_faces) <= face_budget(config)
+    radius = np.linalg.norm(small_verts, axis=1)
+    assert np.abs(radius - 0.8).max() < 4 * pixel_footprint(config)
+    check_mesh(small_verts, small_faces)
+    same = decimate(*icosphere(2), config)
+    assert len(same[1]) == len(icosphere(2)[1])

@@ -1,0 +1,100 @@
+"""``drkfs-score``: the server command runs without torch, scores pairs and resumable batches,
+and names what went wrong."""
+
+import csv
+import json
+import os
+import shutil
+import subprocess
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from drkfs_onnx.runtime.cli import app
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+CHAIR = EXAMPLES / "chair.obj"
+NO_LEG = EXAMPLES / "chair_no_leg.obj"
+NO_BACK = EXAMPLES / "chair_no_back.obj"
+FAST = ["--width", "0.25"]  # the smallest shipped model keeps these tests quick
+
+
+def _run(*args: str):
+    return CliRunner().invoke(app, [*map(str, args)])
+
+
+def test_drkfs_score_runs_where_torch_cannot_be_imported(tmp_path):
+    blocker = tmp_path / "torch"
+    blocker.mkdir()
+    (blocker / "__init__.py").write_text("raise ImportError('no torch on this server')\n")
+    script = shutil.which("drkfs-score")
+    assert script, "drkfs-score is not installed (pip install -e .)"
+    env = {**os.environ, "PYTHONPATH": str(tmp_path)}
+    result = subprocess.run(
+        [script, "pair", str(NO_LEG), str(CHAIR), "--json", *FAST],
+        capture_output=True,
+        text=True,
+        env=env,
+    )
+    assert result.returncode == 0, result.stderr
+    report = json.loads(result.stdout)
+    assert report["score"] > 0 and report["seconds"] > 0
+    assert report["model_version"].startswith("drkfs-onnx")
+
+
+def test_precomputed_reference_gives_the_same_score(tmp_path):
+    assert _run("features", CHAIR, "--out", tmp_path / "chair.npz", *FAST).exit_code == 0
+    direct = _run("pair", NO_LEG, CHAIR, *FAST)
+    cached = _run("pair", NO_LEG, tmp_path / "chair.npz", *FAST)
+    assert direct.exit_code == cached.exit_code == 0
+    assert float(direct.stdout) == float(cached.stdout) > 0
+
+
+def test_a_model_for_another_config_is_refused(tmp_path):
+    shipped = Path(__file__).resolve().parents[1] / "models" / "features_w0.5.onnx"
+    result = _run("pair", NO_LEG, CHAIR, "--model", shipped)
+    assert result.exit_code == 2
+    assert "descriptor_width 0.5 (asked 1.0)" in result.output
+
+
+def _records(path: Path) -> dict[int, dict]:
+    with open(path, newline="") as handle:
+        return {int(r["row"]): r for r in csv.DictReader(handle)}
+
+
+def test_batch_records_errors_goes_on_and_resumes_after_a_kill(tmp_path):
+    pairs = tmp_path / "pairs.csv"
+    missing = tmp_path / "missing.obj"
+    pairs.write_text(f"mesh_a,mesh_b\n{NO_LEG},{CHAIR}\n{missing},{CHAIR}\n{NO_BACK},{CHAIR}\n")
+    out = tmp_path / "scores.csv"
+
+    first = _run("batch", pairs, "--out", out, *FAST)
+    assert first.exit_code == 1
+    assert "2 scored, 1 failed" in first.output and "failed rows: 1" in first.output
+    records = _records(out)
+    assert float(records[0]["score"]) > 0 and float(records[2]["score"]) > 0
+    assert records[1]["score"] == "" and str(missing) in records[1]["error"]
+
+    # A kill while writing row 2 leaves a cut line; the rerun drops it and scores row 2 again.
+    lines = out.read_text().splitlines(keepends=True)
+    out.write_text("".join(lines[:3]) + lines[3][:10])
+    second = _run("batch", pairs, "--out", out, *FAST)
+    assert second.exit_code == 1
+    assert "1 scored, 1 failed, 1 already done" in second.output
+    assert _records(out)[2]["score"] == records[2]["score"]
+
+
+def test_a_batch_without_failures_exits_zero(tmp_path):
+    pairs = tmp_path / "pairs.csv"
+    pairs.write_text(f"{CHAIR},{CHAIR}\n")  # no header: the first two columns
+    result = _run("batch", pairs, "--out", tmp_path / "scores.csv", *FAST)
+    assert result.exit_code == 0, result.output
+    assert float(_records(tmp_path / "scores.csv")[0]["score"]) == 0.0
+
+
+@pytest.mark.parametrize("option", ["--symmetric", "--threads=1", "--normalize=each"])
+def test_options_are_accepted(option):
+    result = _run("pair", CHAIR, CHAIR, option, *FAST)
+    assert result.exit_code == 0, result.output
+    assert float(result.stdout) == 0.0
