@@ -125,7 +125,8 @@ def run_decimation(name: str, repeats: int) -> dict:
 
     mesh = load_mesh(MESHES / name)
     other = _jittered(mesh)
-    full, budgeted = Scorer(threads=2, face_budget=0), Scorer(threads=2)
+    full = Scorer(threads=2)
+    budgeted = Scorer(threads=2, face_budget=face_budget(full.config))
     rows = {}
     for label, scorer in (("full", full), ("decimated", budgeted)):
 

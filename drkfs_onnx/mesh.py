@@ -41,14 +41,36 @@ def load_mesh(path: str | Path) -> Mesh:
     if not Path(path).is_file():
         raise MeshError(source, "no such file")
     try:
-        loaded = trimesh.load(path, force="mesh", process=False)
+        # Geometry only: materials and textures would need Pillow, which servers may lack.
+        loaded = trimesh.load(path, process=False, skip_materials=True)
+        vertices, faces = _geometry(loaded)
     except Exception as exc:  # trimesh raises many types for unreadable input
         raise MeshError(source, f"unreadable ({type(exc).__name__}: {exc})") from exc
-    faces = getattr(loaded, "faces", None)
-    if faces is None or len(faces) == 0:
+    if len(faces) == 0:
         kind = type(loaded).__name__
         raise MeshError(source, f"no faces (read as {kind}; a point cloud or empty scene?)")
-    return check_mesh(np.asarray(loaded.vertices), np.asarray(faces), source)
+    return check_mesh(vertices, faces, source)
+
+
+def _geometry(loaded) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices and faces of a mesh, or of a scene's meshes placed by its graph, merged."""
+    if isinstance(loaded, trimesh.Scene):
+        parts = []
+        for node in loaded.graph.nodes_geometry:
+            transform, name = loaded.graph[node]
+            geometry = loaded.geometry[name]
+            if len(getattr(geometry, "faces", [])):
+                points = trimesh.transform_points(np.asarray(geometry.vertices), transform)
+                parts.append((points, np.asarray(geometry.faces)))
+    else:
+        parts = [(np.asarray(loaded.vertices), np.asarray(getattr(loaded, "faces", [])))]
+    parts = [(v, f.reshape(-1, 3)) for v, f in parts if len(f)]
+    if not parts:
+        return np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64)
+    offsets = np.cumsum([0] + [len(v) for v, _ in parts[:-1]])
+    vertices = np.concatenate([v for v, _ in parts])
+    faces = np.concatenate([f + offset for (_, f), offset in zip(parts, offsets, strict=True)])
+    return vertices, faces
 
 
 def check_mesh(vertices: np.ndarray, faces: np.ndarray, source: str = "<array>") -> Mesh:

@@ -13,6 +13,7 @@ import typer
 from drkfs_onnx.config import NORMALIZATIONS, REDUCTIONS, PipelineConfig
 from drkfs_onnx.mesh import MeshError
 
+from .decimate import face_budget
 from .features import MeshFeatures
 from .scorer import Scorer
 from .sessions import ModelMismatch
@@ -32,6 +33,10 @@ Reduction = Annotated[str, typer.Option(help=f"Reduce best matches by {' or '.jo
 Width = Annotated[
     float, typer.Option(help="HardNet width of the shipped model: 1, 0.5 or 0.25 (faster).")
 ]
+Decimate = Annotated[
+    bool,
+    typer.Option(help="Simplify meshes above the face budget (faster; changes scores)."),
+]
 Model = Annotated[
     Path | None, typer.Option(help="A feature-graph ONNX file instead of the shipped one.")
 ]
@@ -39,15 +44,17 @@ Model = Annotated[
 BATCH_COLUMNS = ["row", "mesh_a", "mesh_b", "score", "seconds", "error"]
 
 
-def _scorer(threads, normalize, symmetric, reduction, width, model) -> Scorer:
+def _scorer(threads, normalize, symmetric, reduction, width, model, simplify=False) -> Scorer:
+    config = PipelineConfig(descriptor_width=width)
     try:
         return Scorer(
-            PipelineConfig(descriptor_width=width),
+            config,
             model=model,
             threads=threads,
             normalization=normalize,
             reduction=reduction,
             symmetric=symmetric,
+            face_budget=face_budget(config) if simplify else None,
         )
     except (ModelMismatch, FileNotFoundError, ValueError) as exc:
         typer.echo(f"error: {exc}", err=True)
@@ -72,9 +79,10 @@ def pair(
     reduction: Reduction = "sum",
     width: Width = 1.0,
     model: Model = None,
+    decimate: Decimate = False,
 ) -> None:
     """Score MESH_A against the reference MESH_B (0 for identical meshes)."""
-    scorer = _scorer(threads, normalize, symmetric, reduction, width, model)
+    scorer = _scorer(threads, normalize, symmetric, reduction, width, model, decimate)
     start = time.perf_counter()
     try:
         value = scorer.score(mesh_a, _reference(mesh_b))
@@ -99,9 +107,10 @@ def features(
     normalize: Normalize = "joint",
     width: Width = 1.0,
     model: Model = None,
+    decimate: Decimate = False,
 ) -> None:
     """Describe a reference mesh once; pass the .npz as MESH_B to ``pair`` or in a batch CSV."""
-    scorer = _scorer(threads, normalize, False, "sum", width, model)
+    scorer = _scorer(threads, normalize, False, "sum", width, model, decimate)
     try:
         result = scorer.features(mesh)
     except MeshError as exc:
@@ -149,6 +158,7 @@ def batch(
     reduction: Reduction = "sum",
     width: Width = 1.0,
     model: Model = None,
+    decimate: Decimate = False,
 ) -> None:
     """Score every row of PAIRS; results are appended and flushed row by row.
 
@@ -157,7 +167,7 @@ def batch(
     """
     todo = _pairs(pairs)
     done = _done(out)
-    scorer = _scorer(threads, normalize, symmetric, reduction, width, model)
+    scorer = _scorer(threads, normalize, symmetric, reduction, width, model, decimate)
     fresh = not out.exists() or out.stat().st_size == 0
     failed, scored, skipped = [], 0, 0
     with open(out, "a", newline="") as handle:
