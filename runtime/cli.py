@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import json
 import time
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Annotated
 
@@ -44,9 +45,19 @@ Model = Annotated[
 BATCH_COLUMNS = ["row", "mesh_a", "mesh_b", "score", "seconds", "error"]
 
 
+@contextmanager
+def _exit_on(*errors: type[Exception]):
+    """Print an expected error as 'error: ...' and exit with status 2."""
+    try:
+        yield
+    except errors as exc:
+        typer.echo(f"error: {exc}", err=True)
+        raise typer.Exit(2) from exc
+
+
 def _scorer(threads, normalize, symmetric, reduction, width, model, simplify=False) -> Scorer:
     config = PipelineConfig(descriptor_width=width)
-    try:
+    with _exit_on(ModelMismatch, FileNotFoundError, ValueError):
         return Scorer(
             config,
             model=model,
@@ -56,9 +67,6 @@ def _scorer(threads, normalize, symmetric, reduction, width, model, simplify=Fal
             symmetric=symmetric,
             face_budget=face_budget(config) if simplify else None,
         )
-    except (ModelMismatch, FileNotFoundError, ValueError) as exc:
-        typer.echo(f"error: {exc}", err=True)
-        raise typer.Exit(2) from exc
 
 
 def _reference(path: Path):
@@ -84,11 +92,8 @@ def pair(
     """Score MESH_A against the reference MESH_B (0 for identical meshes)."""
     scorer = _scorer(threads, normalize, symmetric, reduction, width, model, decimate)
     start = time.perf_counter()
-    try:
+    with _exit_on(MeshError, ValueError):
         value = scorer.score(mesh_a, _reference(mesh_b))
-    except (MeshError, ValueError) as exc:
-        typer.echo(f"error: {exc}", err=True)
-        raise typer.Exit(2) from exc
     seconds = time.perf_counter() - start
     if as_json:
         report = {"score": value, "seconds": seconds, "model_version": scorer.model_version}
@@ -111,11 +116,8 @@ def features(
 ) -> None:
     """Describe a reference mesh once; pass the .npz as MESH_B to ``pair`` or in a batch CSV."""
     scorer = _scorer(threads, normalize, False, "sum", width, model, decimate)
-    try:
+    with _exit_on(MeshError):
         result = scorer.features(mesh)
-    except MeshError as exc:
-        typer.echo(f"error: {exc}", err=True)
-        raise typer.Exit(2) from exc
     result.save(out)
     typer.echo(f"{out}: {len(result.descriptors)} patch descriptors, {result.empty} empty patches")
 

@@ -4,6 +4,7 @@ count of background patches (which share one descriptor)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -23,6 +24,11 @@ class MeshFeatures:
     centre: np.ndarray
     scale: float
     model: str
+
+    @cached_property
+    def row_keys(self) -> frozenset[bytes]:
+        """The descriptor rows' bytes: finds exact copies in O(1) each (built once per mesh)."""
+        return frozenset(row.tobytes() for row in self.descriptors)
 
     def save(self, path: str | Path) -> None:
         np.savez_compressed(

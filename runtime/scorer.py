@@ -61,6 +61,7 @@ class Scorer:
         self.face_budget = face_budget
         self.features_graph = open_features(self.config, model, threads)
         self.match_graph = open_match(threads=threads)
+        self._candidates = self.match_graph.session.get_outputs()[0].shape[1]
         self.renderer = NumpyRenderer(self.config, threads=threads or os.cpu_count() or 1)
         self.cache: OrderedDict[str, MeshFeatures] = OrderedDict()
         self.cache_size = cache_size
@@ -159,19 +160,15 @@ class Scorer:
         q, weights = self._with_empty(queries)
         t, _ = self._with_empty(targets)
         best = np.zeros(len(q))
-        rest = np.nonzero(~np.isin(_row_keys(q), _row_keys(t)))[0]
+        known, blank = targets.row_keys, self._empty.tobytes() if targets.empty else None
+        copied = [key in known or key == blank for key in map(np.ndarray.tobytes, q)]
+        rest = np.nonzero(~np.array(copied, dtype=bool))[0]
         if len(rest):
-            k = self.match_graph.session.get_outputs()[0].shape[1]
-            padded = np.resize(t, (max(len(t), k), t.shape[1]))  # repeats change no minimum
+            rows = max(len(t), self._candidates)
+            padded = np.resize(t, (rows, t.shape[1]))  # repeated rows change no minimum
             inputs = {"a": q[rest], "b": padded}
             candidates = self.match_graph.session.run(None, inputs)[0]
             diff = q[rest, None, :].astype(np.float64) - padded[candidates].astype(np.float64)
             best[rest] = (diff * diff).sum(-1).min(1)
         total = float((weights * best).sum())
         return total / weights.sum() if self.reduction == "mean" else total
-
-
-def _row_keys(rows: np.ndarray) -> np.ndarray:
-    """(N, D) -> (N,) one opaque value per row, equal exactly when the rows' bytes are equal."""
-    rows = np.ascontiguousarray(rows)
-    return rows.view(np.dtype((np.void, rows.dtype.itemsize * rows.shape[1]))).ravel()
