@@ -112,6 +112,33 @@ def export(
 
 
 @app.command()
+def bench(
+    out: Annotated[Path, typer.Option(help="Where results.json, the chart and the set go.")] = Path(
+        "bench/results"
+    ),
+    quick: Annotated[bool, typer.Option(help="The small subset the tests run.")] = False,
+    threads: Annotated[int, typer.Option(help="Threads for onnxruntime and the renderer.")] = 2,
+) -> None:
+    """Speed against accuracy: every method on the same variant sets, the chart, stability."""
+    from .benchmark.run import run_bench
+
+    start = time.perf_counter()
+    results = run_bench(out, quick, threads, lambda line: typer.echo(line, err=True))
+    typer.echo(f"{'method':30} {'accuracy':>8} {'s/pair':>8} {'retrieval':>9} {'bars':>6}")
+    for name, row in results["methods"].items():
+        acc, ratio = row["sensitivity"]["accuracy"], row["bars"]["deletion_over_max_shift"]
+        knn = row["retrieval"]["nearest_neighbour_accuracy"]
+        seconds = row["seconds_per_pair"]
+        typer.echo(f"{name:30} {_fmt(acc):>8} {seconds:8.3f} {_fmt(knn):>9} {_fmt(ratio):>6}")
+    seconds = time.perf_counter() - start
+    typer.echo(f"{out / 'results.json'}, {out / 'speed_accuracy.png'} in {seconds:.0f} s")
+
+
+def _fmt(value: float | None) -> str:
+    return "n/a" if value is None else f"{value:.3f}"
+
+
+@app.command()
 def examples(folder: Annotated[Path, typer.Argument()] = Path("examples")) -> None:
     """Write the bundled example meshes (a chair and its variants) to FOLDER."""
     for path in write_examples(folder):

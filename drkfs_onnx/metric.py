@@ -107,12 +107,14 @@ class DRKFS(nn.Module):
 
     def score_meshes(self, a: Mesh, b: Mesh) -> float:
         """Evaluation-only score of checked meshes (float32, no autograd), as ``forward``."""
+        # placed in float64 first: float32 coordinates far from the origin lose the detail
+        verts_a, verts_b = normalize_pair(a.vertices, b.vertices, self.normalization)
         with torch.no_grad():
             return float(
                 self(
-                    torch.as_tensor(a.vertices, dtype=torch.float32),
+                    torch.as_tensor(verts_a, dtype=torch.float32),
                     torch.as_tensor(a.faces),
-                    torch.as_tensor(b.vertices, dtype=torch.float32),
+                    torch.as_tensor(verts_b, dtype=torch.float32),
                     torch.as_tensor(b.faces),
                 )
             )

@@ -72,11 +72,11 @@ class Part:
             if self.axis != 1:  # swapping two coordinates mirrors the mesh: keep faces outward
                 faces = faces[:, ::-1]
         for _ in range(subdivisions):
-            verts, faces = _subdivide(verts, faces)
+            verts, faces = subdivide(verts, faces)
         return verts * np.array(self.size) + np.array(self.center), faces
 
 
-def _subdivide(verts: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def subdivide(verts: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Split every triangle into four at its edge midpoints (the surface does not move)."""
     edges = np.sort(faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
     unique, inverse = np.unique(edges, axis=0, return_inverse=True)

@@ -12,7 +12,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .shapes import Part, assemble
+from .shapes import Part, assemble, subdivide
 
 STRUCTURAL = ("part_removed", "part_added")
 MILD = ("retessellated", "jittered", "part_thickened", "part_shifted", "rotated")
@@ -92,3 +92,60 @@ def make_variants(
         ),
         Variant("rotated", "mild", rotated, faces),
     ]
+
+
+def _region(verts: np.ndarray, centre: np.ndarray, radius: float) -> np.ndarray:
+    """(V,) weights: 1 within radius / 2 of centre, a cosine fall-off to 0 at radius."""
+    d = np.linalg.norm(verts - centre, axis=1) / radius
+    return np.where(d < 0.5, 1.0, np.where(d < 1.0, 0.5 + 0.5 * np.cos(np.pi * (2 * d - 1)), 0.0))
+
+
+def _vertex_normals(verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    cross = np.cross(
+        verts[faces[:, 1]] - verts[faces[:, 0]], verts[faces[:, 2]] - verts[faces[:, 0]]
+    )
+    normals = np.zeros_like(verts)
+    for i in range(3):
+        np.add.at(normals, faces[:, i], cross)
+    return normals / np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-300)
+
+
+def surface_variants(
+    verts: np.ndarray, faces: np.ndarray, rng: np.random.Generator
+) -> list[Variant]:
+    """The variants of ``make_variants`` for a mesh without named parts (a scanned or modelled
+    surface). A "part" is the surface within 15% of the diagonal of a random vertex:
+    removed (its faces cut out), added (a box of 12% of the diagonal set into the surface there),
+    thickened (pushed out along its normals by 1% of the diagonal, fading to its rim) or shifted
+    (moved by 2.5% of the diagonal, fading to its rim). Retessellation splits every triangle in
+    four at its edge midpoints."""
+    size = float(np.linalg.norm(np.ptp(verts, axis=0)))
+    radius = 0.15 * size
+    centre = verts[int(rng.integers(len(verts)))]
+    near = np.linalg.norm(verts[faces].mean(1) - centre, axis=1) < radius
+    normals = _vertex_normals(verts, faces)
+    region = _region(verts, centre, radius)
+    direction = rng.normal(size=3)
+    direction /= np.linalg.norm(direction)
+    spot = verts[int(rng.integers(len(verts)))]
+    side = 0.12 * size
+    box_v, box_f = Part("added", tuple(spot), (side, side, side)).mesh()
+    jitter = verts + rng.normal(size=verts.shape) * 0.002 * size
+    return [
+        Variant("part_removed", "structural", verts, faces[~near]),
+        Variant(
+            "part_added", "structural", np.concatenate([verts, box_v]),
+            np.concatenate([faces, box_f + len(verts)]),
+        ),
+        Variant("retessellated", "mild", *subdivide(verts, faces)),
+        Variant("jittered", "mild", jitter, faces),
+        Variant("part_thickened", "mild", verts + 0.01 * size * region[:, None] * normals, faces),
+        Variant("part_shifted", "mild", verts + 0.025 * size * region[:, None] * direction, faces),
+        Variant("rotated", "mild", verts @ _rotation_y(2.0).T, faces),
+    ]  # fmt: skip
+
+
+def structural_wins(structural: list[float], mild: list[float]) -> tuple[int, int]:
+    """(wins, pairs): how many (structural, mild) pairs put the structural variant further."""
+    wins = sum(s > m for s in structural for m in mild)
+    return int(wins), len(structural) * len(mild)

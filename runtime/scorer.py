@@ -88,19 +88,25 @@ class Scorer:
         if key in self.cache:
             self.cache.move_to_end(key)
             return self.cache[key]
-        images = self.renderer.render(vertices, faces)
-        mask = nonempty_patches(images, self.config)
-        result = MeshFeatures(
-            descriptors=self._describe_views(images, np.nonzero(mask)[0]),
-            empty=int(len(mask) - mask.sum()),
-            centre=np.asarray(centre, dtype=np.float64),
-            scale=float(scale),
-            model=self.features_graph.sha256,
-        )
+        result = self.describe(self.renderer.render(vertices, faces), (centre, scale))
         self.cache[key] = result
         if len(self.cache) > self.cache_size:
             self.cache.popitem(last=False)
         return result
+
+    def describe(
+        self, images: np.ndarray, frame: tuple[np.ndarray, float] = (np.zeros(3), 1.0)
+    ) -> MeshFeatures:
+        """Features of rendered views (K, S, S), e.g. ``self.renderer``'s, of a mesh placed in
+        ``frame``."""
+        mask = nonempty_patches(images, self.config)
+        return MeshFeatures(
+            descriptors=self._describe_views(images, np.nonzero(mask)[0]),
+            empty=int(len(mask) - mask.sum()),
+            centre=np.asarray(frame[0], dtype=np.float64),
+            scale=float(frame[1]),
+            model=self.features_graph.sha256,
+        )
 
     def score(self, a: MeshLike, b: MeshLike | MeshFeatures) -> float:
         """DR-KFS of A against the reference B (0 for identical meshes)."""

@@ -15,7 +15,7 @@ from ..config import PipelineConfig
 from ..matching import match_score
 from ..mesh import normalize_pair
 from ..shapes import FAMILIES, assemble, random_shape
-from ..variants import make_variants
+from ..variants import make_variants, structural_wins
 from .data import ViewPairs, correspond, crops
 from .objectives import descriptor_distances
 
@@ -157,8 +157,6 @@ def variant_ranking(
                     ref = features(ref_verts, torch.tensor(base_faces))
                 own = features(verts, torch.tensor(variant.faces))
                 scores[variant.kind].append(float(match_score(own, ref, reduction)))
-            for s in scores["structural"]:
-                for m in scores["mild"]:
-                    wins += s > m
-                    total += 1
+            won, pairs = structural_wins(scores["structural"], scores["mild"])
+            wins, total = wins + won, total + pairs
     return {"accuracy": wins / total, "pairs": total}

@@ -1,0 +1,218 @@
+"""The compared methods. Each prepares one mesh (already placed in its frame) and compares two
+prepared meshes into distances: lower is closer, so similarities enter as 1 - value.
+
+A method's seconds per mesh include the renders it uses even when another method rendered the
+same views first (``Placed.views`` shares images and remembers what they cost).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from ..config import PipelineConfig
+from ..matching import match_score
+from ..metric import DRKFS
+from ..model_files import features_file
+from ..runtime.render import NumpyRenderer
+from ..runtime.scorer import Scorer
+from ..weights import load_shipped_state, shipped_weights
+from .point_metrics import iou, is_watertight, occupancy, sample_surface, surface_distances
+
+SURFACE_SAMPLES = 20_000
+
+
+@dataclass
+class Placed:
+    """A mesh in the frame it is compared in, with the views rendered of it so far."""
+
+    key: str
+    verts: np.ndarray
+    faces: np.ndarray
+    _views: dict = field(default_factory=dict)
+
+    def views(self, renderer: NumpyRenderer) -> tuple[np.ndarray, float]:
+        """(K, S, S) images from the renderer's cameras, and the seconds they took to render."""
+        key = (renderer.config.num_views, renderer.config.image_size)
+        if key not in self._views:
+            start = time.perf_counter()
+            images = renderer.render(self.verts, self.faces)
+            self._views[key] = (images, time.perf_counter() - start)
+        return self._views[key]
+
+
+class Method:
+    """outputs: the names of the distances ``compare`` returns (one row each in the results)."""
+
+    outputs: tuple[str, ...]
+    symmetric = False  # compare(a, b) == compare(b, a): retrieval scores each pair once
+
+    def prepare(self, placed: Placed) -> tuple[object, float]:
+        """-> (prepared mesh, seconds it cost)."""
+        raise NotImplementedError
+
+    def compare(self, a, b) -> tuple[float | None, ...]:
+        raise NotImplementedError
+
+
+def _timed(fn, *args):
+    start = time.perf_counter()
+    value = fn(*args)
+    return value, time.perf_counter() - start
+
+
+class DrkfsOnnx(Method):
+    """The runtime scorer (numpy renderer + onnxruntime), for one config and feature graph."""
+
+    def __init__(self, name: str, config: PipelineConfig, model: Path | None, threads: int):
+        self.outputs = (name,)
+        self.scorer = Scorer(config, model, threads=threads)
+
+    def prepare(self, placed):
+        images, render_s = placed.views(self.scorer.renderer)
+        features, seconds = _timed(self.scorer.describe, images)
+        return features, render_s + seconds
+
+    def compare(self, a, b):
+        return (self.scorer.match(a, b),)
+
+
+class DrkfsTorch(Method):
+    """``DRKFS`` in evaluation mode, torch eager, its own torch renderer."""
+
+    def __init__(self, name: str, metric: DRKFS):
+        self.outputs = (name,)
+        self.metric = metric
+
+    def _features(self, placed: Placed) -> torch.Tensor:
+        verts = torch.as_tensor(placed.verts, dtype=torch.float32)
+        with torch.no_grad():
+            return self.metric.features(verts, torch.as_tensor(placed.faces))
+
+    def prepare(self, placed):
+        return _timed(self._features, placed)
+
+    def compare(self, a, b):
+        return (float(match_score(a, b, self.metric.reduction)),)
+
+
+class ImageMSE(Method):
+    """Mean squared difference of the same renders (pixels), or of their PoI maps."""
+
+    symmetric = True
+
+    def __init__(self, name: str, renderer: NumpyRenderer, detector: torch.nn.Module | None):
+        self.outputs = (name,)
+        self.renderer, self.detector = renderer, detector
+
+    def _maps(self, images: np.ndarray) -> np.ndarray:
+        with torch.no_grad():
+            return self.detector(torch.from_numpy(images[:, None].astype(np.float32))).numpy()
+
+    def prepare(self, placed):
+        images, render_s = placed.views(self.renderer)
+        if self.detector is None:
+            return images, render_s
+        maps, seconds = _timed(self._maps, images)
+        return maps, render_s + seconds
+
+    def compare(self, a, b):
+        return (float(np.mean((a - b) ** 2)),)
+
+
+class Surface(Method):
+    """Chamfer-L1, 1 - F-score at 1%, 1 - normal consistency from one nearest-neighbour pass."""
+
+    outputs = ("Chamfer-L1", "F-score 1%", "normal consistency")
+    symmetric = True
+
+    def __init__(self, samples: int = SURFACE_SAMPLES):
+        self.samples = samples
+
+    def prepare(self, placed):
+        return _timed(sample_surface, placed.verts, placed.faces, self.samples)
+
+    def compare(self, a, b):
+        d = surface_distances(a, b)
+        return d["chamfer_l1"], 1.0 - d["fscore"], 1.0 - d["normal_consistency"]
+
+
+class VolumeIoU(Method):
+    """1 - IoU of 64^3 occupancy grids; None (not applicable) unless both are watertight."""
+
+    outputs = ("volumetric IoU",)
+    symmetric = True
+
+    def _occupancy(self, placed: Placed):
+        if not is_watertight(placed.verts, placed.faces):
+            return None
+        return occupancy(placed.verts, placed.faces)
+
+    def prepare(self, placed):
+        return _timed(self._occupancy, placed)
+
+    def compare(self, a, b):
+        return (None if a is None or b is None else 1.0 - iou(a, b),)
+
+
+def _metric(config: PipelineConfig, weights: PipelineConfig) -> DRKFS:
+    """The metric for ``config`` with the weights shipped for ``weights`` (views and image size
+    do not change the nets)."""
+    metric = DRKFS(config)
+    metric.load_state_dict(load_shipped_state(weights))
+    return metric
+
+
+def _sha256(config: PipelineConfig) -> str:
+    return next(
+        e["sha256"] for e in shipped_weights() if PipelineConfig.from_dict(e["config"]) == config
+    )
+
+
+def build_methods(models: Path, threads: int, views: int = 25) -> list[Method]:
+    """Every method and variant at ``views`` cameras (the paper's 25 unless a quick run asks
+    for fewer). Feature graphs the shipped ones do not cover (other view counts, 128 px) are
+    exported into ``models``."""
+    from ..export.onnx_files import export_features
+
+    shipped = PipelineConfig()
+    base = shipped.replace(num_views=views)
+
+    def onnx(name: str, config: PipelineConfig, weights: PipelineConfig) -> DrkfsOnnx:
+        if load_shipped_state(config) is not None:  # shipped graph, shipped weights
+            return DrkfsOnnx(name, config, None, threads)
+        path = models / features_file(config).replace(".onnx", f"_{views}v.onnx")
+        if config.image_size != shipped.image_size:
+            path = path.with_name(path.stem + f"_{config.image_size}px.onnx")
+        export_features(_metric(config, weights), path, _sha256(weights))
+        return DrkfsOnnx(name, config, path, threads)
+
+    methods: list[Method] = []
+    for entry in shipped_weights():
+        weights = PipelineConfig.from_dict(entry["config"])
+        if weights.replace(descriptor_width=1.0) == shipped:
+            name = f"DR-KFS onnx w{weights.descriptor_width:g}"
+            methods.append(onnx(name, weights.replace(num_views=views), weights))
+    for config in (
+        base.replace(num_views=max(1, views // 2)),
+        base.replace(num_views=max(1, views // 4)),
+        base.replace(image_size=128),
+    ):
+        label = (
+            f"{config.image_size} px" if config.image_size != 256 else f"{config.num_views} views"
+        )
+        methods.append(onnx(f"DR-KFS onnx w1 {label}", config, shipped))
+    metric = _metric(base, shipped)
+    renderer = NumpyRenderer(base, threads=threads)
+    return [
+        *methods,
+        DrkfsTorch("DR-KFS torch w1", metric),
+        ImageMSE("pixel MSE", renderer, None),
+        ImageMSE("PoI-map MSE", renderer, metric.detector),
+        Surface(),
+        VolumeIoU(),
+    ]

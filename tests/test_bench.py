@@ -1,0 +1,164 @@
+"""The speed-accuracy benchmark: its baselines on known answers, the variant set on disk, the
+chart, and the quick run end to end."""
+
+import json
+import struct
+import zlib
+
+import numpy as np
+import pytest
+import torch
+import trimesh
+
+from drkfs_onnx.benchmark import point_metrics as pm
+from drkfs_onnx.benchmark.chart import Canvas, pareto_front, write_chart
+from drkfs_onnx.benchmark.run import run_bench
+from drkfs_onnx.benchmark.sets import STABILITY, _box_with_cavity
+from drkfs_onnx.mesh import frame_of, load_mesh
+from drkfs_onnx.shapes import Part, assemble, random_shape, subdivide
+from drkfs_onnx.variants import MILD, STRUCTURAL, surface_variants
+
+
+def _placed(verts, faces):
+    centre, scale = frame_of(verts)
+    return (verts - centre) / scale, faces
+
+
+def test_nearest_neighbours_are_exact_for_near_and_far_queries():
+    rng = np.random.default_rng(0)
+    targets = rng.normal(size=(3000, 3))
+    queries = np.concatenate([targets[:500] + 1e-3, rng.normal(size=(500, 3)) * 5])
+    dist, index = pm._nearest(queries, targets)
+    brute = torch.cdist(torch.from_numpy(queries), torch.from_numpy(targets)).min(1)
+    np.testing.assert_allclose(dist, brute.values.numpy(), atol=1e-9)
+    np.testing.assert_array_equal(index, brute.indices.numpy())
+
+
+def test_surface_metrics_of_a_surface_against_itself_and_a_shifted_copy():
+    verts, faces = _placed(*assemble(random_shape("chair", 0), 1))
+    a = pm.sample_surface(verts, faces, 20000, seed=0)
+    same = pm.surface_distances(a, pm.sample_surface(verts, faces, 20000, seed=1))
+    moved = pm.surface_distances(a, pm.sample_surface(verts + [0.1, 0, 0], faces, 20000, seed=1))
+    assert same["fscore"] > 0.97 and same["normal_consistency"] > 0.95
+    assert same["chamfer_l1"] < 0.02 < moved["chamfer_l1"] < 0.1
+    assert moved["fscore"] < same["fscore"]
+
+
+def test_occupancy_fills_a_box_and_leaves_its_hidden_cavity_empty():
+    box_v, box_f = Part("box", (0, 0, 0), (1.0, 0.6, 0.8)).mesh(2)
+    solid = pm.occupancy(box_v, box_f)
+    pitch = 2 * pm.VOXEL_EXTENT / pm.VOXELS
+    assert solid.sum() * pitch**3 == pytest.approx(0.48, rel=0.1)
+    hollow = pm.occupancy(*_box_with_cavity())
+    assert pm.iou(solid, hollow) == pytest.approx(1 - 0.06 / 0.48, abs=0.03)
+    assert pm.is_watertight(box_v, box_f)
+    assert not pm.is_watertight(box_v, box_f[1:])
+
+
+def test_overlapping_closed_parts_count_once():
+    one = Part("a", (0, 0, 0), (1.0, 1.0, 1.0)).mesh()
+    two = assemble(
+        [Part("a", (0, 0, 0), (1.0, 1.0, 1.0)), Part("b", (0.25, 0, 0), (0.5, 0.5, 0.5))]
+    )
+    assert pm.iou(pm.occupancy(*one), pm.occupancy(*two)) == 1.0
+
+
+def test_surface_variants_of_a_real_mesh(shared_meshes):
+    mesh = load_mesh(shared_meshes / "cow.obj")
+    variants = surface_variants(mesh.vertices, mesh.faces, np.random.default_rng(0))
+    assert [v.name for v in variants] == [*STRUCTURAL, *MILD]
+    kinds = {v.name: v for v in variants}
+    assert len(kinds["part_removed"].faces) < len(mesh.faces)
+    assert len(kinds["retessellated"].faces) == 4 * len(mesh.faces)
+    moved = np.linalg.norm(kinds["part_shifted"].verts - mesh.vertices, axis=1)
+    size = np.linalg.norm(np.ptp(mesh.vertices, axis=0))
+    assert 0 < moved.max() <= 0.025 * size + 1e-9 and (moved == 0).mean() > 0.5
+
+
+def test_pareto_front_keeps_only_unbeaten_points_fastest_first():
+    points = {"slow_best": (10.0, 0.9), "fast_ok": (0.1, 0.6), "beaten": (1.0, 0.5),
+              "tie_slower": (0.2, 0.6), "no_accuracy": (0.01, None)}  # fmt: skip
+    assert pareto_front(points) == ["fast_ok", "slow_best"]
+
+
+def _png_size_and_pixels(data: bytes):
+    assert data[:8] == b"\x89PNG\r\n\x1a\n"
+    width, height = struct.unpack(">II", data[16:24])
+    length = struct.unpack(">I", data[33:37])[0]
+    assert data[37:41] == b"IDAT"
+    raw = zlib.decompress(data[41 : 41 + length])
+    return width, height, np.frombuffer(raw, np.uint8).reshape(height, 1 + 3 * width)[:, 1:]
+
+
+def test_chart_is_a_valid_png_with_a_dot_per_method(tmp_path):
+    points = {"DR-KFS onnx w1": (1.5, 0.8), "Chamfer-L1": (0.5, 0.7), "pixel MSE": (0.7, 0.6)}
+    path = write_chart(tmp_path / "chart.png", points, pareto_front(points))
+    width, height, pixels = _png_size_and_pixels(path.read_bytes())
+    assert (width, height) == (1000, 640)
+    colours = {tuple(c) for c in pixels.reshape(height, width, 3).reshape(-1, 3)}
+    assert {(40, 90, 200), (120, 120, 120), (210, 30, 30)} <= colours
+
+
+def test_text_renders_known_glyphs_and_skips_unknown_ones():
+    canvas = Canvas(40, 10)
+    canvas.text(0, 0, "A~", (0, 0, 0))
+    ink = canvas.pixels[:7, :, 0] == 0
+    assert ink[:, :5].sum() == 18 and not ink[:, 6:].any()  # "A" has 18 lit pixels
+
+
+@pytest.fixture(scope="module")
+def quick(tmp_path_factory):
+    out = tmp_path_factory.mktemp("bench")
+    return out, run_bench(out, quick=True, progress=lambda line: None)
+
+
+def test_quick_bench_writes_results_chart_and_the_variant_set(quick):
+    out, results = quick
+    assert json.loads((out / "results.json").read_text())["quick"] is True
+    assert _png_size_and_pixels((out / "speed_accuracy.png").read_bytes())[0] == 1000
+    index = json.loads((out / "set" / "index.json").read_text())
+    for key, name in index["files"].items():
+        assert len(trimesh.load(out / "set" / name, process=False).faces) > 0, key
+    assert {c["group"] for c in index["comparisons"]} == {"sensitivity", "bars", "stability"}
+    assert set(results["pareto_front"]) <= set(results["methods"])
+
+
+def test_quick_bench_scores_every_method_on_the_same_rows(quick):
+    _, results = quick
+    names = set(results["methods"])
+    assert {"DR-KFS torch w1", "DR-KFS onnx w1", "Chamfer-L1", "volumetric IoU"} <= names
+    rows = {name: set(values) for name, values in results["values"].items()}
+    assert all(r == rows["Chamfer-L1"] for r in rows.values())
+    for name, row in results["methods"].items():
+        assert 0 <= row["sensitivity"]["accuracy"] <= 1, name
+        assert row["seconds_per_pair"] >= row["seconds_per_cached_pair"] > 0, name
+        assert row["retrieval"]["queries"] > 0, name
+
+
+def test_quick_bench_torch_and_onnx_agree(quick):
+    _, results = quick
+    onnx, torch_ = results["values"]["DR-KFS onnx w1"], results["values"]["DR-KFS torch w1"]
+    scale = max(torch_.values())  # near-zero scores differ by float rounding of that scale
+    for key, value in onnx.items():
+        assert value == pytest.approx(torch_[key], rel=2e-3, abs=2e-3 * scale), key
+
+
+def test_quick_bench_stability_rows_and_torch_checks(quick):
+    _, results = quick
+    table = results["stability"]["DR-KFS onnx w1"]
+    assert set(table) == set(STABILITY) - {"over_200k_faces"}
+    assert table["hidden_cavity"]["value"] == 0.0  # the known blind spot: no camera sees it
+    assert table["hidden_cavity"]["passed"] is False
+    assert table["duplicated_faces"]["passed"] and table["retessellated"]["passed"]
+    assert results["stability"]["volumetric IoU"]["hidden_cavity"]["passed"] is True
+    checks = results["torch_stability"]
+    assert all(
+        row["gradient_finite"] and row["self_score"] == 0.0 for row in checks["cases"].values()
+    )
+    assert checks["slide"]["passed"] and checks["slide"]["scores"][0] == 0.0
+
+
+def test_retessellating_a_mesh_keeps_its_occupancy():
+    verts, faces = _placed(*Part("c", (0, 0, 0), (1, 1, 1), "cylinder").mesh(1))
+    fine = subdivide(verts, faces)
+    assert pm.iou(pm.occupancy(verts, faces), pm.occupancy(*fine)) == 1.0
