@@ -27,16 +27,24 @@ def shipped_weights() -> list[dict]:
     return json.loads(manifest_file.read_text()).get("weights", [])
 
 
-def load_shipped_state(config: PipelineConfig):
-    """The torch state dict shipped for ``config``, or None when none is shipped."""
+def shipped_entry(config: PipelineConfig) -> dict | None:
+    """The manifest's weights entry trained for ``config``, or None when none is shipped."""
     for entry in shipped_weights():
         if PipelineConfig.from_dict(entry["config"]) == config:
-            import torch
-
-            path = models_dir() / entry["file"]
-            data = path.read_bytes()
-            digest = hashlib.sha256(data).hexdigest()
-            if digest != entry["sha256"]:
-                raise ValueError(f"{path}: sha256 {digest} does not match the manifest")
-            return torch.load(io.BytesIO(data), map_location="cpu", weights_only=True)
+            return entry
     return None
+
+
+def load_shipped_state(config: PipelineConfig):
+    """The torch state dict shipped for ``config``, or None when none is shipped."""
+    entry = shipped_entry(config)
+    if entry is None:
+        return None
+    import torch
+
+    path = models_dir() / entry["file"]
+    data = path.read_bytes()
+    digest = hashlib.sha256(data).hexdigest()
+    if digest != entry["sha256"]:
+        raise ValueError(f"{path}: sha256 {digest} does not match the manifest")
+    return torch.load(io.BytesIO(data), map_location="cpu", weights_only=True)

@@ -20,7 +20,7 @@ from ..metric import DRKFS
 from ..model_files import features_file
 from ..runtime.render import NumpyRenderer
 from ..runtime.scorer import Scorer
-from ..weights import load_shipped_state, shipped_weights
+from ..weights import load_shipped_state, shipped_entry, shipped_weights
 from .point_metrics import iou, is_watertight, occupancy, sample_surface, surface_distances
 
 SURFACE_SAMPLES = 20_000
@@ -167,12 +167,6 @@ def _metric(config: PipelineConfig, weights: PipelineConfig) -> DRKFS:
     return metric
 
 
-def _sha256(config: PipelineConfig) -> str:
-    return next(
-        e["sha256"] for e in shipped_weights() if PipelineConfig.from_dict(e["config"]) == config
-    )
-
-
 def build_methods(models: Path, threads: int, views: int = 25) -> list[Method]:
     """Every method and variant at ``views`` cameras (the paper's 25 unless a quick run asks
     for fewer). Feature graphs the shipped ones do not cover (other view counts, 128 px) are
@@ -183,12 +177,11 @@ def build_methods(models: Path, threads: int, views: int = 25) -> list[Method]:
     base = shipped.replace(num_views=views)
 
     def onnx(name: str, config: PipelineConfig, weights: PipelineConfig) -> DrkfsOnnx:
-        if load_shipped_state(config) is not None:  # shipped graph, shipped weights
+        if shipped_entry(config) is not None:  # shipped graph, shipped weights
             return DrkfsOnnx(name, config, None, threads)
-        path = models / features_file(config).replace(".onnx", f"_{views}v.onnx")
-        if config.image_size != shipped.image_size:
-            path = path.with_name(path.stem + f"_{config.image_size}px.onnx")
-        export_features(_metric(config, weights), path, _sha256(weights))
+        stem = Path(features_file(config)).stem
+        path = models / f"{stem}_{config.num_views}v_{config.image_size}px.onnx"
+        export_features(_metric(config, weights), path, shipped_entry(weights)["sha256"])
         return DrkfsOnnx(name, config, path, threads)
 
     methods: list[Method] = []

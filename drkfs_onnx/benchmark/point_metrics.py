@@ -54,12 +54,11 @@ def _nearest(queries: np.ndarray, targets: np.ndarray) -> tuple[np.ndarray, np.n
     cluster = np.concatenate(
         [_squared(chunk, pivots).argmin(1) for chunk in np.array_split(targets, 16)]
     )
-    radius = np.sqrt(np.maximum.reduceat(
-        ((targets - pivots[cluster]) ** 2).sum(1)[np.argsort(cluster, kind="stable")],
-        np.searchsorted(np.sort(cluster), np.arange(len(pivots))),
-    ))  # fmt: skip
     members = np.argsort(cluster, kind="stable")
     starts = np.searchsorted(cluster[members], np.arange(len(pivots) + 1))
+    spread = ((targets - pivots[cluster]) ** 2).sum(1)[members]
+    radius = np.sqrt(np.maximum.reduceat(spread, np.minimum(starts[:-1], len(spread) - 1)))
+    radius[starts[1:] == starts[:-1]] = -np.inf  # empty (a repeated pivot): never searched
     to_pivot = np.sqrt(_squared(queries, pivots))
     best = to_pivot.min(1)
     index = to_pivot.argmin(1)  # pivot k is target k

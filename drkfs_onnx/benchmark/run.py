@@ -16,7 +16,7 @@ from ..mesh import frame_of
 from ..variants import structural_wins
 from . import sets
 from .chart import pareto_front, write_chart
-from .methods import SURFACE_SAMPLES, Method, Placed, build_methods
+from .methods import SURFACE_SAMPLES, DrkfsTorch, Method, Placed, build_methods
 from .torch_checks import gradient_check, self_score, slide
 
 QUICK_VIEWS = 6  # the quick run's camera count: its DR-KFS variants cost a quarter
@@ -209,7 +209,7 @@ def run_bench(out: Path, quick: bool, threads: int = 2, progress=print) -> dict:
             "bars": _bars(bench, values),
             "retrieval": _retrieval(bench, scores.retrieval[name]),
         }
-    torch_method = next(m for m in methods if m.outputs[0].startswith("DR-KFS torch"))
+    torch_method = next(m for m in methods if isinstance(m, DrkfsTorch))
     points = {n: (s["seconds_per_pair"], s["sensitivity"]["accuracy"]) for n, s in summary.items()}
     front = pareto_front(points)
     results = {

@@ -179,8 +179,8 @@ def stability(bench: BenchSet, surface: str, large: str | None) -> None:
     size = float(np.linalg.norm(np.ptp(v, axis=0)))
     offset = np.array([0.01 * size, 0.0, 0.0])
     far, scale = 1e4 * size, 1e-3
-    legs = chair()
-    thin = [*legs, Part("thin", (0.0, 0.15, legs[0].center[2]), (legs[4].size[0], 0.01, 0.01))]
+    plain = chair()
+    thin = [*plain, Part("thin", (0.0, 0.15, plain[0].center[2]), (plain[4].size[0], 0.01, 0.01))]
     box = Part("box", (0, 0, 0), (1.0, 0.6, 0.8)).mesh(2)
     flipped = f.copy()
     chosen = rng.random(len(f)) < 0.2
@@ -193,7 +193,7 @@ def stability(bench: BenchSet, surface: str, large: str | None) -> None:
         "multi_component": (_split(v, f), (v, f)),
         "duplicated_faces": ((v, np.concatenate([f, f])), (v, f)),
         "flipped_faces": ((v, flipped), (v, f)),
-        "thin_part": (assemble(thin, 1), assemble(legs, 1)),
+        "thin_part": (assemble(thin, 1), assemble(plain, 1)),
         "far_from_origin": ((v + offset + far, f), (v + far, f)),
         "other_scale": (((v + offset) * scale, f), (v * scale, f)),
         "degenerate_faces": (_with_degenerate(v, f, rng), (v, f)),
