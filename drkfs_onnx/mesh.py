@@ -120,15 +120,26 @@ def frame_of(vertices):
     return bounding_frame(getattr(lower, "values", lower), getattr(upper, "values", upper))
 
 
+def reference_frame(vertices, mode: str):
+    """The frame ``mode`` places meshes in relative to the reference ``vertices``: its
+    (centre, scale), or None for 'none'."""
+    return None if check_normalization(mode) == "none" else frame_of(vertices)
+
+
+def place(vertices, mode: str, reference):
+    """Move a mesh into the metric's frame: by the reference's frame (joint), its own (each),
+    or not at all (none). ``reference`` comes from ``reference_frame``."""
+    if mode == "none":
+        return vertices
+    centre, scale = reference if mode == "joint" else frame_of(vertices)
+    return (vertices - centre) / scale
+
+
 def normalize_pair(vertices_a, vertices_b, mode: str = "joint"):
     """Put two meshes (numpy arrays or torch tensors) into the metric's frame; B is the reference.
 
     joint: both moved and scaled by B's bounding box (reconstructions judged in the truth's frame);
     each: each by its own bounding box; none: unchanged.
     """
-    check_normalization(mode)
-    if mode == "none":
-        return vertices_a, vertices_b
-    ref_c, ref_s = frame_of(vertices_b)
-    a_c, a_s = (ref_c, ref_s) if mode == "joint" else frame_of(vertices_a)
-    return (vertices_a - a_c) / a_s, (vertices_b - ref_c) / ref_s
+    reference = reference_frame(vertices_b, mode)
+    return place(vertices_a, mode, reference), place(vertices_b, mode, reference)

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import warnings
+from typing import NamedTuple
 
 import torch
 from torch import nn
@@ -12,10 +13,18 @@ from .config import PipelineConfig
 from .detector import PoIDetector
 from .hardnet import HardNet
 from .matching import match_score
-from .mesh import Mesh, check_normalization, normalize_pair
+from .mesh import Mesh, check_normalization, normalize_pair, place, reference_frame
 from .patches import extract_patches, nonempty_patches
 from .render import Renderer
 from .weights import RANDOM_SEED, load_shipped_state
+
+
+class Target(NamedTuple):
+    """A reference mesh prepared once: the frame predictions are placed in, and its (N, D)
+    descriptors."""
+
+    frame: tuple[torch.Tensor, torch.Tensor] | None
+    features: torch.Tensor
 
 
 class DRKFS(nn.Module):
@@ -24,6 +33,9 @@ class DRKFS(nn.Module):
     ``forward(verts_a (Va, 3), faces_a (Fa, 3), verts_b (Vb, 3), faces_b (Fb, 3)) -> ()`` is
     differentiable with respect to both vertex tensors. B is the reference: with
     ``normalization='joint'`` both meshes are placed by B's bounding box.
+
+    As a training loss against a fixed ground truth, prepare it once with ``target`` and call
+    ``score_to(verts, faces, target)`` each step: the truth is rendered and described once.
 
     The detector and descriptor are frozen and always run in evaluation mode; use
     ``DRKFS.pretrained()`` for the shipped weights.
@@ -52,11 +64,12 @@ class DRKFS(nn.Module):
     def pretrained(cls, config: PipelineConfig | None = None, **options) -> DRKFS:
         """The metric with the weights shipped in ``models/``.
 
-        Until trained weights are shipped, this warns and returns nets initialised from
-        torch.manual_seed(RANDOM_SEED): deterministic, but random.
+        Weights trained at another view count or image size serve a config that differs only
+        there (the nets are the same). Until trained weights are shipped, this warns and
+        returns nets initialised from torch.manual_seed(RANDOM_SEED): deterministic, but random.
         """
         config = config or PipelineConfig()
-        state = load_shipped_state(config)
+        state = load_shipped_state(config, any_cameras=True)
         if state is None:
             warnings.warn(
                 f"no trained weights shipped for this config in models/; using random weights "
@@ -119,6 +132,19 @@ class DRKFS(nn.Module):
                 )
             )
 
+    def target(self, verts: torch.Tensor, faces: torch.Tensor) -> Target:
+        """The reference mesh B, (V, 3), (F, 3), placed and described. Differentiable like
+        ``forward``; call it under ``torch.no_grad()`` for a fixed ground truth."""
+        frame = reference_frame(verts, self.normalization)
+        return Target(frame, self.features(place(verts, self.normalization, frame), faces))
+
+    def score_to(self, verts: torch.Tensor, faces: torch.Tensor, target: Target) -> torch.Tensor:
+        """The score of mesh A, (V, 3), (F, 3), against a prepared reference -> ()."""
+        placed = place(verts, self.normalization, target.frame)
+        return match_score(
+            self.features(placed, faces), target.features, self.reduction, self.symmetric
+        )
+
     def forward(
         self,
         verts_a: torch.Tensor,
@@ -126,10 +152,4 @@ class DRKFS(nn.Module):
         verts_b: torch.Tensor,
         faces_b: torch.Tensor,
     ) -> torch.Tensor:
-        verts_a, verts_b = normalize_pair(verts_a, verts_b, self.normalization)
-        return match_score(
-            self.features(verts_a, faces_a),
-            self.features(verts_b, faces_b),
-            self.reduction,
-            self.symmetric,
-        )
+        return self.score_to(verts_a, faces_a, self.target(verts_b, faces_b))

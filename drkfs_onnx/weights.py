@@ -27,17 +27,24 @@ def shipped_weights() -> list[dict]:
     return json.loads(manifest_file.read_text()).get("weights", [])
 
 
-def shipped_entry(config: PipelineConfig) -> dict | None:
-    """The manifest's weights entry trained for ``config``, or None when none is shipped."""
+def shipped_entry(config: PipelineConfig, any_cameras: bool = False) -> dict | None:
+    """The manifest's weights entry trained for ``config``, or None when none is shipped.
+
+    any_cameras: also accept weights trained at another view count or image size; neither
+    changes the nets' shapes (a reduced config for fitting or a quick run reuses them).
+    """
     for entry in shipped_weights():
-        if PipelineConfig.from_dict(entry["config"]) == config:
+        trained = PipelineConfig.from_dict(entry["config"])
+        if any_cameras:
+            trained = trained.replace(num_views=config.num_views, image_size=config.image_size)
+        if trained == config:
             return entry
     return None
 
 
-def load_shipped_state(config: PipelineConfig):
-    """The torch state dict shipped for ``config``, or None when none is shipped."""
-    entry = shipped_entry(config)
+def load_shipped_state(config: PipelineConfig, any_cameras: bool = False):
+    """The torch state dict shipped for ``config`` (see ``shipped_entry``), or None."""
+    entry = shipped_entry(config, any_cameras)
     if entry is None:
         return None
     import torch

@@ -63,6 +63,19 @@ def test_gradients_reach_both_meshes_vertices():
         assert grad.abs().sum() > 0
 
 
+def test_a_prepared_target_scores_like_forward_and_passes_gradients(metric):
+    pred_verts, pred_faces = _mesh(without(chair(), "leg_1"))
+    truth = _mesh()
+    with torch.no_grad():
+        target = metric.target(*truth)
+    assert not target.features.requires_grad
+    pred_verts = (pred_verts * 3.0 + 1.0).requires_grad_(True)  # joint: placed by the truth
+    score = metric.score_to(pred_verts, pred_faces, target)
+    assert torch.equal(score, metric(pred_verts, pred_faces, *truth))
+    score.backward()
+    assert torch.isfinite(pred_verts.grad).all() and pred_verts.grad.abs().sum() > 0
+
+
 def test_skipping_empty_patches_is_exact(metric):
     """Describing only patches that see the mesh equals describing all of them."""
     from drkfs_onnx.patches import extract_patches
@@ -92,10 +105,11 @@ def test_nets_stay_frozen_in_eval_mode(metric):
 
 
 def test_pretrained_without_shipped_weights_is_seeded_random():
+    unshipped = FAST.replace(descriptor_dim=64)
     with pytest.warns(UserWarning, match="random weights"):
-        first = DRKFS.pretrained(FAST)
+        first = DRKFS.pretrained(unshipped)
     with pytest.warns(UserWarning):
-        second = DRKFS.pretrained(FAST)
+        second = DRKFS.pretrained(unshipped)
     for a, b in zip(first.state_dict().values(), second.state_dict().values(), strict=True):
         assert torch.equal(a, b)
 
@@ -113,8 +127,11 @@ def test_pretrained_loads_weights_listed_for_its_config(tmp_path, monkeypatch):
         loaded = DRKFS.pretrained(FAST)
     for a, b in zip(trained.state_dict().values(), loaded.state_dict().values(), strict=True):
         assert torch.equal(a, b)
+    # other cameras or pixels use the same nets; other nets do not
+    other_views = DRKFS.pretrained(FAST.replace(num_views=5, image_size=64))
+    assert torch.equal(other_views.detector.conv.weight, trained.detector.conv.weight)
     with pytest.warns(UserWarning, match="random weights"):
-        DRKFS.pretrained(FAST.replace(num_views=5))
+        DRKFS.pretrained(FAST.replace(detector_m=2))
     (tmp_path / "fast.pt").write_bytes(b"tampered")
     with pytest.raises(ValueError, match="does not match the manifest"):
         DRKFS.pretrained(FAST)

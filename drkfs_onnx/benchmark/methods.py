@@ -20,7 +20,7 @@ from ..metric import DRKFS
 from ..model_files import features_file
 from ..runtime.render import NumpyRenderer
 from ..runtime.scorer import Scorer
-from ..weights import load_shipped_state, shipped_entry, shipped_weights
+from ..weights import shipped_entry, shipped_weights
 from .point_metrics import iou, is_watertight, occupancy, sample_surface, surface_distances
 
 SURFACE_SAMPLES = 20_000
@@ -159,14 +159,6 @@ class VolumeIoU(Method):
         return (None if a is None or b is None else 1.0 - iou(a, b),)
 
 
-def _metric(config: PipelineConfig, weights: PipelineConfig) -> DRKFS:
-    """The metric for ``config`` with the weights shipped for ``weights`` (views and image size
-    do not change the nets)."""
-    metric = DRKFS(config)
-    metric.load_state_dict(load_shipped_state(weights))
-    return metric
-
-
 def build_methods(models: Path, threads: int, views: int = 25) -> list[Method]:
     """Every method and variant at ``views`` cameras (the paper's 25 unless a quick run asks
     for fewer). Feature graphs the shipped ones do not cover (other view counts, 128 px) are
@@ -181,7 +173,7 @@ def build_methods(models: Path, threads: int, views: int = 25) -> list[Method]:
             return DrkfsOnnx(name, config, None, threads)
         stem = Path(features_file(config)).stem
         path = models / f"{stem}_{config.num_views}v_{config.image_size}px.onnx"
-        export_features(_metric(config, weights), path, shipped_entry(weights)["sha256"])
+        export_features(DRKFS.pretrained(config), path, shipped_entry(weights)["sha256"])
         return DrkfsOnnx(name, config, path, threads)
 
     methods: list[Method] = []
@@ -199,7 +191,7 @@ def build_methods(models: Path, threads: int, views: int = 25) -> list[Method]:
             f"{config.image_size} px" if config.image_size != 256 else f"{config.num_views} views"
         )
         methods.append(onnx(f"DR-KFS onnx w1 {label}", config, shipped))
-    metric = _metric(base, shipped)
+    metric = DRKFS.pretrained(base)
     renderer = NumpyRenderer(base, threads=threads)
     return [
         *methods,
