@@ -134,6 +134,33 @@ def bench(
     typer.echo(f"{out / 'results.json'}, {out / 'speed_accuracy.png'} in {seconds:.0f} s")
 
 
+@app.command()
+def fit(
+    out: Annotated[Path, typer.Option(help="Where results.json and gallery.png go.")] = Path(
+        "bench/fit"
+    ),
+    quick: Annotated[bool, typer.Option(help="A tiny plan that runs in seconds (tests).")] = False,
+    threads: Annotated[int, typer.Option(help="Threads for the judge's numpy renderer.")] = 2,
+) -> None:
+    """Fit templates to targets with DR-KFS, Chamfer, pixel MSE and DR-KFS + lambda*Chamfer;
+    judge every result with metrics independent of the loss."""
+    from .fitting.study import run_study
+
+    results = run_study(out, quick, threads, lambda line: typer.echo(line, err=True))
+    for loss, choice in results["choices"].items():
+        typer.echo(
+            f"{loss}: learning rate {choice['learning_rate']:g}, lambda {choice['lambda']:g}"
+        )
+    for name, key in (("DR-KFS", "drkfs_beats_chamfer"), ("combined", "combination_beats_chamfer")):
+        for kind, row in results[key].items():
+            typer.echo(
+                f"{name} beats Chamfer on {row['wins']}/{row['cells']} {kind} cells "
+                f"({row['share']:.0%})"
+            )
+    seconds = results["seconds_total"]
+    typer.echo(f"{out / 'results.json'}, {out / 'gallery.png'} in {seconds:.0f} s")
+
+
 def _fmt(value: float | None) -> str:
     return "n/a" if value is None else f"{value:.3f}"
 

@@ -151,7 +151,7 @@ def _parity(verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
     with np.errstate(divide="ignore", invalid="ignore"):
         u = (r[:, 0] * e2[:, 1] - r[:, 1] * e2[:, 0]) / det
         v = (e1[:, 0] * r[:, 1] - e1[:, 1] * r[:, 0]) / det
-    hit = (det != 0) & (u >= 0) & (v >= 0) & (u + v <= 1)
+        hit = (det != 0) & (u >= 0) & (v >= 0) & (u + v <= 1)
     x = tri[which[hit], 0, 0] + u[hit] * (tri[which[hit], 1, 0] - tri[which[hit], 0, 0])
     x += v[hit] * (tri[which[hit], 2, 0] - tri[which[hit], 0, 0])
     first = np.clip(np.ceil((x + VOXEL_EXTENT) / pitch - 0.5), 0, VOXELS).astype(int)

@@ -1,0 +1,158 @@
+"""Fitting meshes with DR-KFS and other losses: the differentiable pieces, the fit loop, the
+study end to end (quick plan, through the CLI), and the README's training-loop example."""
+
+import json
+import re
+import struct
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+from typer.testing import CliRunner
+
+from drkfs_onnx.cli import app
+from drkfs_onnx.fitting.evaluate import METRICS, VISUAL
+from drkfs_onnx.fitting.geometry import Smoothness, chamfer, surface_points
+from drkfs_onnx.fitting.objective import ChamferLoss, FitSettings, Objective, fit, float_tensor
+from drkfs_onnx.fitting.problems import perturbed, real, synthetic
+from drkfs_onnx.fitting.study import LOSSES, QUICK, mean_ranks, share
+from drkfs_onnx.shapes import Part, assemble, random_shape
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _box(scale: float = 1.0, subdivisions: int = 2):
+    verts, faces = assemble([Part("box", (0.0, 0.0, 0.0), (scale,) * 3)], subdivisions)
+    return float_tensor(verts), torch.as_tensor(faces)
+
+
+def test_surface_points_lie_on_the_surface_and_carry_gradients():
+    verts, faces = _box()
+    verts.requires_grad_(True)
+    points = surface_points(verts, faces, 500, torch.Generator().manual_seed(0))
+    # on a unit cube centred at the origin every point has a coordinate at +-0.5
+    assert torch.allclose(points.detach().abs().max(1).values, torch.tensor(0.5), atol=1e-6)
+    points.sum().backward()
+    assert torch.isfinite(verts.grad).all() and verts.grad.abs().sum() > 0
+
+
+def test_chamfer_is_zero_on_itself_and_the_sum_of_both_mean_squared_nearest_distances():
+    a = torch.tensor([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]])
+    b = torch.tensor([[0.0, 0.5, 0.0]])
+    assert chamfer(a, a).item() == 0.0
+    # a -> b: 0.25 and 1.25, mean 0.75; b -> a: 0.25
+    assert chamfer(a, b).item() == pytest.approx(1.0)
+
+
+def test_smoothness_ignores_the_template_and_rigid_shifts_but_not_a_bump():
+    template, faces = _box()
+    smooth = Smoothness(template, faces)
+    assert smooth(template).item() == 0.0
+    assert smooth(template + torch.tensor([0.3, -0.1, 0.2])).item() == pytest.approx(0, abs=1e-10)
+    bumped = template.clone()
+    bumped[0] += 0.1
+    assert smooth(bumped).item() > 0
+
+
+def test_an_objective_starts_at_the_sum_of_its_weights():
+    template, faces = _box(0.8)
+    target = _box(1.0)
+    loss = ChamferLoss(target[0].double().numpy(), target[1].numpy(), faces)
+    objective = Objective([(1.0, loss), (2.5, lambda v: (v * v).sum())], template)
+    assert objective(template).item() == pytest.approx(3.5, rel=0.1)  # Chamfer is resampled
+
+
+def test_fitting_a_small_box_to_a_large_one_with_chamfer_closes_the_gap():
+    template, faces = _box(0.6)
+    target_verts, target_faces = _box(1.0)
+    loss = ChamferLoss(target_verts.double().numpy(), target_faces.numpy(), faces)
+    objective = Objective([(1.0, loss)], template)
+    result = fit(objective, template, faces, FitSettings(steps=60, learning_rate=0.01))
+    assert result.objective[-1] < 0.1 * result.objective[0]
+    half_size = np.abs(result.verts).max(0)
+    np.testing.assert_allclose(half_size, 0.5, atol=0.05)  # from 0.3 to the target's 0.5
+
+
+def test_templates_share_the_targets_frame_and_differ_from_it():
+    problem = synthetic("chair", 3)
+    lower, upper = problem.target_verts.min(0), problem.target_verts.max(0)
+    np.testing.assert_allclose((lower + upper) / 2, 0.0, atol=1e-12)
+    assert np.linalg.norm(upper - lower) == pytest.approx(2.0)
+    parts = random_shape("chair", 3)
+    assert len(perturbed(parts, np.random.default_rng(0))) == len(parts)
+    assert len(problem.template_faces) == 4 * len(problem.target_faces)  # subdivided once
+    assert not np.allclose(problem.template_verts.max(0), upper)
+
+
+def test_a_real_target_gets_an_icosphere_inside_its_box(shared_meshes):
+    problem = real("cow")
+    assert len(problem.template_faces) == 1280
+    inside = np.abs(problem.template_verts).max(0) < np.abs(problem.target_verts).max(0)
+    assert inside.all()
+
+
+def test_mean_ranks_and_shares_follow_each_metrics_direction():
+    rows = {
+        "a": {"F-score 1%": 0.9, "Chamfer-L1": 0.02, "volumetric IoU": None},
+        "b": {"F-score 1%": 0.5, "Chamfer-L1": 0.01, "volumetric IoU": 0.5},
+    }
+    assert mean_ranks(rows) == {"a": 1.5, "b": 1.5}  # IoU is missing for a: not ranked
+    table = {
+        "p": {"Chamfer": {"DR-KFS": 2.0, "pixel MSE": 0.1}, "X": {"DR-KFS": 1.0, "pixel MSE": 0.2}}
+    }
+    result = share(table, "X", ("DR-KFS", "pixel MSE"))
+    assert result["wins"] == 1 and result["share"] == 0.5
+    assert result["cell_wins"] == {"p/DR-KFS": True, "p/pixel MSE": False}
+
+
+@pytest.fixture(scope="module")
+def quick_study(tmp_path_factory, shared_meshes):
+    out = tmp_path_factory.mktemp("fit")
+    result = CliRunner().invoke(app, ["fit", "--quick", "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    return out, result.output
+
+
+def test_quick_study_writes_the_table_the_shares_and_step_times(quick_study):
+    out, output = quick_study
+    results = json.loads((out / "results.json").read_text())
+    names = {"chair 3", "cow"}
+    assert set(results["table"]) == names and len(QUICK.problems) == 2
+    for rows in results["table"].values():
+        assert set(rows) == {"template", *LOSSES}
+        for values in rows.values():
+            assert set(values) == set(METRICS)
+            assert all(
+                values[m] is not None and values[m] >= 0 for m in METRICS if m != "volumetric IoU"
+            )
+    for key in ("drkfs_beats_chamfer", "combination_beats_chamfer"):
+        visual = results[key]["visual"]
+        assert visual["cells"] == len(names) * len(VISUAL) and 0 <= visual["share"] <= 1
+    assert set(results["seconds_per_step"]["losses"]) == set(LOSSES)
+    assert all(s > 0 for s in results["seconds_per_step"]["losses"].values())
+    assert results["choices"]["DR-KFS + lambda*Chamfer"]["lambda"] in QUICK.weights
+    for fits in results["fits"].values():  # three steps of Chamfer already help
+        assert fits["Chamfer"]["objective_last"] < fits["Chamfer"]["objective_first"]
+    assert "beats Chamfer on" in output
+
+
+def test_quick_study_gallery_is_a_png_with_a_cell_per_mesh(quick_study):
+    out, _ = quick_study
+    data = (out / "gallery.png").read_bytes()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n"
+    width, height = struct.unpack(">II", data[16:24])
+    assert width > 6 * 128 and height > 2 * 2 * 128  # 6 columns, 2 problems of 2 views
+
+
+def test_readme_training_loop_example_runs(monkeypatch):
+    text = (ROOT / "README.md").read_text()
+    block = re.search(r"<!-- training-loop example -->\s*```python\n(.*?)```", text, re.S)
+    assert block is not None, "README lost its training-loop example"
+    code = block.group(1)
+    assert len(code.strip().splitlines()) <= 16
+    namespace: dict = {}
+    monkeypatch.chdir(ROOT)  # the example reads examples/chair.obj
+    exec(compile(code, "README.md", "exec"), namespace)
+    assert torch.isfinite(namespace["offsets"].grad).all()
+    assert namespace["offsets"].abs().sum() > 0
