@@ -28,6 +28,7 @@ from onnxruntime.quantization import (
     quantize_static,
 )
 from onnxruntime.quantization.shape_inference import quant_pre_process
+from score import CASES, ROOT, _best  # bench/score.py: the same meshes and timer
 
 from drkfs_onnx import PipelineConfig, check_mesh, load_mesh
 from drkfs_onnx.mesh import frame_of
@@ -36,13 +37,6 @@ from drkfs_onnx.runtime.render import NumpyRenderer
 from drkfs_onnx.shapes import FAMILIES, assemble, random_shape
 from drkfs_onnx.variants import make_variants
 
-ROOT = Path(__file__).resolve().parents[1]
-MESHES = ROOT.parent / "shared" / "meshes"
-SPEED_CASES = {
-    "chair (288 faces)": ROOT / "examples" / "chair.obj",
-    "cow (5.8k faces)": MESHES / "cow.obj",
-    "fandisk (12.9k faces)": MESHES / "fandisk.obj",
-}
 CALIBRATION_SEED, EVALUATION_SEED = 100, 200
 VIEW_BATCH = 5
 
@@ -92,13 +86,11 @@ def quantize(source: Path, target: Path, config: PipelineConfig) -> float:
 
 
 def seconds_per_new_mesh(scorer: Scorer, mesh, repeats: int = 3) -> float:
-    best = float("inf")
-    for _ in range(repeats):
+    def new_mesh():
         scorer.cache.clear()
-        start = time.perf_counter()
-        scorer.features(mesh)
-        best = min(best, time.perf_counter() - start)
-    return best
+        return scorer.features(mesh)
+
+    return _best(new_mesh, repeats)[0]
 
 
 def kendall_tau(a: np.ndarray, b: np.ndarray) -> float:
@@ -116,7 +108,7 @@ def main() -> None:
         quantize_s = quantize(ROOT / "models" / "features_w1.onnx", int8, config)
         scorers = {"fp32": Scorer(config, threads=2), "int8": Scorer(config, int8, threads=2)}
         speed = {}
-        for name, path in SPEED_CASES.items():
+        for name, path in CASES.items():
             mesh = load_mesh(path)
             row = {k: seconds_per_new_mesh(s, mesh) for k, s in scorers.items()}
             speed[name] = {**row, "fp32_over_int8": row["fp32"] / row["int8"]}

@@ -168,12 +168,13 @@ def build_methods(models: Path, threads: int, views: int = 25) -> list[Method]:
     shipped = PipelineConfig()
     base = shipped.replace(num_views=views)
 
-    def onnx(name: str, config: PipelineConfig, weights: PipelineConfig) -> DrkfsOnnx:
+    def onnx(name: str, config: PipelineConfig) -> DrkfsOnnx:
         if shipped_entry(config) is not None:  # shipped graph, shipped weights
             return DrkfsOnnx(name, config, None, threads)
         stem = Path(features_file(config)).stem
         path = models / f"{stem}_{config.num_views}v_{config.image_size}px.onnx"
-        export_features(DRKFS.pretrained(config), path, shipped_entry(weights)["sha256"])
+        weights = shipped_entry(config, any_cameras=True)  # what DRKFS.pretrained loads
+        export_features(DRKFS.pretrained(config), path, weights["sha256"])
         return DrkfsOnnx(name, config, path, threads)
 
     methods: list[Method] = []
@@ -181,7 +182,7 @@ def build_methods(models: Path, threads: int, views: int = 25) -> list[Method]:
         weights = PipelineConfig.from_dict(entry["config"])
         if weights.replace(descriptor_width=1.0) == shipped:
             name = f"DR-KFS onnx w{weights.descriptor_width:g}"
-            methods.append(onnx(name, weights.replace(num_views=views), weights))
+            methods.append(onnx(name, weights.replace(num_views=views)))
     for config in (
         base.replace(num_views=max(1, views // 2)),
         base.replace(num_views=max(1, views // 4)),
@@ -190,7 +191,7 @@ def build_methods(models: Path, threads: int, views: int = 25) -> list[Method]:
         label = (
             f"{config.image_size} px" if config.image_size != 256 else f"{config.num_views} views"
         )
-        methods.append(onnx(f"DR-KFS onnx w1 {label}", config, shipped))
+        methods.append(onnx(f"DR-KFS onnx w1 {label}", config))
     metric = DRKFS.pretrained(base)
     renderer = NumpyRenderer(base, threads=threads)
     return [

@@ -164,10 +164,9 @@ def run_study(out: Path, quick: bool, threads: int = 2, progress=print) -> dict:
     judge = Judge(plan.judge_config, threads)
     choices, tuning = tune(plan, metric, judge, progress)
 
-    table, fits, gallery, descriptions = {}, {}, [], {}
-    for spec in plan.problems:
-        problem = load_problem(spec)
-        descriptions[problem.name] = problem.description
+    problems = [load_problem(spec) for spec in plan.problems]
+    table, fits, gallery = {}, {}, []
+    for problem in problems:
         target = judge.prepare(problem.target_verts, problem.target_faces)
         template = judge.prepare(problem.template_verts, problem.template_faces)
         rows = {"template": judge.compare(template, target)}
@@ -191,7 +190,7 @@ def run_study(out: Path, quick: bool, threads: int = 2, progress=print) -> dict:
     write_gallery(out / "gallery.png", columns, gallery)
 
     # seconds per step at the judge's config (the paper's in a full run) on the first problem
-    first = load_problem(plan.problems[0])
+    first = problems[0]
     step_seconds = {}
     for loss, choice in choices.items():
         timing = replace(choice.settings, steps=TIMING_STEPS)
@@ -217,7 +216,7 @@ def run_study(out: Path, quick: bool, threads: int = 2, progress=print) -> dict:
         "fit_config": plan.fit_config.to_dict(),
         "judge_config": plan.judge_config.to_dict(),
         "settings": asdict(plan.settings),
-        "problems": descriptions,
+        "problems": {problem.name: problem.description for problem in problems},
         "choices": {
             loss: {"learning_rate": c.settings.learning_rate, "lambda": c.weight}
             for loss, c in choices.items()
