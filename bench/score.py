@@ -6,8 +6,9 @@ Per mesh and HardNet width, at the paper's config (25 views, 256 px) with 2 thre
 seconds per new mesh (render + features, split), seconds per pair with cached features (the mesh
 against a copy jittered by 0.2% of its size, so no descriptor has an exact copy), the same two
 for the torch path (``DRKFS`` eager, no grad) as ratios, the two paths' score difference, and the
-peak memory (max RSS) of the torch-free part, measured before torch is imported. Each case runs
-in its own process. A last case measures what decimation above the face budget changes.
+peak memory (max RSS) of the torch-free part, measured before torch is imported, and the nearest
+search alone by numpy's BLAS against the exported match graph in onnxruntime. Each case runs in
+its own process. A last case measures what decimation above the face budget changes.
 """
 
 from __future__ import annotations
@@ -57,6 +58,23 @@ def _jittered(mesh):
     return check_mesh(mesh.vertices + noise, mesh.faces, mesh.source + " (jittered)")
 
 
+def _nearest_search(queries: np.ndarray, targets: np.ndarray, repeats: int) -> dict:
+    """Seconds of the nearest search alone, by the Scorer's numpy search and by the exported
+    match graph in onnxruntime; both return each query's nearest target."""
+    from drkfs_onnx.runtime.nearest import nearest_indices
+    from drkfs_onnx.runtime.sessions import open_match
+
+    graph = open_match(threads=2).session
+    numpy_s, by_numpy = _best(lambda: nearest_indices(queries, targets), repeats)
+    onnx_s, (by_graph,) = _best(lambda: graph.run(None, {"a": queries, "b": targets}), repeats)
+    return {
+        "numpy": numpy_s,
+        "onnx_match_graph": onnx_s,
+        "onnx_over_numpy": onnx_s / numpy_s,
+        "same_nearest": float(np.mean(by_numpy == by_graph)),
+    }
+
+
 def run_case(path: Path, width: float, repeats: int) -> dict:
     from drkfs_onnx import PipelineConfig, load_mesh
     from drkfs_onnx.runtime import Scorer
@@ -76,6 +94,7 @@ def run_case(path: Path, width: float, repeats: int) -> dict:
     render_s, _ = _best(lambda: scorer.renderer.render(placed, mesh.faces), repeats)
     prediction = scorer.features(other, (centre, scale))
     pair_s, ort_score = _best(lambda: scorer.match(prediction, reference), 5 * repeats)
+    search = _nearest_search(prediction.descriptors, reference.descriptors, 5 * repeats)
     runtime_rss = _rss_mb()
 
     import torch
@@ -105,6 +124,7 @@ def run_case(path: Path, width: float, repeats: int) -> dict:
             "render_s": render_s,
             "features_s": new_s - render_s,
             "cached_pair_s": pair_s,
+            "nearest_search_s": search,
             "peak_rss_mb": runtime_rss,
         },
         "torch_eager": {"new_mesh_s": torch_new_s, "cached_pair_s": torch_pair_s},
@@ -185,6 +205,7 @@ def main() -> None:
             print(
                 f"{label:24} w{width:<5g} new {runtime['new_mesh_s']:.3f} s "
                 f"(render {runtime['render_s']:.3f}) pair {1000 * runtime['cached_pair_s']:.1f} ms"
+                f" (onnx search {runtime['nearest_search_s']['onnx_over_numpy']:.2f}x numpy)"
                 f"  torch/ort {row['torch_over_runtime']['new_mesh']:.2f}x new, "
                 f"{row['torch_over_runtime']['cached_pair']:.2f}x pair"
             )

@@ -7,7 +7,6 @@ import copy
 import torch
 from torch import nn
 
-from drkfs_onnx.config import MATCH_CANDIDATES
 from drkfs_onnx.metric import DRKFS
 from drkfs_onnx.patches import extract_patches
 
@@ -33,14 +32,13 @@ class FeatureGraph(nn.Module):
 
 
 class MatchGraph(nn.Module):
-    """Each descriptor of A's MATCH_CANDIDATES nearest candidates in B.
+    """Each descriptor of A's nearest descriptor in B.
 
-    ``forward(a (N, D), b (M, D)) -> (N, MATCH_CANDIDATES)`` int64, ranked by |b|^2 - 2 a.b in
-    float32 (torch.cdist does not convert); needs M >= MATCH_CANDIDATES. The caller re-ranks the
-    candidates by exact distance, as ``drkfs_onnx.matching`` does: near-duplicate descriptors
-    round to the same matmul distance.
+    ``forward(a (N, D), b (M, D)) -> (N,)`` int64, ranked by |b|^2 - 2 a.b in float32 (torch.cdist
+    does not convert). A float32 near-tie can pick a neighbour whose distance exceeds the minimum
+    by float32 rounding; the caller computes the distance to it exactly and matches rows with an
+    exact copy in B at 0 itself.
     """
 
     def forward(self, a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
-        ranking = (b * b).sum(1)[None] - 2.0 * a @ b.t()
-        return ranking.topk(MATCH_CANDIDATES, dim=1, largest=False).indices
+        return ((b * b).sum(1)[None] - 2.0 * a @ b.t()).argmin(1)

@@ -81,13 +81,13 @@ def export_features(metric: DRKFS, path: Path, weights_sha256: str) -> Path:
 
 
 def export_match(path: Path, dim: int) -> Path:
-    """a (N, D), b (M, D) -> candidate indices (N, MATCH_CANDIDATES); N and M dynamic."""
+    """a (N, D), b (M, D) -> index of each row's nearest row of b (N,); N and M dynamic."""
     a, b = torch.zeros(3, dim), torch.zeros(5, dim)
     dims = {
         "a": {0: torch.export.Dim("rows_a", min=1)},
-        "b": {0: torch.export.Dim("rows_b", min=4)},
+        "b": {0: torch.export.Dim("rows_b", min=1)},
     }
-    model = _export(MatchGraph(), (a, b), ["a", "b", "candidates"], dims)
+    model = _export(MatchGraph(), (a, b), ["a", "b", "nearest"], dims)
     return _write(model, path, {VERSION_KEY: f"drkfs-onnx {version('drkfs-onnx')} match"})
 
 

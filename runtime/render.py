@@ -5,7 +5,8 @@ D' = (sigmoid(+-d^2 / sigma) - eps) / (1 - eps), depth from the face plane clamp
 range, SoftRas' softmax blend with the background, the same depth cull), evaluated once without
 autograd, so runtime images equal the torch path's to float rounding. Pixel-face pairs are listed
 per face over its bounding box grown by the cut-off radius, in chunks, as in the torch rasteriser;
-a float32 pass finds the covered, unhidden pairs and a float64 pass computes them exactly.
+a float32 pass of per-face affine tests (edge lines, plane depth) keeps the pairs that may be
+covered and unhidden, and a float64 pass computes those exactly.
 """
 
 from __future__ import annotations
@@ -21,8 +22,12 @@ from drkfs_onnx.coverage import NUMPY_OPS, pair_terms
 DEPTH_CULL = 30.0
 # float32 logits near 1 / gamma = 1e4 are good to ~1e-3; a wide margin costs a few pairs
 CULL_MARGIN = 2.0
-LOOSE_EPS = 0.9
+# Candidates reach slightly beyond the cut-off radius, so float32 rounding never drops a pair.
+LOOSE_RADIUS = 1.01
 PAIR_CHUNK = 1 << 18
+TINY_LENGTH = 1e-9
+# Inverse-depth slope (per NDC unit) above which float32 plane evaluation is not trusted.
+MAX_SLOPE = 100.0
 
 
 def _face_shading(verts_cam: np.ndarray, faces: np.ndarray, config: PipelineConfig) -> np.ndarray:
@@ -48,9 +53,6 @@ class NumpyRenderer:
         self.config = config
         self.cameras = cameras if cameras is not None else make_cameras(config)
         self.threads = max(1, threads)
-        # The float32 candidate pass keeps a superset of the covered pairs: a slightly lower
-        # coverage cut-off than the exact pass, which then drops the extras.
-        self._loose = config.replace(coverage_eps=config.coverage_eps * LOOSE_EPS)
 
     def render(self, verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
         verts = np.asarray(verts, dtype=np.float64)
@@ -104,9 +106,11 @@ class NumpyRenderer:
     def _candidates(self, params: np.ndarray, visible: np.ndarray, k: int, f: int):
         """Pixel-face pairs that may be covered and not hidden: flat pixel and face indices.
 
-        Lists each face's bounding box grown by the cut-off radius, scores the pairs in float32
-        (about 4x faster than float64) with the loose cut-off, and drops pairs hidden by more
-        than DEPTH_CULL + CULL_MARGIN logits.
+        Lists each face's bounding box grown by the cut-off radius and tests the pairs with
+        per-face affine functions in float32 (``_face_planes``): a pixel further than the radius
+        outside any edge's line is uncovered; a pixel inside a face is covered at least as much
+        as on its edge, so its plane depth bounds the pixel's winning logit from below; a pair
+        whose plane depth is more than DEPTH_CULL + CULL_MARGIN logits below that is hidden.
         """
         cfg, size = self.config, self.config.image_size
         radius = cfg.coverage_radius
@@ -124,10 +128,12 @@ class NumpyRenderer:
         # int32 index arithmetic halves the memory traffic of listing pairs
         i0, width, counts = i0.astype(np.int32), width.astype(np.int32), counts.astype(np.int32)
         first_row = (np.repeat(np.arange(k), f) * size + j0).astype(np.int32)
-        params32 = params.astype(np.float32)
+        lines, plane, trusted = _face_planes(params)
+        lowest, highest = params[6:].min(0).astype(np.float32), params[6:].max(0).astype(np.float32)
+        inv_gamma = np.float32(1.0 / cfg.gamma)
+        # Coverage on a face's edge: (sigmoid(0) - eps) / (1 - eps); inside it is higher.
+        edge_log_coverage = np.log((0.5 - cfg.coverage_eps) / (1.0 - cfg.coverage_eps))
         ids = np.nonzero(counts)[0]
-        # A loose coverage above twice the cut-offs' gap is positive at the exact cut-off too.
-        sure_coverage = 2.0 * (cfg.coverage_eps - self._loose.coverage_eps)
         out_pixel, out_face, out_logit, out_sure = [], [], [], []
         bucket = (np.cumsum(counts[ids]) - 1) // PAIR_CHUNK
         for chunk in np.split(ids, np.nonzero(np.diff(bucket))[0] + 1) if len(ids) else []:
@@ -140,18 +146,56 @@ class NumpyRenderer:
             col = i0[pair_face] + across
             px = col.astype(np.float32) * np.float32(2 / size) + np.float32(1 / size - 1)
             py = (row % size).astype(np.float32) * np.float32(2 / size) + np.float32(1 / size - 1)
-            coverage, depth = pair_terms(params32[:, pair_face], px, py, self._loose, NUMPY_OPS)
-            keep = coverage > 0
-            out_pixel.append((row.astype(np.int64) * size + col)[keep])
-            out_face.append(pair_face[keep])
-            out_logit.append(np.log(coverage[keep]) + depth[keep] / np.float32(cfg.gamma))
-            out_sure.append(coverage[keep] > sure_coverage)
+            inside = None
+            for a, b, c in lines:
+                distance = a[pair_face] * px + b[pair_face] * py + c[pair_face]
+                inside = distance if inside is None else np.minimum(inside, distance)
+            near = inside > -LOOSE_RADIUS * radius
+            pair_face, px, py, inside = pair_face[near], px[near], py[near], inside[near]
+            a, b, c = plane
+            depth = a[pair_face] * px + b[pair_face] * py + c[pair_face]
+            depth = np.minimum(np.maximum(depth, lowest[pair_face]), highest[pair_face])
+            out_pixel.append(row[near].astype(np.int64) * size + col[near])
+            out_face.append(pair_face)
+            out_logit.append(depth * inv_gamma)
+            out_sure.append((inside > 0) & trusted[pair_face])
         if not out_pixel:
             return np.zeros(0, np.int64), np.zeros(0, np.int64)
         pixel, face, logit = map(np.concatenate, (out_pixel, out_face, out_logit))
-        # Only pairs surely covered at the exact cut-off may cull others.
         sure = np.concatenate(out_sure)
+        # logit bounds every pair's logit from above, and a sure pair's from below once the
+        # edge's log coverage is added: only sure pairs may cull others.
         logit_max = np.full(k * size * size, cfg.background_eps / cfg.gamma, dtype=np.float32)
-        np.maximum.at(logit_max, pixel[sure], logit[sure])
+        np.maximum.at(logit_max, pixel[sure], logit[sure] + np.float32(edge_log_coverage))
         kept = logit >= logit_max[pixel] - (DEPTH_CULL + CULL_MARGIN)
         return pixel[kept], face[kept]
+
+
+def _face_planes(params: np.ndarray):
+    """Affine functions of the pixel (px, py) per face, float32: ``lines`` (3 edges x (a, b, c))
+    give the signed distance to each edge's line, positive inside; ``plane`` (a, b, c) the
+    face plane's inverse depth, which is exact where ``trusted``. Edge-on faces (steep planes,
+    where float32 cancellation would mislead) get their highest vertex depth and are not
+    trusted, so they never cull."""
+    x0, y0, x1, y1, x2, y2, w0, w1, w2 = params
+    area2 = (x1 - x0) * (y2 - y0) - (y1 - y0) * (x2 - x0)
+    orient = np.sign(area2)
+    lines = []
+    for ax, ay, bx, by in ((x0, y0, x1, y1), (x1, y1, x2, y2), (x2, y2, x0, y0)):
+        ex, ey = bx - ax, by - ay
+        scale = orient / np.maximum(np.sqrt(ex * ex + ey * ey), TINY_LENGTH)
+        lines.append(
+            tuple(
+                v.astype(np.float32) for v in (-ey * scale, ex * scale, (ey * ax - ex * ay) * scale)
+            )
+        )
+    safe = np.where(np.abs(area2) > TINY_LENGTH**2, area2, 1.0)
+    # w(p) = w0 + (w1 - w0) * beta + (w2 - w0) * gamma, barycentrics affine in p
+    slope_x = ((w1 - w0) * (y2 - y0) - (w2 - w0) * (y1 - y0)) / safe
+    slope_y = ((w2 - w0) * (x1 - x0) - (w1 - w0) * (x2 - x0)) / safe
+    trusted = (np.abs(area2) > TINY_LENGTH**2) & (np.abs(slope_x) + np.abs(slope_y) < MAX_SLOPE)
+    highest = np.maximum(np.maximum(w0, w1), w2)
+    slope_x, slope_y = np.where(trusted, slope_x, 0.0), np.where(trusted, slope_y, 0.0)
+    offset = np.where(trusted, w0 - slope_x * x0 - slope_y * y0, highest)
+    plane = tuple(v.astype(np.float32) for v in (slope_x, slope_y, offset))
+    return lines, plane, trusted

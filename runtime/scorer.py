@@ -1,4 +1,4 @@
-"""Evaluation-only DR-KFS with onnxruntime: mesh -> numpy views -> ONNX features -> ONNX match.
+"""Evaluation-only DR-KFS: mesh -> numpy views -> ONNX features (onnxruntime) -> numpy match.
 
 Scores equal the torch path's (``drkfs_onnx.DRKFS`` in evaluation mode) to float rounding, for
 meshes within the face budget.
@@ -19,8 +19,9 @@ from drkfs_onnx.patch_grid import nonempty_patches
 
 from .decimate import decimate
 from .features import MeshFeatures
+from .nearest import nearest_indices
 from .render import NumpyRenderer
-from .sessions import open_features, open_match
+from .sessions import open_features
 
 MeshLike = Mesh | str | Path
 
@@ -33,7 +34,8 @@ class Scorer:
     are cached by mesh content (after normalisation) and model hash, so many predictions scored
     against one ground truth render and describe it once.
 
-    threads: onnxruntime intra-op threads and renderer threads (None: all cores).
+    threads: onnxruntime intra-op threads and renderer threads (None: all cores); the match's
+    BLAS threads follow OPENBLAS_NUM_THREADS.
     view_batch: views per feature-graph run (bounds memory; the score does not depend on it).
     face_budget: meshes with more faces are simplified first (``decimate``; ``face_budget(config)``
     is the budget tied to the image size). None (default) never simplifies: vertex clustering
@@ -60,8 +62,6 @@ class Scorer:
         self.view_batch = view_batch or self.config.num_views
         self.face_budget = face_budget
         self.features_graph = open_features(self.config, model, threads)
-        self.match_graph = open_match(threads=threads)
-        self._candidates = self.match_graph.session.get_outputs()[0].shape[1]
         self.renderer = NumpyRenderer(self.config, threads=threads or os.cpu_count() or 1)
         self.cache: OrderedDict[str, MeshFeatures] = OrderedDict()
         self.cache_size = cache_size
@@ -161,8 +161,8 @@ class Scorer:
 
     def _best_matches(self, queries: MeshFeatures, targets: MeshFeatures) -> float:
         """Weighted best-match distances. A row with an exact copy in B matches at 0 (most rows,
-        for small changes); the graph ranks the others' candidates in float32 and the exact
-        float64 distance picks among them, as the torch path does."""
+        for small changes); the others' nearest rows are found in float32 (``nearest_indices``) and
+        the distances to them computed in float64."""
         q, weights = self._with_empty(queries)
         t, _ = self._with_empty(targets)
         best = np.zeros(len(q))
@@ -170,11 +170,8 @@ class Scorer:
         copied = [key in known or key == blank for key in map(np.ndarray.tobytes, q)]
         rest = np.nonzero(~np.array(copied, dtype=bool))[0]
         if len(rest):
-            rows = max(len(t), self._candidates)
-            padded = np.resize(t, (rows, t.shape[1]))  # repeated rows change no minimum
-            inputs = {"a": q[rest], "b": padded}
-            candidates = self.match_graph.session.run(None, inputs)[0]
-            diff = q[rest, None, :].astype(np.float64) - padded[candidates].astype(np.float64)
-            best[rest] = (diff * diff).sum(-1).min(1)
+            nearest = nearest_indices(q[rest], t)
+            diff = q[rest].astype(np.float64) - t[nearest].astype(np.float64)
+            best[rest] = (diff * diff).sum(1)
         total = float((weights * best).sum())
         return total / weights.sum() if self.reduction == "mean" else total
