@@ -19,8 +19,8 @@ def _chair():
 
 
 def _layers():
-    """A small square in front of a large one (occluding edges over a surface), a face seen
-    edge-on from the top camera, and a zero-area face."""
+    """A small square in front of a large one (occluding edges over a surface), a vertical face
+    (steep in depth from cameras near the top) and a zero-area face."""
     square = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], dtype=np.float64)
     verts = np.concatenate(
         [
