@@ -15,9 +15,6 @@ from typing import Any
 
 NORMALIZATIONS = ("joint", "each", "none")
 REDUCTIONS = ("sum", "mean")
-# Best-match candidates ranked by the fast matmul form, then re-ranked by exact distance (torch
-# matching and the exported match graph both use it).
-MATCH_CANDIDATES = 4
 
 
 @dataclass(frozen=True)

@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import torch
 
-from .config import MATCH_CANDIDATES, REDUCTIONS
+from .config import REDUCTIONS
 
 CHUNK_ROWS = 2048
+# Best-match candidates ranked by the fast matmul form, then re-ranked by exact distance.
+MATCH_CANDIDATES = 4
 
 
 def nearest_indices(queries: torch.Tensor, targets: torch.Tensor) -> torch.Tensor:

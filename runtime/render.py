@@ -128,8 +128,7 @@ class NumpyRenderer:
         # int32 index arithmetic halves the memory traffic of listing pairs
         i0, width, counts = i0.astype(np.int32), width.astype(np.int32), counts.astype(np.int32)
         first_row = (np.repeat(np.arange(k), f) * size + j0).astype(np.int32)
-        lines, plane, trusted = _face_planes(params)
-        lowest, highest = params[6:].min(0).astype(np.float32), params[6:].max(0).astype(np.float32)
+        lines, plane, (lowest, highest), trusted = _face_planes(params)
         inv_gamma = np.float32(1.0 / cfg.gamma)
         # Coverage on a face's edge: (sigmoid(0) - eps) / (1 - eps); inside it is higher.
         edge_log_coverage = np.log((0.5 - cfg.coverage_eps) / (1.0 - cfg.coverage_eps))
@@ -174,7 +173,8 @@ class NumpyRenderer:
 def _face_planes(params: np.ndarray):
     """Affine functions of the pixel (px, py) per face, float32: ``lines`` (3 edges x (a, b, c))
     give the signed distance to each edge's line, positive inside; ``plane`` (a, b, c) the
-    face plane's inverse depth, which is exact where ``trusted``. Edge-on faces (steep planes,
+    face plane's inverse depth, to be clamped to the face's ``(lowest, highest)`` vertex depth,
+    which is exact where ``trusted``. Edge-on faces (steep planes,
     where float32 cancellation would mislead) get their highest vertex depth and are not
     trusted, so they never cull."""
     x0, y0, x1, y1, x2, y2, w0, w1, w2 = params
@@ -194,8 +194,8 @@ def _face_planes(params: np.ndarray):
     slope_x = ((w1 - w0) * (y2 - y0) - (w2 - w0) * (y1 - y0)) / safe
     slope_y = ((w2 - w0) * (x1 - x0) - (w1 - w0) * (x2 - x0)) / safe
     trusted = (np.abs(area2) > TINY_LENGTH**2) & (np.abs(slope_x) + np.abs(slope_y) < MAX_SLOPE)
-    highest = np.maximum(np.maximum(w0, w1), w2)
+    lowest, highest = params[6:].min(0), params[6:].max(0)
     slope_x, slope_y = np.where(trusted, slope_x, 0.0), np.where(trusted, slope_y, 0.0)
     offset = np.where(trusted, w0 - slope_x * x0 - slope_y * y0, highest)
     plane = tuple(v.astype(np.float32) for v in (slope_x, slope_y, offset))
-    return lines, plane, trusted
+    return lines, plane, (lowest.astype(np.float32), highest.astype(np.float32)), trusted
