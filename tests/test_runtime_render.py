@@ -1,13 +1,18 @@
 """The runtime's numpy renderer computes the torch renderer's evaluation images."""
 
+from functools import partial
+
 import numpy as np
 import pytest
 import torch
 from conftest import icosphere
 
 from drkfs_onnx import PipelineConfig
+from drkfs_onnx.cameras import make_cameras
+from drkfs_onnx.coverage import NUMPY_OPS, pair_terms
 from drkfs_onnx.render import Renderer
-from drkfs_onnx.runtime.render import NumpyRenderer
+from drkfs_onnx.runtime.candidates import DEPTH_CULL, candidate_pairs
+from drkfs_onnx.runtime.render import NumpyRenderer, screen_faces
 from drkfs_onnx.shapes import assemble, chair
 
 CONFIG = PipelineConfig(num_views=5, image_size=64)
@@ -34,7 +39,13 @@ def _layers():
     return verts, faces
 
 
-@pytest.mark.parametrize("mesh", [icosphere, _chair, _layers])
+def _inside_out_sphere(subdivisions: int = 3):
+    """Clockwise faces: the faces turned towards the camera wind the other way."""
+    verts, faces = icosphere(subdivisions)
+    return verts, faces[:, ::-1].copy()
+
+
+@pytest.mark.parametrize("mesh", [icosphere, _chair, _layers, _inside_out_sphere])
 @pytest.mark.parametrize("size", [64, 192])
 def test_numpy_images_equal_torch_float64_images(mesh, size):
     config = CONFIG.replace(image_size=size)
@@ -49,3 +60,30 @@ def test_a_mesh_behind_every_camera_renders_background():
     verts, faces = icosphere(0, radius=0.1)
     got = NumpyRenderer(CONFIG).render(verts + 100.0, faces)
     assert np.all(got == CONFIG.background)
+
+
+@pytest.mark.parametrize("mesh", [_chair, partial(_inside_out_sphere, 2)], ids=["chair", "sphere"])
+def test_candidates_hold_every_pair_the_exact_pass_keeps(mesh):
+    """Brute force over every pixel-face pair: each covered pair within the depth cull of its
+    pixel's winner is a candidate, although whole hidden faces are dropped before listing."""
+    config = CONFIG.replace(image_size=40)
+    verts, faces = mesh()
+    cameras = make_cameras(config)
+    params, visible = screen_faces(cameras.world_to_camera(verts), faces, cameras.focal, config)
+    k, pixels = config.num_views, config.image_size**2
+    pixel = np.arange(k * pixels).repeat(len(faces))
+    face = (pixel // pixels) * len(faces) + np.tile(np.arange(len(faces)), k * pixels)
+    face_pixel = pixel % pixels
+    px = (2 * (face_pixel % config.image_size) + 1) / config.image_size - 1.0
+    py = (2 * (face_pixel // config.image_size) + 1) / config.image_size - 1.0
+    coverage, depth = pair_terms(params[:, face], px, py, config, NUMPY_OPS)
+    covered = (coverage > 0) & visible[face]
+    logit = np.where(covered, np.log(np.where(covered, coverage, 1.0)) + depth / config.gamma, 0)
+    winner = np.full(k * pixels, config.background_eps / config.gamma)
+    np.maximum.at(winner, pixel[covered], logit[covered])
+    needed = covered & (logit >= winner[pixel] - DEPTH_CULL)
+
+    got_pixel, got_face = candidate_pairs(params, visible, k, config)
+    key = pixel * len(visible) + face
+    assert np.isin(key[needed], got_pixel * len(visible) + got_face).all()
+    assert len(got_pixel) < covered.sum()  # hidden pairs are dropped

@@ -1,0 +1,248 @@
+"""Pixel-face pairs the numpy renderer must compute exactly: those that may be covered and unhidden.
+
+Each face's bounding box, grown by the cut-off radius, lists its pairs; float32 per-face affine
+functions of the pixel (``face_planes``: signed distance to each edge's line, the face plane's
+inverse depth) then test them. A pixel further than the radius outside an edge's line is
+uncovered. A pixel inside a face is covered at least as much as on its edge, so there the face's
+plane depth bounds the pixel's winning logit from below; any pair whose plane depth lies more than
+DEPTH_CULL + CULL_MARGIN logits under such a bound is hidden.
+
+Most hidden pairs belong to faces turned away from the camera, so the faces turned towards it are
+listed first; their bounds, reduced to a min-pyramid over square tiles, drop whole faces of the
+rest whose nearest vertex lies under the bound of every tile their box touches, before their
+pairs are listed. Any subset of bounds is a valid bound, so the pairs returned are the same as
+listing every face: only the work differs.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+from drkfs_onnx.config import PipelineConfig
+
+DEPTH_CULL = 30.0
+# float32 logits near 1 / gamma = 1e4 are good to ~1e-3; a wide margin costs a few pairs
+CULL_MARGIN = 2.0
+# Candidates reach slightly beyond the cut-off radius, so float32 rounding never drops a pair.
+LOOSE_RADIUS = 1.01
+PAIR_CHUNK = 1 << 18
+TINY_LENGTH = 1e-9
+# Inverse-depth slope (per NDC unit) above which float32 plane evaluation is not trusted.
+MAX_SLOPE = 100.0
+
+
+@dataclass(frozen=True)
+class FaceTests:
+    """Per face (of all K*F view-faces), float32: ``lines`` (3 edges x (a, b, c)) give the
+    signed distance a*px + b*py + c to each edge's line, positive inside; ``plane`` (a, b, c) the
+    face plane's inverse depth, clamped to ``[lowest, highest]`` (its vertices' range), exact
+    where ``trusted``. ``facing`` is the sign of the face's screen winding."""
+
+    lines: tuple[tuple[np.ndarray, np.ndarray, np.ndarray], ...]
+    plane: tuple[np.ndarray, np.ndarray, np.ndarray]
+    lowest: np.ndarray
+    highest: np.ndarray
+    trusted: np.ndarray
+    facing: np.ndarray
+
+
+def face_tests(params: np.ndarray) -> FaceTests:
+    """(9, K*F) screen params (x0, y0, x1, y1, x2, y2, w0, w1, w2) -> ``FaceTests``.
+
+    Edge-on faces (steep planes, where float32 cancellation would mislead) get their highest
+    vertex depth and are not trusted, so they never cull."""
+    x0, y0, x1, y1, x2, y2, w0, w1, w2 = params
+    area2 = (x1 - x0) * (y2 - y0) - (y1 - y0) * (x2 - x0)
+    orient = np.sign(area2)
+    lines = []
+    for ax, ay, bx, by in ((x0, y0, x1, y1), (x1, y1, x2, y2), (x2, y2, x0, y0)):
+        ex, ey = bx - ax, by - ay
+        scale = orient / np.maximum(np.sqrt(ex * ex + ey * ey), TINY_LENGTH)
+        lines.append(
+            tuple(
+                v.astype(np.float32) for v in (-ey * scale, ex * scale, (ey * ax - ex * ay) * scale)
+            )
+        )
+    safe = np.where(np.abs(area2) > TINY_LENGTH**2, area2, 1.0)
+    # w(p) = w0 + (w1 - w0) * beta + (w2 - w0) * gamma, barycentrics affine in p
+    slope_x = ((w1 - w0) * (y2 - y0) - (w2 - w0) * (y1 - y0)) / safe
+    slope_y = ((w2 - w0) * (x1 - x0) - (w1 - w0) * (x2 - x0)) / safe
+    trusted = (np.abs(area2) > TINY_LENGTH**2) & (np.abs(slope_x) + np.abs(slope_y) < MAX_SLOPE)
+    lowest, highest = params[6:].min(0), params[6:].max(0)
+    slope_x, slope_y = np.where(trusted, slope_x, 0.0), np.where(trusted, slope_y, 0.0)
+    offset = np.where(trusted, w0 - slope_x * x0 - slope_y * y0, highest)
+    plane = tuple(v.astype(np.float32) for v in (slope_x, slope_y, offset))
+    return FaceTests(
+        tuple(lines),
+        plane,
+        lowest.astype(np.float32),
+        highest.astype(np.float32),
+        trusted,
+        orient,
+    )
+
+
+@dataclass(frozen=True)
+class PixelBoxes:
+    """Each view-face's box of pixels, grown by the cut-off radius: first column ``i0``, first
+    row ``j0``, ``width`` and ``height`` (int32; an invisible face's box is empty)."""
+
+    i0: np.ndarray
+    j0: np.ndarray
+    width: np.ndarray
+    height: np.ndarray
+
+    @property
+    def counts(self) -> np.ndarray:
+        return self.width * self.height
+
+
+def pixel_boxes(params: np.ndarray, visible: np.ndarray, config: PipelineConfig) -> PixelBoxes:
+    size, radius = config.image_size, config.coverage_radius
+
+    def span(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        first = np.clip(np.ceil((lo - radius + 1.0) * size / 2.0 - 0.5), 0, size)
+        last = np.clip(np.floor((hi + radius + 1.0) * size / 2.0 - 0.5), -1, size - 1)
+        return first.astype(np.int32), np.maximum(last - first + 1, 0).astype(np.int32)
+
+    i0, width = span(params[0:6:2].min(0), params[0:6:2].max(0))
+    j0, height = span(params[1:6:2].min(0), params[1:6:2].max(0))
+    return PixelBoxes(i0, j0, width * visible.astype(np.int32), height)
+
+
+@dataclass
+class Pairs:
+    """Listed pairs: flat pixel (view * S * S + row * S + column) and view-face index, the
+    float32 logit upper bound (plane depth / gamma), and whether the pair bounds its pixel's
+    winning logit from below (``sure``: inside a trusted face)."""
+
+    pixel: np.ndarray
+    face: np.ndarray
+    logit: np.ndarray
+    sure: np.ndarray
+
+    @staticmethod
+    def concat(parts: list[Pairs]) -> Pairs:
+        if not parts:
+            empty = np.zeros(0, np.int64)
+            return Pairs(empty, empty, np.zeros(0, np.float32), np.zeros(0, bool))
+        names = [field.name for field in fields(Pairs)]
+        return Pairs(*(np.concatenate([getattr(p, name) for p in parts]) for name in names))
+
+
+def candidate_pairs(
+    params: np.ndarray, visible: np.ndarray, views: int, config: PipelineConfig
+) -> tuple[np.ndarray, np.ndarray]:
+    """Flat pixel and view-face indices of the pairs that may be covered and unhidden.
+
+    params: (9, K*F) screen params, faces of view k at k*F .. (k+1)*F; visible: (K*F,) bool.
+    """
+    size = config.image_size
+    tests, boxes = face_tests(params), pixel_boxes(params, visible, config)
+    towards = _facing_camera(tests, visible, views)
+    listed = np.nonzero(boxes.counts > 0)[0]
+    first = _list_pairs(listed[towards[listed]], tests, boxes, views, config)
+    # Coverage on a face's edge: (sigmoid(0) - eps) / (1 - eps); inside it is higher.
+    edge_log_coverage = np.float32(
+        np.log((0.5 - config.coverage_eps) / (1.0 - config.coverage_eps))
+    )
+    bound = np.full(views * size * size, config.background_eps / config.gamma, dtype=np.float32)
+    np.maximum.at(bound, first.pixel[first.sure], first.logit[first.sure] + edge_log_coverage)
+    rest = listed[~towards[listed]]
+    nearest = tests.highest[rest] * np.float32(1.0 / config.gamma)
+    hidden = nearest < _box_minimum(bound.reshape(views, size, size), boxes, rest, views) - (
+        DEPTH_CULL + CULL_MARGIN
+    )
+    second = _list_pairs(rest[~hidden], tests, boxes, views, config)
+    np.maximum.at(bound, second.pixel[second.sure], second.logit[second.sure] + edge_log_coverage)
+    pairs = Pairs.concat([first, second])
+    kept = pairs.logit >= bound[pairs.pixel] - (DEPTH_CULL + CULL_MARGIN)
+    return pairs.pixel[kept], pairs.face[kept]
+
+
+def _facing_camera(tests: FaceTests, visible: np.ndarray, views: int) -> np.ndarray:
+    """(K*F,) bool: faces whose screen winding is the one of the nearer faces in their view (the
+    faces turned towards the camera on a consistently oriented surface)."""
+    facing = tests.facing.reshape(views, -1)
+    depth = np.where(visible, tests.highest, 0.0).reshape(views, -1)
+    counts = visible.reshape(views, -1)
+    positive = facing > 0
+    mean_positive = (depth * positive).sum(1) / np.maximum((counts & positive).sum(1), 1)
+    mean_negative = (depth * ~positive).sum(1) / np.maximum((counts & ~positive).sum(1), 1)
+    sign = np.where(mean_positive >= mean_negative, 1.0, -1.0)
+    return (facing == sign[:, None]).reshape(-1)
+
+
+def _box_minimum(bound: np.ndarray, boxes: PixelBoxes, ids: np.ndarray, views: int) -> np.ndarray:
+    """Minimum of ``bound`` (K, S, S) over tiles covering each box of ``ids``: at the level whose
+    tiles are at least as wide as the box, the box touches at most 2 x 2 of them."""
+    extent = np.maximum(boxes.width[ids], boxes.height[ids])
+    level = np.ceil(np.log2(np.maximum(extent, 1))).astype(np.int64)
+    view = ids // (len(boxes.i0) // views)
+    i0, j0 = boxes.i0[ids], boxes.j0[ids]
+    i1, j1 = i0 + boxes.width[ids] - 1, j0 + boxes.height[ids] - 1
+    out = np.empty(len(ids), np.float32)
+    tiles = bound
+    for shift in range(int(level.max(initial=0)) + 1):
+        at = level == shift
+        if at.any():
+            v = view[at]
+            corners = [
+                tiles[v, j >> shift, i >> shift] for j in (j0[at], j1[at]) for i in (i0[at], i1[at])
+            ]
+            out[at] = np.minimum.reduce(corners)
+        tiles = _halve(tiles)
+    return out
+
+
+def _halve(tiles: np.ndarray) -> np.ndarray:
+    """(K, H, W) -> (K, ceil(H/2), ceil(W/2)) minimum over 2 x 2 tiles (+inf beyond the edge,
+    where no box reaches)."""
+    k, h, w = tiles.shape
+    padded = np.full((k, h + h % 2, w + w % 2), np.inf, np.float32)
+    padded[:, :h, :w] = tiles
+    rows = np.minimum(padded[:, 0::2], padded[:, 1::2])
+    return np.minimum(rows[:, :, 0::2], rows[:, :, 1::2])
+
+
+def _list_pairs(
+    ids: np.ndarray, tests: FaceTests, boxes: PixelBoxes, views: int, config: PipelineConfig
+) -> Pairs:
+    """Pairs of faces ``ids`` whose pixel lies within the radius of every edge line, in chunks."""
+    size, radius = config.image_size, config.coverage_radius
+    faces_per_view = len(boxes.i0) // views
+    counts = boxes.counts[ids]
+    inv_gamma = np.float32(1.0 / config.gamma)
+    parts = []
+    bucket = (np.cumsum(counts) - 1) // PAIR_CHUNK
+    for chunk in np.split(ids, np.nonzero(np.diff(bucket))[0] + 1) if len(ids) else []:
+        n = boxes.counts[chunk]
+        pair_face = np.repeat(chunk, n)
+        starts = (np.cumsum(n) - n).astype(np.int32)
+        local = np.arange(n.sum(), dtype=np.int32) - np.repeat(starts, n)
+        down, across = np.divmod(local, boxes.width[pair_face])
+        row = boxes.j0[pair_face] + down
+        col = boxes.i0[pair_face] + across
+        px = col.astype(np.float32) * np.float32(2 / size) + np.float32(1 / size - 1)
+        py = row.astype(np.float32) * np.float32(2 / size) + np.float32(1 / size - 1)
+        inside = None
+        for a, b, c in tests.lines:
+            distance = a[pair_face] * px + b[pair_face] * py + c[pair_face]
+            inside = distance if inside is None else np.minimum(inside, distance)
+        near = inside > -LOOSE_RADIUS * radius
+        pair_face, px, py, inside = pair_face[near], px[near], py[near], inside[near]
+        a, b, c = tests.plane
+        depth = a[pair_face] * px + b[pair_face] * py + c[pair_face]
+        depth = np.minimum(np.maximum(depth, tests.lowest[pair_face]), tests.highest[pair_face])
+        view = (pair_face // faces_per_view).astype(np.int64)
+        parts.append(
+            Pairs(
+                (view * size + row[near]) * size + col[near],
+                pair_face,
+                depth * inv_gamma,
+                (inside > 0) & tests.trusted[pair_face],
+            )
+        )
+    return Pairs.concat(parts)
