@@ -9,6 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .nearest import row_hashes
+
 FORMAT = "drkfs-features-1"
 
 
@@ -26,9 +28,9 @@ class MeshFeatures:
     model: str
 
     @cached_property
-    def row_keys(self) -> frozenset[bytes]:
-        """The descriptor rows' bytes: finds exact copies in O(1) each (built once per mesh)."""
-        return frozenset(row.tobytes() for row in self.descriptors)
+    def row_hashes(self) -> np.ndarray:
+        """(N,) uint64 hashes of the descriptor rows, to find exact copies (once per mesh)."""
+        return row_hashes(self.descriptors)
 
     def save(self, path: str | Path) -> None:
         np.savez_compressed(

@@ -1,4 +1,4 @@
-"""Each query descriptor's nearest target, with numpy's BLAS.
+"""Each query descriptor's nearest target, with numpy's BLAS, and its exact copies.
 
 The same float32 ranking as the exported match graph (``models/match.onnx``), which other
 runtimes can use; in onnxruntime on 2 cores the graph is slower (bench/score.py,
@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 CHUNK_ROWS = 512
+HASH_SEED = 20261122
 
 
 def nearest_indices(queries: np.ndarray, targets: np.ndarray) -> np.ndarray:
@@ -24,14 +25,37 @@ def nearest_indices(queries: np.ndarray, targets: np.ndarray) -> np.ndarray:
     if len(targets) == 0:
         raise ValueError("no target descriptors to match against")
     targets = np.asarray(targets, dtype=np.float32)
+    # (M, D + 1); BLAS reads its transpose in place
     lifted_targets = np.concatenate(
         [-2.0 * targets, (targets * targets).sum(1, keepdims=True)], axis=1
-    ).T.copy()
+    )
     lifted_queries = np.concatenate(
         [np.asarray(queries, dtype=np.float32), np.ones((len(queries), 1), np.float32)], axis=1
     )
     nearest = np.zeros(len(queries), np.int64)
     for start in range(0, len(queries), CHUNK_ROWS):
-        block = lifted_queries[start : start + CHUNK_ROWS] @ lifted_targets
+        block = lifted_queries[start : start + CHUNK_ROWS] @ lifted_targets.T
         nearest[start : start + CHUNK_ROWS] = block.argmin(1)
     return nearest
+
+
+def row_hashes(rows: np.ndarray) -> np.ndarray:
+    """(N, D) float32 -> (N,) uint64: a hash of each row's bits (equal rows, equal hashes)."""
+    bits = np.ascontiguousarray(rows, dtype=np.float32).view(np.uint32).astype(np.uint64)
+    # odd 64-bit multipliers, fixed so hashes are reproducible; products wrap modulo 2**64
+    weights = np.random.default_rng(HASH_SEED).integers(1, 2**63, bits.shape[1], np.uint64)
+    return bits @ (weights | np.uint64(1))
+
+
+def exact_copies(
+    queries: np.ndarray, query_hashes: np.ndarray, targets: np.ndarray, target_hashes: np.ndarray
+) -> np.ndarray:
+    """(N,) bool: which query rows have a bit-identical row among the targets (hashes from
+    ``row_hashes``; a hash match is confirmed by comparing the rows)."""
+    if len(targets) == 0:
+        return np.zeros(len(queries), bool)
+    order = np.argsort(target_hashes)
+    at = np.minimum(np.searchsorted(target_hashes[order], query_hashes), len(order) - 1)
+    candidate = order[at]
+    same_hash = target_hashes[candidate] == query_hashes
+    return same_hash & (queries == targets[candidate]).all(1)

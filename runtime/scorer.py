@@ -19,7 +19,7 @@ from drkfs_onnx.patch_grid import nonempty_patches
 
 from .decimate import decimate
 from .features import MeshFeatures
-from .nearest import nearest_indices
+from .nearest import exact_copies, nearest_indices, row_hashes
 from .render import NumpyRenderer
 from .sessions import open_features
 
@@ -69,6 +69,7 @@ class Scorer:
             np.full((1, self.config.image_size, self.config.image_size), self.config.background),
             np.array([0]),
         )
+        self._empty_hash = row_hashes(self._empty)
 
     @property
     def model_version(self) -> str:
@@ -151,24 +152,24 @@ class Scorer:
                 parts.append(self.features_graph.session.run(None, inputs)[0])
         return np.concatenate(parts)
 
-    def _with_empty(self, features: MeshFeatures) -> tuple[np.ndarray, np.ndarray]:
-        """Distinct descriptor rows and how many patches each stands for."""
-        rows, weights = features.descriptors, np.ones(len(features.descriptors))
+    def _with_empty(self, features: MeshFeatures) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Distinct descriptor rows, their hashes and how many patches each stands for."""
+        rows, hashes = features.descriptors, features.row_hashes
+        weights = np.ones(len(rows))
         if features.empty:
             rows = np.concatenate([rows, self._empty])
+            hashes = np.append(hashes, self._empty_hash)
             weights = np.append(weights, features.empty)
-        return rows, weights
+        return rows, hashes, weights
 
     def _best_matches(self, queries: MeshFeatures, targets: MeshFeatures) -> float:
         """Weighted best-match distances. A row with an exact copy in B matches at 0 (most rows,
         for small changes); the others' nearest rows are found in float32 (``nearest_indices``) and
         the distances to them computed in float64."""
-        q, weights = self._with_empty(queries)
-        t, _ = self._with_empty(targets)
+        q, q_hashes, weights = self._with_empty(queries)
+        t, t_hashes, _ = self._with_empty(targets)
         best = np.zeros(len(q))
-        known, blank = targets.row_keys, self._empty.tobytes() if targets.empty else None
-        copied = [key in known or key == blank for key in map(np.ndarray.tobytes, q)]
-        rest = np.nonzero(~np.array(copied, dtype=bool))[0]
+        rest = np.nonzero(~exact_copies(q, q_hashes, t, t_hashes))[0]
         if len(rest):
             nearest = nearest_indices(q[rest], t)
             diff = q[rest].astype(np.float64) - t[nearest].astype(np.float64)

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from drkfs_onnx.runtime.nearest import CHUNK_ROWS, nearest_indices
+from drkfs_onnx.runtime.nearest import CHUNK_ROWS, exact_copies, nearest_indices, row_hashes
 
 
 def _unit_rows(rng, n, dim=128):
@@ -26,3 +26,25 @@ def test_nearest_equals_brute_force_over_several_blocks():
 def test_no_targets_is_an_error():
     with pytest.raises(ValueError, match="no target"):
         nearest_indices(np.zeros((2, 128), np.float32), np.zeros((0, 128), np.float32))
+
+
+def test_exact_copies_are_bit_identical_rows_only():
+    rng = np.random.default_rng(1)
+    targets = _unit_rows(rng, 50)
+    targets[7] = targets[3]  # a duplicated target row
+    one_bit_off = targets[5].copy()
+    one_bit_off.view(np.uint32)[0] ^= 1
+    queries = np.stack([targets[3], targets[49], one_bit_off, -targets[0], _unit_rows(rng, 1)[0]])
+    got = exact_copies(queries, row_hashes(queries), targets, row_hashes(targets))
+    assert got.tolist() == [True, True, False, False, False]
+    colliding = np.zeros(len(queries), np.uint64), np.zeros(len(targets), np.uint64)
+    assert not exact_copies(queries, colliding[0], targets, colliding[1])[2:].any()
+    none = targets[:0]
+    assert not exact_copies(queries, row_hashes(queries), none, row_hashes(none)).any()
+
+
+def test_row_hashes_depend_only_on_the_row():
+    rng = np.random.default_rng(2)
+    rows = _unit_rows(rng, 20)
+    assert np.array_equal(row_hashes(rows)[::-1], row_hashes(rows[::-1].copy()))
+    assert len(set(row_hashes(rows).tolist())) == 20
