@@ -17,6 +17,7 @@ listing every face: only the work differs.
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
+from functools import cached_property
 
 import numpy as np
 
@@ -25,6 +26,8 @@ from drkfs_onnx.config import PipelineConfig
 DEPTH_CULL = 30.0
 # float32 logits near 1 / gamma = 1e4 are good to ~1e-3; a wide margin costs a few pairs
 CULL_MARGIN = 2.0
+# A pair whose float32 logit lies this far under its pixel's bound is hidden.
+HIDDEN_BELOW = DEPTH_CULL + CULL_MARGIN
 # Candidates reach slightly beyond the cut-off radius, so float32 rounding never drops a pair.
 LOOSE_RADIUS = 1.01
 PAIR_CHUNK = 1 << 18
@@ -94,7 +97,7 @@ class PixelBoxes:
     width: np.ndarray
     height: np.ndarray
 
-    @property
+    @cached_property
     def counts(self) -> np.ndarray:
         return self.width * self.height
 
@@ -149,16 +152,18 @@ def candidate_pairs(
         np.log((0.5 - config.coverage_eps) / (1.0 - config.coverage_eps))
     )
     bound = np.full(views * size * size, config.background_eps / config.gamma, dtype=np.float32)
-    np.maximum.at(bound, first.pixel[first.sure], first.logit[first.sure] + edge_log_coverage)
+
+    def raise_bound(pairs: Pairs) -> None:
+        np.maximum.at(bound, pairs.pixel[pairs.sure], pairs.logit[pairs.sure] + edge_log_coverage)
+
+    raise_bound(first)
     rest = listed[~towards[listed]]
     nearest = tests.highest[rest] * np.float32(1.0 / config.gamma)
-    hidden = nearest < _box_minimum(bound.reshape(views, size, size), boxes, rest, views) - (
-        DEPTH_CULL + CULL_MARGIN
-    )
-    second = _list_pairs(rest[~hidden], tests, boxes, views, config)
-    np.maximum.at(bound, second.pixel[second.sure], second.logit[second.sure] + edge_log_coverage)
+    tile_bound = _box_minimum(bound.reshape(views, size, size), boxes, rest, views)
+    second = _list_pairs(rest[nearest >= tile_bound - HIDDEN_BELOW], tests, boxes, views, config)
+    raise_bound(second)
     pairs = Pairs.concat([first, second])
-    kept = pairs.logit >= bound[pairs.pixel] - (DEPTH_CULL + CULL_MARGIN)
+    kept = pairs.logit >= bound[pairs.pixel] - HIDDEN_BELOW
     return pairs.pixel[kept], pairs.face[kept]
 
 
@@ -167,10 +172,10 @@ def _facing_camera(tests: FaceTests, visible: np.ndarray, views: int) -> np.ndar
     faces turned towards the camera on a consistently oriented surface)."""
     facing = tests.facing.reshape(views, -1)
     depth = np.where(visible, tests.highest, 0.0).reshape(views, -1)
-    counts = visible.reshape(views, -1)
+    seen = visible.reshape(views, -1)
     positive = facing > 0
-    mean_positive = (depth * positive).sum(1) / np.maximum((counts & positive).sum(1), 1)
-    mean_negative = (depth * ~positive).sum(1) / np.maximum((counts & ~positive).sum(1), 1)
+    mean_positive = (depth * positive).sum(1) / np.maximum((seen & positive).sum(1), 1)
+    mean_negative = (depth * ~positive).sum(1) / np.maximum((seen & ~positive).sum(1), 1)
     sign = np.where(mean_positive >= mean_negative, 1.0, -1.0)
     return (facing == sign[:, None]).reshape(-1)
 
@@ -186,6 +191,8 @@ def _box_minimum(bound: np.ndarray, boxes: PixelBoxes, ids: np.ndarray, views: i
     out = np.empty(len(ids), np.float32)
     tiles = bound
     for shift in range(int(level.max(initial=0)) + 1):
+        if shift:
+            tiles = _halve(tiles)
         at = level == shift
         if at.any():
             v = view[at]
@@ -193,7 +200,6 @@ def _box_minimum(bound: np.ndarray, boxes: PixelBoxes, ids: np.ndarray, views: i
                 tiles[v, j >> shift, i >> shift] for j in (j0[at], j1[at]) for i in (i0[at], i1[at])
             ]
             out[at] = np.minimum.reduce(corners)
-        tiles = _halve(tiles)
     return out
 
 
