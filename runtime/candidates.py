@@ -36,6 +36,13 @@ TINY_LENGTH = 1e-9
 MAX_SLOPE = 100.0
 
 
+def select(mask: np.ndarray, *arrays: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The entries of each array where ``mask`` holds. One index list gathered per array is
+    several times faster than boolean indexing each array."""
+    index = np.flatnonzero(mask)
+    return tuple(array[index] for array in arrays)
+
+
 @dataclass(frozen=True)
 class FaceTests:
     """Per face (of all K*F view-faces), float32: ``lines`` (3 edges x (a, b, c)) give the
@@ -126,6 +133,10 @@ class Pairs:
     logit: np.ndarray
     sure: np.ndarray
 
+    def unhidden(self, bound: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Pixel and face of the pairs within HIDDEN_BELOW of their pixel's ``bound``."""
+        return select(self.logit >= bound[self.pixel] - HIDDEN_BELOW, self.pixel, self.face)
+
     @staticmethod
     def concat(parts: list[Pairs]) -> Pairs:
         if not parts:
@@ -154,7 +165,8 @@ def candidate_pairs(
     bound = np.full(views * size * size, config.background_eps / config.gamma, dtype=np.float32)
 
     def raise_bound(pairs: Pairs) -> None:
-        np.maximum.at(bound, pairs.pixel[pairs.sure], pairs.logit[pairs.sure] + edge_log_coverage)
+        pixel, logit = select(pairs.sure, pairs.pixel, pairs.logit)
+        np.maximum.at(bound, pixel, logit + edge_log_coverage)
 
     raise_bound(first)
     rest = listed[~towards[listed]]
@@ -162,9 +174,8 @@ def candidate_pairs(
     tile_bound = _box_minimum(bound.reshape(views, size, size), boxes, rest, views)
     second = _list_pairs(rest[nearest >= tile_bound - HIDDEN_BELOW], tests, boxes, views, config)
     raise_bound(second)
-    pairs = Pairs.concat([first, second])
-    kept = pairs.logit >= bound[pairs.pixel] - HIDDEN_BELOW
-    return pairs.pixel[kept], pairs.face[kept]
+    (pixel_1, face_1), (pixel_2, face_2) = first.unhidden(bound), second.unhidden(bound)
+    return np.concatenate([pixel_1, pixel_2]), np.concatenate([face_1, face_2])
 
 
 def _facing_camera(tests: FaceTests, visible: np.ndarray, views: int) -> np.ndarray:
@@ -238,14 +249,14 @@ def _list_pairs(
             distance = a[pair_face] * px + b[pair_face] * py + c[pair_face]
             inside = distance if inside is None else np.minimum(inside, distance)
         near = inside > -LOOSE_RADIUS * radius
-        pair_face, px, py, inside = pair_face[near], px[near], py[near], inside[near]
+        pair_face, px, py, inside, row, col = select(near, pair_face, px, py, inside, row, col)
         a, b, c = tests.plane
         depth = a[pair_face] * px + b[pair_face] * py + c[pair_face]
         depth = np.minimum(np.maximum(depth, tests.lowest[pair_face]), tests.highest[pair_face])
         view = (pair_face // faces_per_view).astype(np.int64)
         parts.append(
             Pairs(
-                (view * size + row[near]) * size + col[near],
+                (view * size + row) * size + col,
                 pair_face,
                 depth * inv_gamma,
                 (inside > 0) & tests.trusted[pair_face],

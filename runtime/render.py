@@ -18,7 +18,7 @@ from drkfs_onnx.cameras import Cameras, make_cameras
 from drkfs_onnx.config import PipelineConfig
 from drkfs_onnx.coverage import NUMPY_OPS, pair_terms
 
-from .candidates import DEPTH_CULL, candidate_pairs
+from .candidates import DEPTH_CULL, candidate_pairs, select
 
 # Pairs per exact-pass chunk: its float64 temporaries then stay in cache.
 EXACT_CHUNK = 1 << 13
@@ -93,8 +93,7 @@ class NumpyRenderer:
         pixel, face, logit = self._exact_logits(params, *candidates)
         logit_max = np.full(k * size * size, cfg.background_eps / cfg.gamma)
         np.maximum.at(logit_max, pixel, logit)
-        kept = logit >= logit_max[pixel] - DEPTH_CULL
-        pixel, face, logit = pixel[kept], face[kept], logit[kept]
+        pixel, face, logit = select(logit >= logit_max[pixel] - DEPTH_CULL, pixel, face, logit)
         weight = np.exp(logit - logit_max[pixel])
         colors = _face_shading(verts_cam, faces, cfg)
         numerator = np.bincount(pixel, weight * colors[face], minlength=k * size * size)
@@ -114,10 +113,10 @@ class NumpyRenderer:
             px = (2 * (p % size) + 1) / size - 1.0
             py = (2 * (p // size % size) + 1) / size - 1.0
             coverage, depth = pair_terms(params[:, fc], px, py, cfg, NUMPY_OPS)
-            covered = coverage > 0
-            kept_pixel.append(p[covered])
-            kept_face.append(fc[covered])
-            kept_logit.append(np.log(coverage[covered]) + depth[covered] / cfg.gamma)
+            p, fc, coverage, depth = select(coverage > 0, p, fc, coverage, depth)
+            kept_pixel.append(p)
+            kept_face.append(fc)
+            kept_logit.append(np.log(coverage) + depth / cfg.gamma)
         if not kept_pixel:
             return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
         return tuple(map(np.concatenate, (kept_pixel, kept_face, kept_logit)))
