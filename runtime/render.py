@@ -26,13 +26,20 @@ EXACT_CHUNK = 1 << 13
 
 def _face_shading(verts_cam: np.ndarray, faces: np.ndarray, config: PipelineConfig) -> np.ndarray:
     """(K, V, 3), (F, 3) -> (K*F,) flat two-sided Lambertian grey."""
-    v0, v1, v2 = (verts_cam[:, faces[:, i]] for i in range(3))
-    normal = np.cross(v1 - v0, v2 - v0)
-    normal /= np.sqrt((normal * normal).sum(-1, keepdims=True) + 1e-20)
-    centroid = (v0 + v1 + v2) / 3.0
-    towards = np.where((normal * centroid).sum(-1, keepdims=True) > 0, -1.0, 1.0)
-    light = np.asarray(config.light_direction, dtype=np.float64)
-    lambert = np.maximum((normal * towards) @ (light / np.linalg.norm(light)), 0.0)
+    # one (K, F) array per coordinate of each corner: contiguous loops, not length-3 rows
+    (x0, y0, z0), (x1, y1, z1), (x2, y2, z2) = (
+        [verts_cam[:, faces[:, i], axis] for axis in range(3)] for i in range(3)
+    )
+    ax, ay, az, bx, by, bz = x1 - x0, y1 - y0, z1 - z0, x2 - x0, y2 - y0, z2 - z0
+    nx, ny, nz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+    length = np.sqrt(nx * nx + ny * ny + nz * nz + 1e-20)
+    nx, ny, nz = nx / length, ny / length, nz / length
+    outward = nx * (x0 + x1 + x2) / 3.0 + ny * (y0 + y1 + y2) / 3.0 + nz * (z0 + z1 + z2) / 3.0
+    towards = np.where(outward > 0, -1.0, 1.0)
+    lx, ly, lz = np.asarray(config.light_direction, dtype=np.float64) / np.linalg.norm(
+        config.light_direction
+    )
+    lambert = np.maximum((nx * lx + ny * ly + nz * lz) * towards, 0.0)
     return (config.ambient + config.diffuse * lambert).reshape(-1)
 
 
@@ -46,15 +53,15 @@ def screen_faces(
     z = verts_cam[..., 2]
     near_ok = z > config.near
     z_safe = np.where(near_ok, z, config.near)
-    xy = focal * verts_cam[..., :2] / z_safe[..., None]
+    x, y = focal * verts_cam[..., 0] / z_safe, focal * verts_cam[..., 1] / z_safe
     inv_near, inv_far = 1.0 / config.near, 1.0 / config.far
     inv_depth = (1.0 / z_safe - inv_far) / (inv_near - inv_far)
-    # contiguous rows for the per-row passes
-    params = np.ascontiguousarray(
-        np.concatenate(
-            [xy[:, faces].reshape(k * f, 6), inv_depth[:, faces].reshape(k * f, 3)], axis=1
-        ).T
-    )
+    params = np.empty((9, k * f))
+    for i in range(3):
+        corner = faces[:, i]
+        params[2 * i] = x[:, corner].reshape(-1)
+        params[2 * i + 1] = y[:, corner].reshape(-1)
+        params[6 + i] = inv_depth[:, corner].reshape(-1)
     return params, near_ok[:, faces].all(axis=2).reshape(k * f)
 
 
