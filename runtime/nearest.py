@@ -57,5 +57,7 @@ def exact_copies(
     order = np.argsort(target_hashes)
     at = np.minimum(np.searchsorted(target_hashes[order], query_hashes), len(order) - 1)
     candidate = order[at]
-    same_hash = target_hashes[candidate] == query_hashes
-    return same_hash & (queries == targets[candidate]).all(1)
+    copies = np.zeros(len(queries), bool)
+    same_hash = np.flatnonzero(target_hashes[candidate] == query_hashes)
+    copies[same_hash] = (queries[same_hash] == targets[candidate[same_hash]]).all(1)
+    return copies

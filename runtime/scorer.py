@@ -169,10 +169,10 @@ class Scorer:
         q, q_hashes, weights = self._with_empty(queries)
         t, t_hashes, _ = self._with_empty(targets)
         best = np.zeros(len(q))
-        rest = np.nonzero(~exact_copies(q, q_hashes, t, t_hashes))[0]
+        rest = np.flatnonzero(~exact_copies(q, q_hashes, t, t_hashes))
         if len(rest):
-            nearest = nearest_indices(q[rest], t)
-            diff = q[rest].astype(np.float64) - t[nearest].astype(np.float64)
-            best[rest] = (diff * diff).sum(1)
+            searched = q if len(rest) == len(q) else q[rest]
+            diff = np.subtract(searched, t[nearest_indices(searched, t)], dtype=np.float64)
+            best[rest] = np.einsum("ij,ij->i", diff, diff)
         total = float((weights * best).sum())
         return total / weights.sum() if self.reduction == "mean" else total
