@@ -1,9 +1,9 @@
 """Pixel-face pairs the numpy renderer must compute exactly: those that may be covered and unhidden.
 
-Each face's bounding box, grown by the cut-off radius, lists its pairs; float32 per-face affine
-functions of the pixel (``face_planes``: signed distance to each edge's line, the face plane's
-inverse depth) then test them. A pixel further than the radius outside an edge's line is
-uncovered. A pixel inside a face is covered at least as much as on its edge, so there the face's
+A pixel further than the cut-off radius outside one of a face's edge lines is uncovered, so each
+row of the face's bounding box (grown by the radius) lists one span of columns: those the three
+lines allow (``face_tests``: float32 signed distance to each edge's line, the face plane's
+inverse depth, both affine in the pixel). A pixel inside a face is covered at least as much as on its edge, so there the face's
 plane depth bounds the pixel's winning logit from below; any pair whose plane depth lies more than
 DEPTH_CULL + CULL_MARGIN logits under such a bound is hidden.
 
@@ -17,7 +17,7 @@ listing every face: only the work differs.
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
-from functools import cached_property
+from functools import cached_property, partial
 
 import numpy as np
 
@@ -227,39 +227,82 @@ def _halve(tiles: np.ndarray) -> np.ndarray:
 def _list_pairs(
     ids: np.ndarray, tests: FaceTests, boxes: PixelBoxes, views: int, config: PipelineConfig
 ) -> Pairs:
-    """Pairs of faces ``ids`` whose pixel lies within the radius of every edge line, in chunks."""
-    size, radius = config.image_size, config.coverage_radius
+    """Pairs of faces ``ids`` whose pixel lies within the radius of every edge line, in chunks:
+    each box row's columns come as one span, so no pixel outside the span is ever tested."""
+    size = config.image_size
+    step, offset = 2.0 / size, 1.0 / size - 1.0
     faces_per_view = len(boxes.i0) // views
-    counts = boxes.counts[ids]
     inv_gamma = np.float32(1.0 / config.gamma)
     parts = []
-    bucket = (np.cumsum(counts) - 1) // PAIR_CHUNK
+    bucket = (np.cumsum(boxes.counts[ids]) - 1) // PAIR_CHUNK
     for chunk in np.split(ids, np.nonzero(np.diff(bucket))[0] + 1) if len(ids) else []:
-        n = boxes.counts[chunk]
-        pair_face = np.repeat(chunk, n)
-        starts = (np.cumsum(n) - n).astype(np.int32)
-        local = np.arange(n.sum(), dtype=np.int32) - np.repeat(starts, n)
-        down, across = np.divmod(local, boxes.width[pair_face])
-        row = boxes.j0[pair_face] + down
-        col = boxes.i0[pair_face] + across
-        px = col.astype(np.float32) * np.float32(2 / size) + np.float32(1 / size - 1)
-        py = row.astype(np.float32) * np.float32(2 / size) + np.float32(1 / size - 1)
-        inside = None
-        for a, b, c in tests.lines:
-            distance = a[pair_face] * px + b[pair_face] * py + c[pair_face]
-            inside = distance if inside is None else np.minimum(inside, distance)
-        near = inside > -LOOSE_RADIUS * radius
-        pair_face, px, py, inside, row, col = select(near, pair_face, px, py, inside, row, col)
+        face = np.repeat(chunk, boxes.height[chunk])  # one entry per box row
+        row = boxes.j0[face] + _ranks(boxes.height[chunk])
+        py = row * step + offset
+        first, last, inner_first, inner_last = _row_spans(face, py, tests, boxes, config)
+        count = np.maximum(last - first + 1, 0)
+        spread = partial(np.repeat, repeats=count)  # per box row -> per pair
+        col = spread(first - (np.cumsum(count) - count)) + np.arange(count.sum())
+        px = col.astype(np.float32) * np.float32(step) + np.float32(offset)
         a, b, c = tests.plane
-        depth = a[pair_face] * px + b[pair_face] * py + c[pair_face]
-        depth = np.minimum(np.maximum(depth, tests.lowest[pair_face]), tests.highest[pair_face])
-        view = (pair_face // faces_per_view).astype(np.int64)
+        depth = spread(a[face]) * px + spread(b[face] * py.astype(np.float32) + c[face])
+        depth = np.minimum(
+            np.maximum(depth, spread(tests.lowest[face])), spread(tests.highest[face])
+        )
+        sure = (col >= spread(inner_first)) & (col <= spread(inner_last))
+        row_start = ((face // faces_per_view) * size + row) * size
         parts.append(
             Pairs(
-                (view * size + row) * size + col,
-                pair_face,
+                spread(row_start) + col,
+                spread(face),
                 depth * inv_gamma,
-                (inside > 0) & tests.trusted[pair_face],
+                sure & spread(tests.trusted[face]),
             )
         )
     return Pairs.concat(parts)
+
+
+def _ranks(counts: np.ndarray) -> np.ndarray:
+    """0, 1, .., n - 1 for each n of ``counts``, concatenated."""
+    starts = np.cumsum(counts) - counts
+    return np.arange(counts.sum()) - np.repeat(starts, counts)
+
+
+def _row_spans(
+    face: np.ndarray, py: np.ndarray, tests: FaceTests, boxes: PixelBoxes, config: PipelineConfig
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Per box row (of ``face`` at height ``py``): the first and last column of the box within
+    LOOSE_RADIUS * radius of every edge line, and of those strictly inside all three (int64;
+    first > last when none)."""
+    size = config.image_size
+    reach = np.float32(LOOSE_RADIUS * config.coverage_radius)
+    # columns strictly between the largest root of a rising line and the smallest of a falling one
+    first = inner_first = np.full(len(face), -np.inf, np.float32)
+    last = inner_last = np.full(len(face), np.inf, np.float32)
+    py = py.astype(np.float32)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for a, b, c in tests.lines:
+            # the line's distance at column i is a * step * (i - root); per_column = -1 / (a * step)
+            slope = a[face]
+            level = slope * np.float32(1.0 / size - 1.0) + b[face] * py + c[face]
+            per_column = np.float32(-size / 2.0) / slope
+            root = level * per_column
+            outer_root = root + reach * per_column
+            rising, falling = slope > 0, slope < 0
+            first = np.maximum(first, np.where(rising, outer_root, -np.inf))
+            last = np.minimum(last, np.where(falling, outer_root, np.inf))
+            inner_first = np.maximum(inner_first, np.where(rising, root, -np.inf))
+            inner_last = np.minimum(inner_last, np.where(falling, root, np.inf))
+            # A flat (horizontal) line keeps all of the row or none of it. Every box row lies
+            # within the radius of it (the box is the face's grown by the radius), so only the
+            # inner span can lose a row.
+            inner_first = np.where((slope == 0) & (level <= 0), np.inf, inner_first)
+    box_first = boxes.i0[face].astype(np.float32)
+    box_last = box_first + (boxes.width[face] - 1)
+    first, inner_first = (
+        np.clip(np.floor(v) + 1, box_first, box_last + 1) for v in (first, inner_first)
+    )
+    last, inner_last = (
+        np.clip(np.ceil(v) - 1, box_first - 1, box_last) for v in (last, inner_last)
+    )
+    return tuple(v.astype(np.int64) for v in (first, last, inner_first, inner_last))

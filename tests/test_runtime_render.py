@@ -11,7 +11,14 @@ from drkfs_onnx import PipelineConfig
 from drkfs_onnx.cameras import make_cameras
 from drkfs_onnx.coverage import NUMPY_OPS, pair_terms
 from drkfs_onnx.render import Renderer
-from drkfs_onnx.runtime.candidates import DEPTH_CULL, candidate_pairs
+from drkfs_onnx.runtime.candidates import (
+    DEPTH_CULL,
+    LOOSE_RADIUS,
+    _row_spans,
+    candidate_pairs,
+    face_tests,
+    pixel_boxes,
+)
 from drkfs_onnx.runtime.render import NumpyRenderer, screen_faces
 from drkfs_onnx.shapes import assemble, chair
 
@@ -87,3 +94,26 @@ def test_candidates_hold_every_pair_the_exact_pass_keeps(mesh):
     key = pixel * len(visible) + face
     assert np.isin(key[needed], got_pixel * len(visible) + got_face).all()
     assert len(got_pixel) < covered.sum()  # hidden pairs are dropped
+
+
+def test_row_spans_are_the_columns_every_edge_line_allows():
+    """Per box row, the outer span is exactly the pixels within the loose radius of all three
+    edge lines and the inner span those strictly inside, also where an edge is horizontal (its
+    line keeps a whole row or none of it) or vertical."""
+    config = CONFIG.replace(image_size=48)
+    size, reach = config.image_size, LOOSE_RADIUS * config.coverage_radius
+    corners = np.random.default_rng(3).uniform(-0.9, 0.9, (40, 3, 2))
+    corners[0, 1, 1] = corners[0, 0, 1]
+    corners[1, 2, 0] = corners[1, 1, 0]
+    params = np.concatenate([corners.reshape(40, 6), np.full((40, 3), 0.5)], axis=1).T
+    tests, boxes = face_tests(params), pixel_boxes(params, np.ones(40, bool), config)
+    face = np.repeat(np.arange(40), boxes.height)
+    row = np.concatenate([j + np.arange(h) for j, h in zip(boxes.j0, boxes.height, strict=True)])
+    py = (2 * row + 1) / size - 1.0
+    spans = np.stack(_row_spans(face, py, tests, boxes, config), axis=1)
+    for f, y, (first, last, inner_first, inner_last) in zip(face, py, spans, strict=True):
+        columns = boxes.i0[f] + np.arange(boxes.width[f])
+        px = (2 * columns + 1) / size - 1.0
+        distance = np.min([a[f] * px + b[f] * y + c[f] for a, b, c in tests.lines], axis=0)
+        assert list(columns[distance > -reach]) == list(range(first, last + 1))
+        assert list(columns[distance > 0]) == list(range(inner_first, inner_last + 1))
