@@ -3,9 +3,9 @@
 A pixel further than the cut-off radius outside one of a face's edge lines is uncovered, so each
 row of the face's bounding box (grown by the radius) lists one span of columns: those the three
 lines allow (``face_tests``: float32 signed distance to each edge's line, the face plane's
-inverse depth, both affine in the pixel). A pixel inside a face is covered at least as much as on its edge, so there the face's
-plane depth bounds the pixel's winning logit from below; any pair whose plane depth lies more than
-DEPTH_CULL + CULL_MARGIN logits under such a bound is hidden.
+inverse depth, both affine in the pixel). A pixel inside a face is covered at least as much as on
+its edge, so there the face's plane depth bounds the pixel's winning logit from below; any pair
+whose plane depth lies more than DEPTH_CULL + CULL_MARGIN logits under such a bound is hidden.
 
 Most hidden pairs belong to faces turned away from the camera, so the faces turned towards it are
 listed first; their bounds, reduced to a min-pyramid over square tiles, drop whole faces of the

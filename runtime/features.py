@@ -1,5 +1,5 @@
-"""One mesh's descriptors as the runtime keeps them: the non-empty patches' descriptors and a
-count of background patches (which share one descriptor)."""
+"""One mesh's descriptors as the runtime keeps them: the non-empty patches' descriptors, and the
+one descriptor the background patches share with their count."""
 
 from __future__ import annotations
 
@@ -9,28 +9,47 @@ from pathlib import Path
 
 import numpy as np
 
-from .nearest import row_hashes
+from .nearest import lift, row_hashes
 
-FORMAT = "drkfs-features-1"
+FORMAT = "drkfs-features-2"
 
 
 @dataclass(frozen=True)
 class MeshFeatures:
     """descriptors: (N, D) float32 of the patches that see the mesh; empty: how many of the
-    K * P patches see only background; centre (3,) and scale: the frame the mesh was placed in
-    (v' = (v - centre) / scale), which joint normalisation applies to meshes scored against it;
-    model: sha256 of the feature graph that computed them."""
+    K * P patches see only background, and empty_descriptor (D,) the descriptor they share;
+    centre (3,) and scale: the frame the mesh was placed in (v' = (v - centre) / scale), which
+    joint normalisation applies to meshes scored against it; model: sha256 of the feature graph
+    that computed them. The match's forms of the rows are computed once per mesh."""
 
     descriptors: np.ndarray
     empty: int
+    empty_descriptor: np.ndarray
     centre: np.ndarray
     scale: float
     model: str
 
     @cached_property
+    def rows(self) -> np.ndarray:
+        """(R, D) distinct rows: the descriptors, then the empty descriptor if a patch is empty."""
+        if not self.empty:
+            return self.descriptors
+        return np.concatenate([self.descriptors, self.empty_descriptor[None]])
+
+    @cached_property
+    def weights(self) -> np.ndarray:
+        """(R,) how many patches each row stands for."""
+        return np.append(np.ones(len(self.descriptors)), [self.empty] if self.empty else [])
+
+    @cached_property
     def row_hashes(self) -> np.ndarray:
-        """(N,) uint64 hashes of the descriptor rows, to find exact copies (once per mesh)."""
-        return row_hashes(self.descriptors)
+        """(R,) uint64 hashes of the rows, to find exact copies."""
+        return row_hashes(self.rows)
+
+    @cached_property
+    def lifted(self) -> np.ndarray:
+        """(R, D + 1) the rows as search targets (``nearest.lift``)."""
+        return lift(self.rows)
 
     def save(self, path: str | Path) -> None:
         np.savez_compressed(
@@ -38,6 +57,7 @@ class MeshFeatures:
             format=FORMAT,
             descriptors=self.descriptors,
             empty=self.empty,
+            empty_descriptor=self.empty_descriptor,
             centre=self.centre,
             scale=self.scale,
             model=self.model,
@@ -51,6 +71,7 @@ class MeshFeatures:
             return cls(
                 descriptors=data["descriptors"],
                 empty=int(data["empty"]),
+                empty_descriptor=data["empty_descriptor"],
                 centre=data["centre"],
                 scale=float(data["scale"]),
                 model=str(data["model"]),

@@ -15,25 +15,29 @@ CHUNK_ROWS = 512
 HASH_SEED = 20261122
 
 
-def nearest_indices(queries: np.ndarray, targets: np.ndarray) -> np.ndarray:
-    """(N, D), (M, D) float32 -> (N,) int64 index of each query's nearest target.
-
-    Ranks by |t|^2 - 2 q.t, one float32 product of lifted rows ([q, 1] . [-2t, |t|^2]) per block.
-    A float32 near-tie can pick a target whose distance exceeds the minimum by float32 rounding
-    (~1e-7); callers that need exact zeros match exact copies themselves.
-    """
-    if len(targets) == 0:
-        raise ValueError("no target descriptors to match against")
+def lift(targets: np.ndarray) -> np.ndarray:
+    """(M, D) -> (M, D + 1) float32 rows [-2t, |t|^2]: [q, 1] . lifted = |t|^2 - 2 q.t ranks the
+    targets by distance to q."""
     targets = np.asarray(targets, dtype=np.float32)
-    # (M, D + 1); BLAS reads its transpose in place
-    lifted_targets = np.concatenate(
-        [-2.0 * targets, (targets * targets).sum(1, keepdims=True)], axis=1
-    )
+    return np.concatenate([-2.0 * targets, (targets * targets).sum(1, keepdims=True)], axis=1)
+
+
+def nearest_indices(queries: np.ndarray, lifted_targets: np.ndarray) -> np.ndarray:
+    """(N, D) float32 queries, (M, D + 1) ``lift``-ed targets -> (N,) int64 index of each
+    query's nearest target.
+
+    One float32 product of lifted rows per block. A float32 near-tie can pick a target whose
+    distance exceeds the minimum by float32 rounding (~1e-7); callers that need exact zeros
+    match exact copies themselves.
+    """
+    if len(lifted_targets) == 0:
+        raise ValueError("no target descriptors to match against")
     lifted_queries = np.concatenate(
         [np.asarray(queries, dtype=np.float32), np.ones((len(queries), 1), np.float32)], axis=1
     )
     nearest = np.zeros(len(queries), np.int64)
     for start in range(0, len(queries), CHUNK_ROWS):
+        # BLAS reads the transpose in place
         block = lifted_queries[start : start + CHUNK_ROWS] @ lifted_targets.T
         nearest[start : start + CHUNK_ROWS] = block.argmin(1)
     return nearest

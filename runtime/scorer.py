@@ -19,7 +19,7 @@ from drkfs_onnx.patch_grid import nonempty_patches
 
 from .decimate import decimate
 from .features import MeshFeatures
-from .nearest import exact_copies, nearest_indices, row_hashes
+from .nearest import exact_copies, nearest_indices
 from .render import NumpyRenderer
 from .sessions import open_features
 
@@ -68,8 +68,7 @@ class Scorer:
         self._empty = self._describe_views(
             np.full((1, self.config.image_size, self.config.image_size), self.config.background),
             np.array([0]),
-        )
-        self._empty_hash = row_hashes(self._empty)
+        )[0]
 
     @property
     def model_version(self) -> str:
@@ -104,6 +103,7 @@ class Scorer:
         return MeshFeatures(
             descriptors=self._describe_views(images, np.nonzero(mask)[0]),
             empty=int(len(mask) - mask.sum()),
+            empty_descriptor=self._empty,
             centre=np.asarray(frame[0], dtype=np.float64),
             scale=float(frame[1]),
             model=self.features_graph.sha256,
@@ -152,27 +152,19 @@ class Scorer:
                 parts.append(self.features_graph.session.run(None, inputs)[0])
         return np.concatenate(parts)
 
-    def _with_empty(self, features: MeshFeatures) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Distinct descriptor rows, their hashes and how many patches each stands for."""
-        rows, hashes = features.descriptors, features.row_hashes
-        weights = np.ones(len(rows))
-        if features.empty:
-            rows = np.concatenate([rows, self._empty])
-            hashes = np.append(hashes, self._empty_hash)
-            weights = np.append(weights, features.empty)
-        return rows, hashes, weights
-
     def _best_matches(self, queries: MeshFeatures, targets: MeshFeatures) -> float:
         """Weighted best-match distances. A row with an exact copy in B matches at 0 (most rows,
         for small changes); the others' nearest rows are found in float32 (``nearest_indices``) and
         the distances to them computed in float64."""
-        q, q_hashes, weights = self._with_empty(queries)
-        t, t_hashes, _ = self._with_empty(targets)
-        best = np.zeros(len(q))
-        rest = np.flatnonzero(~exact_copies(q, q_hashes, t, t_hashes))
+        rows = queries.rows
+        best = np.zeros(len(rows))
+        rest = np.flatnonzero(
+            ~exact_copies(rows, queries.row_hashes, targets.rows, targets.row_hashes)
+        )
         if len(rest):
-            searched = q if len(rest) == len(q) else q[rest]
-            diff = np.subtract(searched, t[nearest_indices(searched, t)], dtype=np.float64)
+            searched = rows if len(rest) == len(rows) else rows[rest]
+            nearest = targets.rows[nearest_indices(searched, targets.lifted)]
+            diff = np.subtract(searched, nearest, dtype=np.float64)
             best[rest] = np.einsum("ij,ij->i", diff, diff)
-        total = float((weights * best).sum())
-        return total / weights.sum() if self.reduction == "mean" else total
+        total = float((queries.weights * best).sum())
+        return total / queries.weights.sum() if self.reduction == "mean" else total

@@ -84,7 +84,8 @@ def test_background_patches_share_the_blank_view_descriptor(scorer, metric):
     size = metric.config.patch_size
     with torch.no_grad():
         blank = metric.descriptor(metric.detector(torch.zeros(1, 1, size, size))).numpy()
-    assert np.abs(scorer._empty - blank).max() <= 1e-4
+    features = scorer.features(EXAMPLES / "chair.obj")
+    assert np.abs(features.empty_descriptor - blank[0]).max() <= 1e-4
 
 
 def test_a_model_for_another_config_is_refused_with_the_difference():

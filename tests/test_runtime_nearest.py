@@ -3,7 +3,13 @@
 import numpy as np
 import pytest
 
-from drkfs_onnx.runtime.nearest import CHUNK_ROWS, exact_copies, nearest_indices, row_hashes
+from drkfs_onnx.runtime.nearest import (
+    CHUNK_ROWS,
+    exact_copies,
+    lift,
+    nearest_indices,
+    row_hashes,
+)
 
 
 def _unit_rows(rng, n, dim=128):
@@ -18,14 +24,14 @@ def test_nearest_equals_brute_force_over_several_blocks():
     near = targets[rng.integers(0, 300, CHUNK_ROWS)] + 1e-2 * _unit_rows(rng, CHUNK_ROWS)
     queries = np.concatenate([near, _unit_rows(rng, 200)]).astype(np.float32)
     q, t = queries.astype(np.float64), targets.astype(np.float64)
-    got = nearest_indices(queries, targets)
+    got = nearest_indices(queries, lift(targets))
     assert got.shape == (len(queries),)
     assert np.array_equal(got, ((q[:, None] - t[None]) ** 2).sum(-1).argmin(1))
 
 
 def test_no_targets_is_an_error():
     with pytest.raises(ValueError, match="no target"):
-        nearest_indices(np.zeros((2, 128), np.float32), np.zeros((0, 128), np.float32))
+        nearest_indices(np.zeros((2, 128), np.float32), lift(np.zeros((0, 128), np.float32)))
 
 
 def test_exact_copies_are_bit_identical_rows_only():
