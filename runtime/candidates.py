@@ -237,15 +237,15 @@ def _list_pairs(
     bucket = (np.cumsum(boxes.counts[ids]) - 1) // PAIR_CHUNK
     for chunk in np.split(ids, np.nonzero(np.diff(bucket))[0] + 1) if len(ids) else []:
         face = np.repeat(chunk, boxes.height[chunk])  # one entry per box row
-        row = boxes.j0[face] + _ranks(boxes.height[chunk])
-        py = row * step + offset
+        row = _ranks(boxes.height[chunk], boxes.j0[chunk])
+        py = (row * step + offset).astype(np.float32)
         first, last, inner_first, inner_last = _row_spans(face, py, tests, boxes, config)
         count = np.maximum(last - first + 1, 0)
         spread = partial(np.repeat, repeats=count)  # per box row -> per pair
-        col = spread(first - (np.cumsum(count) - count)) + np.arange(count.sum())
+        col = _ranks(count, first)
         px = col.astype(np.float32) * np.float32(step) + np.float32(offset)
         a, b, c = tests.plane
-        depth = spread(a[face]) * px + spread(b[face] * py.astype(np.float32) + c[face])
+        depth = spread(a[face]) * px + spread(b[face] * py + c[face])
         depth = np.minimum(
             np.maximum(depth, spread(tests.lowest[face])), spread(tests.highest[face])
         )
@@ -262,10 +262,11 @@ def _list_pairs(
     return Pairs.concat(parts)
 
 
-def _ranks(counts: np.ndarray) -> np.ndarray:
-    """0, 1, .., n - 1 for each n of ``counts``, concatenated."""
+def _ranks(counts: np.ndarray, firsts: np.ndarray) -> np.ndarray:
+    """first, first + 1, .., first + n - 1 for each n of ``counts`` and first of ``firsts``,
+    concatenated."""
     starts = np.cumsum(counts) - counts
-    return np.arange(counts.sum()) - np.repeat(starts, counts)
+    return np.arange(counts.sum()) + np.repeat(firsts - starts, counts)
 
 
 def _row_spans(
@@ -279,7 +280,6 @@ def _row_spans(
     # columns strictly between the largest root of a rising line and the smallest of a falling one
     first = inner_first = np.full(len(face), -np.inf, np.float32)
     last = inner_last = np.full(len(face), np.inf, np.float32)
-    py = py.astype(np.float32)
     with np.errstate(divide="ignore", invalid="ignore"):
         for a, b, c in tests.lines:
             # the line's distance at column i is a * step * (i - root); per_column = -1 / (a * step)
