@@ -17,7 +17,7 @@ listing every face: only the work differs.
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
-from functools import cached_property, partial
+from functools import cached_property
 
 import numpy as np
 
@@ -236,37 +236,38 @@ def _list_pairs(
     parts = []
     bucket = (np.cumsum(boxes.counts[ids]) - 1) // PAIR_CHUNK
     for chunk in np.split(ids, np.nonzero(np.diff(bucket))[0] + 1) if len(ids) else []:
-        face = np.repeat(chunk, boxes.height[chunk])  # one entry per box row
-        row = _ranks(boxes.height[chunk], boxes.j0[chunk])
+        heights = boxes.height[chunk]
+        row_owner = _owners(heights)
+        face = chunk[row_owner]  # one entry per box row
+        row = _ranks(heights, boxes.j0[chunk], row_owner)
         py = (row * step + offset).astype(np.float32)
         first, last, inner_first, inner_last = _row_spans(face, py, tests, boxes, config)
         count = np.maximum(last - first + 1, 0)
-        spread = partial(np.repeat, repeats=count)  # per box row -> per pair
-        col = _ranks(count, first)
+        owner = _owners(count)  # each pair's box row
+        pair_face = face[owner]
+        col = _ranks(count, first, owner)
         px = col.astype(np.float32) * np.float32(step) + np.float32(offset)
         a, b, c = tests.plane
-        depth = spread(a[face]) * px + spread(b[face] * py + c[face])
-        depth = np.minimum(
-            np.maximum(depth, spread(tests.lowest[face])), spread(tests.highest[face])
-        )
-        sure = (col >= spread(inner_first)) & (col <= spread(inner_last))
+        depth = a[pair_face] * px + (b[face] * py + c[face])[owner]
+        depth = np.minimum(np.maximum(depth, tests.lowest[pair_face]), tests.highest[pair_face])
+        sure = (col >= inner_first[owner]) & (col <= inner_last[owner]) & tests.trusted[pair_face]
         row_start = ((face // faces_per_view) * size + row) * size
-        parts.append(
-            Pairs(
-                spread(row_start) + col,
-                spread(face),
-                depth * inv_gamma,
-                sure & spread(tests.trusted[face]),
-            )
-        )
+        parts.append(Pairs(row_start[owner] + col, pair_face, depth * inv_gamma, sure))
     return Pairs.concat(parts)
 
 
-def _ranks(counts: np.ndarray, firsts: np.ndarray) -> np.ndarray:
+def _owners(counts: np.ndarray) -> np.ndarray:
+    """Which group each entry belongs to, for groups of ``counts`` entries laid end to end.
+    Per-group values reach the entries by gathering with it: numpy's repeat holds the GIL, a
+    gather does not, so threads rendering other views keep running."""
+    return np.repeat(np.arange(len(counts)), counts)
+
+
+def _ranks(counts: np.ndarray, firsts: np.ndarray, owners: np.ndarray) -> np.ndarray:
     """first, first + 1, .., first + n - 1 for each n of ``counts`` and first of ``firsts``,
-    concatenated."""
+    concatenated (``owners``: ``_owners(counts)``)."""
     starts = np.cumsum(counts) - counts
-    return np.arange(counts.sum()) + np.repeat(firsts - starts, counts)
+    return np.arange(len(owners)) + (firsts - starts)[owners]
 
 
 def _row_spans(
