@@ -14,7 +14,7 @@ from .detector import PoIDetector
 from .hardnet import HardNet
 from .matching import match_score
 from .mesh import Mesh, check_normalization, normalize_pair, place, reference_frame
-from .patches import extract_patches, nonempty_patches
+from .patches import nonempty_patches, select_patches
 from .render import Renderer
 from .weights import RANDOM_SEED, load_shipped_state
 
@@ -101,18 +101,19 @@ class DRKFS(nn.Module):
         """
         dtype = self.detector.conv.weight.dtype
         images = images.to(dtype)
-        patches = extract_patches(self.detector(images), self.config)
         index = torch.nonzero(nonempty_patches(images, self.config)).squeeze(1)
         size = self.config.patch_size
         blank = torch.full(
             (1, 1, size, size), self.config.background, dtype=dtype, device=images.device
         )
         empty = self.descriptor(self.detector(blank))
-        descriptors = empty.expand(len(patches), -1)
+        descriptors = empty.expand(len(images) * self.config.patches_per_view, -1)
         if len(index) == 0:
             return descriptors
-        seen = patches.index_select(0, index).contiguous(memory_format=torch.channels_last)
-        return descriptors.index_put((index,), self.descriptor(seen))
+        seen = select_patches(self.detector(images), index, self.config)
+        return descriptors.index_put(
+            (index,), self.descriptor(seen.contiguous(memory_format=torch.channels_last))
+        )
 
     def features(self, verts: torch.Tensor, faces: torch.Tensor) -> torch.Tensor:
         """Descriptors of a mesh already in the metric's frame: (V, 3), (F, 3) -> (K * P, D)."""

@@ -2,18 +2,32 @@
 
 from __future__ import annotations
 
+import math
+
 import torch
-import torch.nn.functional as F
 
 from . import patch_grid
 from .config import PipelineConfig
 
 
-def extract_patches(maps: torch.Tensor, config: PipelineConfig) -> torch.Tensor:
-    """(B, 1, S, S) maps -> (B * P, 1, p, p) patches, row-major per view (P = 225 at 256/32/16)."""
-    size, stride = config.patch_size, config.patch_stride
-    columns = F.unfold(maps, kernel_size=size, stride=stride)  # (B, p*p, P)
-    return columns.transpose(1, 2).reshape(-1, 1, size, size)
+def select_patches(maps: torch.Tensor, index: torch.Tensor, config: PipelineConfig) -> torch.Tensor:
+    """(B, 1, S, S) maps, (N,) int64 rows of the (B * P) patch list (row-major per view; P = 225
+    at 256/32/16) -> (N, 1, p, p) patches.
+
+    Each patch row is a run of whole blocks of gcd(p, stride, S) pixels (16 here), so one gather
+    of blocks cuts just the chosen patches: unfolding every patch and then choosing took ~0.02 s
+    of onnxruntime's ~0.2 s per mesh at width 0.25, this ~1 ms.
+    """
+    size, stride, side = config.patch_size, config.patch_stride, config.patches_per_side
+    width, block = config.image_size, math.gcd(size, stride, config.image_size)
+    view, cell = index // (side * side), index % (side * side)
+    rows = (view * width + (cell // side) * stride)[:, None] + torch.arange(
+        size, device=index.device
+    )
+    first = (rows * width + ((cell % side) * stride)[:, None]) // block
+    blocks = first[:, :, None] + torch.arange(size // block, device=index.device)
+    chosen = maps.reshape(-1, block).index_select(0, blocks.reshape(-1))
+    return chosen.reshape(-1, 1, size, size)
 
 
 def nonempty_patches(images: torch.Tensor, config: PipelineConfig) -> torch.Tensor:

@@ -8,7 +8,7 @@ import torch
 from torch import nn
 
 from drkfs_onnx.metric import DRKFS
-from drkfs_onnx.patches import extract_patches
+from drkfs_onnx.patches import select_patches
 
 
 class FeatureGraph(nn.Module):
@@ -27,8 +27,7 @@ class FeatureGraph(nn.Module):
         self.descriptor = copy.deepcopy(metric.descriptor).to(memory_format=torch.contiguous_format)
 
     def forward(self, views: torch.Tensor, patch_index: torch.Tensor) -> torch.Tensor:
-        patches = extract_patches(self.detector(views), self.config)
-        return self.descriptor(patches.index_select(0, patch_index))
+        return self.descriptor(select_patches(self.detector(views), patch_index, self.config))
 
 
 class MatchGraph(nn.Module):

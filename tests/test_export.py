@@ -13,7 +13,7 @@ import torch
 from drkfs_onnx import DRKFS, PipelineConfig
 from drkfs_onnx.export import export_features, export_match, weights_digest
 from drkfs_onnx.model_files import CONFIG_KEY, MATCH_FILE, WEIGHTS_KEY, features_file
-from drkfs_onnx.patches import extract_patches
+from drkfs_onnx.patches import select_patches
 from drkfs_onnx.weights import models_dir, shipped_weights
 
 CONFIG = PipelineConfig(num_views=4, image_size=96, descriptor_width=0.25)
@@ -45,7 +45,7 @@ def test_feature_graph_matches_torch_for_any_batch_and_patch_selection(exported,
     count = views * CONFIG.patches_per_view
     index = torch.randperm(count)[: max(1, count // 3)]
     with torch.no_grad():
-        expected = metric.descriptor(extract_patches(metric.detector(images), CONFIG)[index])
+        expected = metric.descriptor(select_patches(metric.detector(images), index, CONFIG))
     got = ort.InferenceSession(features).run(
         None, {"views": images.numpy(), "patch_index": index.numpy()}
     )[0]

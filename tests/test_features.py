@@ -2,12 +2,13 @@
 
 import pytest
 import torch
+import torch.nn.functional as F
 
 from drkfs_onnx.config import PipelineConfig
 from drkfs_onnx.detector import PoIDetector
 from drkfs_onnx.hardnet import HardNet
 from drkfs_onnx.matching import best_match_distances, match_score, nearest_indices
-from drkfs_onnx.patches import extract_patches, nonempty_patches
+from drkfs_onnx.patches import nonempty_patches, select_patches
 
 CONFIG = PipelineConfig()
 
@@ -38,12 +39,38 @@ def test_background_gives_one_constant_poi_value_everywhere():
     assert torch.allclose(maps, maps[0, 0, 0, 0].expand_as(maps), atol=1e-6)
 
 
-def test_patches_are_32px_windows_at_stride_16():
-    maps = torch.arange(2 * 256 * 256, dtype=torch.float32).view(2, 1, 256, 256)
-    patches = extract_patches(maps, CONFIG)
-    assert patches.shape == (2 * 225, 1, 32, 32)
-    assert torch.equal(patches[16, 0], maps[0, 0, 16:48, 16:48])  # row 1, column 1 of view 0
-    assert torch.equal(patches[225 + 14, 0], maps[1, 0, 0:32, 224:256])
+def test_patches_are_the_32px_windows_at_stride_16_the_index_names():
+    maps = torch.rand(2, 1, 256, 256)
+    patches = select_patches(maps, torch.tensor([16, 225 + 14]), CONFIG)
+    assert patches.shape == (2, 1, 32, 32)
+    assert torch.equal(patches[0, 0], maps[0, 0, 16:48, 16:48])  # row 1, column 1 of view 0
+    assert torch.equal(patches[1, 0], maps[1, 0, 0:32, 224:256])
+
+
+@pytest.mark.parametrize(
+    "config", [CONFIG, CONFIG.replace(image_size=70, patch_size=12, patch_stride=6)]
+)
+def test_selected_patches_are_unfolds_rows_with_its_gradient(config):
+    """Rows of unfold's row-major patch list, in the index's order, also where the patch rows
+    share no 16-pixel blocks (gcd 2 here)."""
+    size, count = config.patch_size, 3 * config.patches_per_view
+    maps = torch.rand(3, 1, config.image_size, config.image_size, requires_grad=True)
+    index = torch.cat(
+        [
+            torch.randperm(count, generator=torch.Generator().manual_seed(0)),
+            torch.tensor([0, count - 1, 5, 5]),
+        ]
+    )
+    patches = select_patches(maps, index, config)
+    every = (
+        F.unfold(maps, size, stride=config.patch_stride).transpose(1, 2).reshape(-1, 1, size, size)
+    )
+    assert patches.shape == (len(index), 1, size, size)
+    assert torch.equal(patches, every[index])
+    weights = torch.rand(patches.shape)
+    (grad,) = torch.autograd.grad((patches * weights).sum(), maps)
+    (expected,) = torch.autograd.grad((every[index] * weights).sum(), maps)
+    assert torch.allclose(grad, expected)
 
 
 def test_nonempty_mask_sees_content_within_the_detectors_reach():
