@@ -21,11 +21,10 @@ def select_patches(maps: torch.Tensor, index: torch.Tensor, config: PipelineConf
     size, stride, side = config.patch_size, config.patch_stride, config.patches_per_side
     width, block = config.image_size, math.gcd(size, stride, config.image_size)
     view, cell = index // (side * side), index % (side * side)
-    rows = (view * width + (cell // side) * stride)[:, None] + torch.arange(
-        size, device=index.device
-    )
-    first = (rows * width + ((cell % side) * stride)[:, None]) // block
-    blocks = first[:, :, None] + torch.arange(size // block, device=index.device)
+    offsets = torch.arange(size, device=index.device)
+    rows = (view * width + (cell // side) * stride)[:, None] + offsets  # (N, p) in the stacked maps
+    first = (rows * width + ((cell % side) * stride)[:, None]) // block  # each row's first block
+    blocks = first[:, :, None] + offsets[: size // block]  # (N, p, p / block)
     chosen = maps.reshape(-1, block).index_select(0, blocks.reshape(-1))
     return chosen.reshape(-1, 1, size, size)
 
