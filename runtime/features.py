@@ -31,7 +31,8 @@ class MeshFeatures:
 
     @cached_property
     def rows(self) -> np.ndarray:
-        """(R, D) distinct rows: the descriptors, then the empty descriptor if a patch is empty."""
+        """(R, D) the rows a match uses: one per non-empty patch, then the shared empty
+        descriptor once if a patch is empty (identical non-empty rows are kept apart)."""
         if not self.empty:
             return self.descriptors
         return np.concatenate([self.descriptors, self.empty_descriptor[None]])
