@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
+from drkfs_onnx.runtime import nearest
 from drkfs_onnx.runtime.nearest import (
-    CHUNK_ROWS,
     exact_copies,
     lift,
     nearest_indices,
@@ -17,11 +17,12 @@ def _unit_rows(rng, n, dim=128):
     return (rows / np.linalg.norm(rows, axis=1, keepdims=True)).astype(np.float32)
 
 
-def test_nearest_equals_brute_force_over_several_blocks():
+def test_nearest_equals_brute_force_over_several_blocks(monkeypatch):
     rng = np.random.default_rng(0)
     targets = _unit_rows(rng, 300)
-    # near-duplicates of targets and unrelated rows, more rows than one block
-    near = targets[rng.integers(0, 300, CHUNK_ROWS)] + 1e-2 * _unit_rows(rng, CHUNK_ROWS)
+    monkeypatch.setattr(nearest, "BLOCK_BYTES", 4 * 300 * 64)  # blocks of 64 query rows
+    # near-duplicates of targets and unrelated rows: 9 blocks, the last one partial
+    near = targets[rng.integers(0, 300, 400)] + 1e-2 * _unit_rows(rng, 400)
     queries = np.concatenate([near, _unit_rows(rng, 200)]).astype(np.float32)
     q, t = queries.astype(np.float64), targets.astype(np.float64)
     got = nearest_indices(queries, lift(targets))
