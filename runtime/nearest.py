@@ -38,7 +38,7 @@ def nearest_indices(queries: np.ndarray, lifted_targets: np.ndarray) -> np.ndarr
         [np.asarray(queries, dtype=np.float32), np.ones((len(queries), 1), np.float32)], axis=1
     )
     nearest = np.zeros(len(queries), np.int64)
-    rows = max(1, BLOCK_BYTES // (4 * len(lifted_targets)))
+    rows = max(1, BLOCK_BYTES // (lifted_targets.itemsize * len(lifted_targets)))
     for start in range(0, len(queries), rows):
         # BLAS reads the transpose in place
         block = lifted_queries[start : start + rows] @ lifted_targets.T

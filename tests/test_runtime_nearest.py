@@ -21,7 +21,7 @@ def test_nearest_equals_brute_force_over_several_blocks(monkeypatch):
     rng = np.random.default_rng(0)
     targets = _unit_rows(rng, 300)
     monkeypatch.setattr(nearest, "BLOCK_BYTES", 4 * 300 * 64)  # blocks of 64 query rows
-    # near-duplicates of targets and unrelated rows: 9 blocks, the last one partial
+    # near-duplicates of targets and unrelated rows: 600 queries, 10 blocks, the last one partial
     near = targets[rng.integers(0, 300, 400)] + 1e-2 * _unit_rows(rng, 400)
     queries = np.concatenate([near, _unit_rows(rng, 200)]).astype(np.float32)
     q, t = queries.astype(np.float64), targets.astype(np.float64)
