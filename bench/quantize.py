@@ -32,6 +32,7 @@ from score import CASES, ROOT, _best  # bench/score.py: the same meshes and time
 
 from drkfs_onnx import PipelineConfig, check_mesh, load_mesh
 from drkfs_onnx.mesh import frame_of
+from drkfs_onnx.model_files import features_file
 from drkfs_onnx.runtime import Scorer
 from drkfs_onnx.runtime.render import NumpyRenderer
 from drkfs_onnx.shapes import FAMILIES, assemble, random_shape
@@ -102,10 +103,10 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=ROOT / "bench" / "results" / "quantize.json")
     args = parser.parse_args()
-    config = PipelineConfig()
+    config = PipelineConfig.paper()  # the committed measurement's config
     with tempfile.TemporaryDirectory() as folder:
         int8 = Path(folder) / "features_w1_int8.onnx"
-        quantize_s = quantize(ROOT / "models" / "features_w1.onnx", int8, config)
+        quantize_s = quantize(ROOT / "models" / features_file(config), int8, config)
         scorers = {"fp32": Scorer(config, threads=2), "int8": Scorer(config, int8, threads=2)}
         speed = {}
         for name, path in CASES.items():

@@ -27,7 +27,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", default=str(ROOT / "bench" / "results" / "render_stability.json"))
     args = parser.parse_args()
-    config = PipelineConfig()
+    config = PipelineConfig.paper()  # the committed measurement's cameras
     renderer = Renderer(config)
     meshes = example_meshes()
     reference = meshes[REFERENCE][1]

@@ -54,7 +54,7 @@ def run_case(mesh_name: str, width: float, repeats: int, profile: bool) -> dict:
     mesh = load_mesh(MESHES / mesh_name)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        metric = DRKFS.pretrained(PipelineConfig(descriptor_width=width))
+        metric = DRKFS.pretrained(PipelineConfig.paper(descriptor_width=width))
     ref = torch.tensor(mesh.vertices, dtype=torch.float32)
     faces = torch.tensor(mesh.faces)
     generator = torch.Generator().manual_seed(0)
@@ -113,7 +113,7 @@ def run_dense_comparison(repeats: int) -> dict:
     from drkfs_onnx import PipelineConfig
     from drkfs_onnx.render import Renderer
 
-    config = PipelineConfig(num_views=4, image_size=64)
+    config = PipelineConfig.paper(num_views=4, image_size=64)
     sphere = trimesh.creation.icosphere(subdivisions=3, radius=0.8)
     verts = torch.tensor(sphere.vertices, dtype=torch.float32)
     faces = torch.tensor(sphere.faces)

@@ -10,25 +10,29 @@ from typing import Annotated
 
 import typer
 
-from .config import NORMALIZATIONS, REDUCTIONS
+from .config import PipelineConfig
 from .examples import REFERENCE, example_meshes, write_examples
 from .mesh import MeshError, load_mesh
+from .options import (
+    Direction,
+    Matching,
+    Normalize,
+    Preset,
+    Reduction,
+    Symmetric,
+    Window,
+    pick_config,
+)
 
 app = typer.Typer(help="DR-KFS visual similarity of 3D meshes (torch path).", no_args_is_help=True)
 
-Normalize = Annotated[
-    str, typer.Option(help=f"Frame of the two meshes: {', '.join(NORMALIZATIONS)}.")
-]
-Reduction = Annotated[str, typer.Option(help=f"Reduce best matches by {' or '.join(REDUCTIONS)}.")]
-Symmetric = Annotated[bool, typer.Option(help="Average the A->B and B->A scores.")]
 
-
-def _metric(normalize: str, reduction: str, symmetric: bool):
+def _metric(config: PipelineConfig, normalize: str = "joint"):
     from .metric import DRKFS
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        metric = DRKFS.pretrained(reduction=reduction, symmetric=symmetric, normalization=normalize)
+        metric = DRKFS.pretrained(config, normalization=normalize)
     for warning in caught:
         typer.echo(f"note: {warning.message}", err=True)
     return metric
@@ -43,12 +47,21 @@ def score(
     mesh_a: Path,
     mesh_b: Annotated[Path, typer.Argument(help="The reference (ground truth).")],
     normalize: Normalize = "joint",
-    reduction: Reduction = "sum",
+    preset: Preset = "default",
+    matching: Matching = None,
+    window: Window = None,
+    direction: Direction = None,
+    reduction: Reduction = None,
     symmetric: Symmetric = False,
     as_json: Annotated[bool, typer.Option("--json", help="Print a JSON object.")] = False,
 ) -> None:
     """Score MESH_A against the reference MESH_B (0 for identical meshes)."""
-    metric = _metric(normalize, reduction, symmetric)
+    try:
+        config = pick_config(preset, matching, window, direction, reduction, symmetric)
+    except ValueError as exc:
+        typer.echo(f"error: {exc}", err=True)
+        raise typer.Exit(2) from exc
+    metric = _metric(config, normalize)
     start = time.perf_counter()
     try:
         value = _score(metric, mesh_a, mesh_b)
@@ -180,7 +193,7 @@ def demo(
     """Score every example mesh against the reference chair and print a table."""
     if not (folder / REFERENCE).is_file():
         write_examples(folder)
-    metric = _metric("joint", "sum", False)
+    metric = _metric(PipelineConfig())
     typer.echo(f"{'mesh':28} {'DR-KFS':>10} {'seconds':>8}  change")
     for name, (change, _) in example_meshes().items():
         start = time.perf_counter()

@@ -14,12 +14,22 @@ from dataclasses import dataclass
 from typing import Any
 
 NORMALIZATIONS = ("joint", "each", "none")
-REDUCTIONS = ("sum", "mean")
+MATCHINGS = ("global", "window")
+DIRECTIONS = ("forward", "backward", "both")
+REDUCTIONS = ("sum", "mean", "tail", "power", "softmax")
+# The settings that shape only the match of two descriptor sets, not the descriptors: a feature
+# graph or features file serves every value of these.
+MATCH_FIELDS = (
+    "matching", "window", "direction", "reduction", "tail_fraction", "power", "temperature",
+)  # fmt: skip
 
 
 @dataclass(frozen=True)
 class PipelineConfig:
-    """Pipeline numbers; defaults follow the DR-KFS paper and SoftRas.
+    """Pipeline numbers. The renderer, detector and patch numbers follow the DR-KFS paper and
+    SoftRas; the cameras, image size, HardNet width and match are the cheapest setting within
+    one point of the best structural-ranking accuracy on the project's benchmark
+    (``bench/match_study.py``). ``PipelineConfig.paper()`` is the paper's recipe.
 
     Geometry is in a y-up world where a normalised mesh fits the unit sphere. Cameras sit on the
     upper hemisphere at ``camera_distance`` looking at the origin. Screen distances (``sigma``)
@@ -27,8 +37,8 @@ class PipelineConfig:
     """
 
     # Cameras
-    num_views: int = 25
-    image_size: int = 256
+    num_views: int = 6
+    image_size: int = 128
     fov_degrees: float = 50.0
     camera_distance: float = 2.5
     # Soft rasteriser (SoftRas' defaults: sigma 1e-5, gamma 1e-4, probability cut-off 1e-4,
@@ -51,11 +61,26 @@ class PipelineConfig:
     patch_size: int = 32
     patch_stride: int = 16
     descriptor_dim: int = 128
-    descriptor_width: float = 1.0
+    descriptor_width: float = 0.5
     # Instance-norm eps of HardNet's input: sqrt(eps) = 0.03 is a contrast floor. With 1e-6 a flat
     # PoI patch was normalised float rounding, and torch and onnxruntime descriptors of
     # near-flat patches differed by 4e-4.
     patch_norm_eps: float = 1e-3
+    # Matching: each patch of the query mesh finds its best match among the other mesh's patches,
+    # 'global' (the paper: all of them) or 'window' (the same view, within ``window`` grid steps
+    # in row and column; 0 is the same position). direction: 'forward' (A's patches search B, the
+    # paper), 'backward' (B's search A: sees parts missing from A), 'both' (their mean: a part
+    # missing from either side counts, and match(a, b) == match(b, a)).
+    matching: str = "window"
+    window: int = 0
+    direction: str = "both"
+    # Reduction of the best-match squared distances (see ``match_rules.reduce``): 'sum' and
+    # 'mean' (the paper), 'tail' (mean of the largest ``tail_fraction`` of them), 'power' (power
+    # mean of order ``power``), 'softmax' (log-mean-exp at ``temperature``).
+    reduction: str = "tail"
+    tail_fraction: float = 0.05
+    power: float = 4.0
+    temperature: float = 0.1
 
     def __post_init__(self) -> None:
         if self.num_views < 1:
@@ -74,7 +99,32 @@ class PipelineConfig:
             raise ValueError("camera_distance must exceed 1 (the normalised mesh's radius)")
         if self.descriptor_width <= 0:
             raise ValueError("descriptor_width must be positive")
+        for name, allowed in (
+            ("matching", MATCHINGS), ("direction", DIRECTIONS), ("reduction", REDUCTIONS),
+        ):  # fmt: skip
+            if getattr(self, name) not in allowed:
+                raise ValueError(
+                    f"unknown {name} {getattr(self, name)!r}; use one of {', '.join(allowed)}"
+                )
+        if self.window < 0:
+            raise ValueError("window must be at least 0 grid steps")
+        if not 0 < self.tail_fraction <= 1:
+            raise ValueError("tail_fraction must be in (0, 1]")
+        if self.power < 1 or self.temperature <= 0:
+            raise ValueError("power must be at least 1 and temperature positive")
         object.__setattr__(self, "light_direction", tuple(float(v) for v in self.light_direction))
+
+    @classmethod
+    def paper(cls, **changes: Any) -> PipelineConfig:
+        """The DR-KFS paper's recipe: 25 views at 256 px, full-width HardNet, every patch of A
+        searches all of B's, and the best-match distances are summed."""
+        recipe = dict(num_views=25, image_size=256, descriptor_width=1.0, matching="global")
+        return cls(**{**recipe, "direction": "forward", "reduction": "sum", **changes})
+
+    def features_part(self) -> PipelineConfig:
+        """This config with the match settings at their defaults: what shapes the descriptors."""
+        defaults = PipelineConfig.__dataclass_fields__
+        return dataclasses.replace(self, **{name: defaults[name].default for name in MATCH_FIELDS})
 
     @property
     def patches_per_side(self) -> int:
@@ -97,6 +147,12 @@ class PipelineConfig:
     def coverage_radius(self) -> float:
         """Screen distance beyond which a face's coverage is cut to zero (SoftRas' culling)."""
         return math.sqrt(self.sigma * math.log(1.0 / self.coverage_eps - 1.0))
+
+    def differences(self, asked: PipelineConfig) -> str:
+        """The settings where this config differs from ``asked``, for an error message."""
+        made, wanted = self.to_dict(), asked.to_dict()
+        changed = [name for name in made if made[name] != wanted[name]]
+        return ", ".join(f"{name} {made[name]!r} (asked {wanted[name]!r})" for name in changed)
 
     def to_dict(self) -> dict[str, Any]:
         return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}

@@ -1,14 +1,28 @@
-"""Best-match distances between descriptor sets, chunked so memory stays bounded."""
+"""Best-match distances between descriptor sets and their reduction to a score (torch)."""
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import torch
 
-from .config import REDUCTIONS
+from . import match_rules
+from .config import PipelineConfig
 
 CHUNK_ROWS = 2048
 # Best-match candidates ranked by the fast matmul form, then re-ranked by exact distance.
 MATCH_CANDIDATES = 4
+
+TORCH_OPS = SimpleNamespace(
+    argsort=torch.argsort,
+    cumsum=torch.cumsum,
+    clamp_min=torch.clamp_min,
+    minimum=torch.minimum,
+    where=torch.where,
+    exp=torch.exp,
+    log=torch.log,
+    amax=torch.amax,
+)
 
 
 def nearest_indices(queries: torch.Tensor, targets: torch.Tensor) -> torch.Tensor:
@@ -30,26 +44,48 @@ def nearest_indices(queries: torch.Tensor, targets: torch.Tensor) -> torch.Tenso
     return torch.cat(parts) if parts else queries.new_zeros(0, dtype=torch.long)
 
 
-def best_match_distances(queries: torch.Tensor, targets: torch.Tensor) -> torch.Tensor:
-    """(N, D), (M, D) -> (N,) squared distance from each query to its nearest target.
+def window_nearest(queries: torch.Tensor, targets: torch.Tensor, table: torch.Tensor):
+    """(N, D), (N, D) patch descriptors at the same grid positions, (N, W) ``window_table`` ->
+    (N,) index of each query's nearest target among its window (float64, exact)."""
+    queries, targets = queries.double(), targets.double()
+    parts = []
+    for rows in torch.arange(len(queries)).split(CHUNK_ROWS):
+        near = table[rows]
+        distance = ((queries[rows, None, :] - targets[near]) ** 2).sum(-1)
+        parts.append(near.gather(1, distance.argmin(1, keepdim=True)).squeeze(1))
+    return torch.cat(parts) if parts else queries.new_zeros(0, dtype=torch.long)
 
-    The nearest index is found without autograd; the distance to it is then differentiable with
-    respect to both sets (the gradient of a min is the gradient at the argmin).
+
+def best_match_distances(
+    queries: torch.Tensor, targets: torch.Tensor, config: PipelineConfig
+) -> torch.Tensor:
+    """(N, D), (M, D) -> (N,) squared distance from each query to its best match.
+
+    'global' searches all targets; 'window' needs both sets as the full row-major (K * P)
+    patch lists of the same cameras. The match is found without autograd; the distance to it is
+    then differentiable with respect to both sets (the gradient of a min is the gradient at the
+    argmin).
     """
     with torch.no_grad():
-        index = nearest_indices(queries.detach(), targets.detach())
+        if config.matching == "global":
+            index = nearest_indices(queries.detach(), targets.detach())
+        else:
+            table = torch.as_tensor(match_rules.window_table(config).copy(), device=queries.device)
+            if len(queries) != len(table) or len(targets) != len(table):
+                raise ValueError(
+                    f"window matching needs all {len(table)} patches of both meshes "
+                    f"({config.num_views} views x {config.patches_per_view}); got "
+                    f"{len(queries)} and {len(targets)}"
+                )
+            index = window_nearest(queries.detach(), targets.detach(), table)
     return ((queries - targets[index]) ** 2).sum(1)
 
 
-def match_score(
-    desc_a: torch.Tensor, desc_b: torch.Tensor, reduction: str = "sum", symmetric: bool = False
-) -> torch.Tensor:
-    """DR-KFS score from descriptor sets: reduce A's best-match distances into B.
-
-    reduction: 'sum' (the paper) or 'mean'; symmetric averages the A->B and B->A scores.
-    """
-    if reduction not in REDUCTIONS:
-        raise ValueError(f"unknown reduction {reduction!r}; use one of {', '.join(REDUCTIONS)}")
-    directions = [(desc_a, desc_b), (desc_b, desc_a)] if symmetric else [(desc_a, desc_b)]
-    scores = [getattr(best_match_distances(q, t), reduction)() for q, t in directions]
+def match_score(desc_a: torch.Tensor, desc_b: torch.Tensor, config: PipelineConfig) -> torch.Tensor:
+    """DR-KFS score from the (K * P, D) descriptor sets of A and B: the reduced best-match
+    distances of each direction the config searches, averaged (``match_rules``)."""
+    scores = []
+    for queries, targets in match_rules.directions(desc_a, desc_b, config):
+        distances = best_match_distances(queries, targets, config)
+        scores.append(match_rules.reduce(distances, torch.ones_like(distances), config, TORCH_OPS))
     return torch.stack(scores).mean()

@@ -32,7 +32,9 @@ class DRKFS(nn.Module):
 
     ``forward(verts_a (Va, 3), faces_a (Fa, 3), verts_b (Vb, 3), faces_b (Fb, 3)) -> ()`` is
     differentiable with respect to both vertex tensors. B is the reference: with
-    ``normalization='joint'`` both meshes are placed by B's bounding box.
+    ``normalization='joint'`` both meshes are placed by B's bounding box, whichever directions
+    the config's match searches. The config holds every setting of the score (matching,
+    reduction, direction); ``PipelineConfig.paper()`` is the paper's recipe.
 
     As a training loss against a fixed ground truth, prepare it once with ``target`` and call
     ``score_to(verts, faces, target)`` each step: the truth is rendered and described once.
@@ -41,17 +43,9 @@ class DRKFS(nn.Module):
     ``DRKFS.pretrained()`` for the shipped weights.
     """
 
-    def __init__(
-        self,
-        config: PipelineConfig | None = None,
-        reduction: str = "sum",
-        symmetric: bool = False,
-        normalization: str = "joint",
-    ):
+    def __init__(self, config: PipelineConfig | None = None, normalization: str = "joint"):
         super().__init__()
         self.config = config or PipelineConfig()
-        self.reduction = reduction
-        self.symmetric = symmetric
         self.normalization = check_normalization(normalization)
         self.renderer = Renderer(self.config)
         self.detector = PoIDetector(self.config)
@@ -64,9 +58,10 @@ class DRKFS(nn.Module):
     def pretrained(cls, config: PipelineConfig | None = None, **options) -> DRKFS:
         """The metric with the weights shipped in ``models/``.
 
-        Weights trained at another view count or image size serve a config that differs only
-        there (the nets are the same). Until trained weights are shipped, this warns and
-        returns nets initialised from torch.manual_seed(RANDOM_SEED): deterministic, but random.
+        Weights trained at another view count, image size or match serve a config that differs
+        only there (the nets are the same). Without shipped weights for the config, this warns
+        and returns nets initialised from torch.manual_seed(RANDOM_SEED): deterministic, but
+        random.
         """
         config = config or PipelineConfig()
         state = load_shipped_state(config, any_cameras=True)
@@ -142,9 +137,7 @@ class DRKFS(nn.Module):
     def score_to(self, verts: torch.Tensor, faces: torch.Tensor, target: Target) -> torch.Tensor:
         """The score of mesh A, (V, 3), (F, 3), against a prepared reference -> ()."""
         placed = place(verts, self.normalization, target.frame)
-        return match_score(
-            self.features(placed, faces), target.features, self.reduction, self.symmetric
-        )
+        return match_score(self.features(placed, faces), target.features, self.config)
 
     def forward(
         self,

@@ -31,13 +31,14 @@ def shipped_entry(config: PipelineConfig, any_cameras: bool = False) -> dict | N
     """The manifest's weights entry trained for ``config``, or None when none is shipped.
 
     any_cameras: also accept weights trained at another view count or image size; neither
-    changes the nets' shapes (a reduced config for fitting or a quick run reuses them).
+    changes the nets' shapes (a reduced config for fitting or a quick run reuses them). The
+    match settings never matter: they do not touch the nets.
     """
     for entry in shipped_weights():
         trained = PipelineConfig.from_dict(entry["config"])
         if any_cameras:
             trained = trained.replace(num_views=config.num_views, image_size=config.image_size)
-        if trained == config:
+        if trained.features_part() == config.features_part():
             return entry
     return None
 

@@ -92,15 +92,17 @@ def export_match(path: Path, dim: int) -> Path:
 
 
 def export_shipped(folder: Path) -> list[Path]:
-    """One feature graph per weights file in the manifest, and the match graph, into folder."""
+    """Per weights file in the manifest, a feature graph at the image size it was trained at
+    (the paper preset's) and at the default config's, and the match graph, into folder."""
     written = []
     dims = set()
     for entry in shipped_weights():
-        config = PipelineConfig.from_dict(entry["config"])
-        metric = DRKFS.pretrained(config)
-        path = folder / features_file(config)
-        written.append(export_features(metric, path, entry["sha256"]))
-        dims.add(config.descriptor_dim)
+        trained = PipelineConfig.from_dict(entry["config"])
+        for size in sorted({trained.image_size, PipelineConfig().image_size}):
+            config = trained.replace(image_size=size)
+            path = folder / features_file(config)
+            written.append(export_features(DRKFS.pretrained(config), path, entry["sha256"]))
+        dims.add(trained.descriptor_dim)
     if len(dims) > 1:
         raise ValueError(f"shipped descriptors differ in size ({sorted(dims)}); one match graph")
     written.append(export_match(folder / MATCH_FILE, dims.pop() if dims else 128))

@@ -11,8 +11,17 @@ from typing import Annotated
 
 import typer
 
-from drkfs_onnx.config import NORMALIZATIONS, REDUCTIONS, PipelineConfig
 from drkfs_onnx.mesh import MeshError
+from drkfs_onnx.options import (
+    Direction,
+    Matching,
+    Normalize,
+    Preset,
+    Reduction,
+    Symmetric,
+    Window,
+    pick_config,
+)
 
 from .decimate import face_budget
 from .features import MeshFeatures
@@ -26,13 +35,9 @@ app = typer.Typer(
 Threads = Annotated[
     int | None, typer.Option(help="onnxruntime and renderer threads (default: all cores).")
 ]
-Normalize = Annotated[
-    str, typer.Option(help=f"Frame of the two meshes: {', '.join(NORMALIZATIONS)}.")
-]
-Symmetric = Annotated[bool, typer.Option(help="Average the A->B and B->A scores.")]
-Reduction = Annotated[str, typer.Option(help=f"Reduce best matches by {' or '.join(REDUCTIONS)}.")]
 Width = Annotated[
-    float, typer.Option(help="HardNet width of the shipped model: 1, 0.5 or 0.25 (faster).")
+    float | None,
+    typer.Option(help="HardNet width of a shipped model: 1, 0.5 or 0.25 (default: the preset's)."),
 ]
 Decimate = Annotated[
     bool,
@@ -55,16 +60,16 @@ def _exit_on(*errors: type[Exception]):
         raise typer.Exit(2) from exc
 
 
-def _scorer(threads, normalize, symmetric, reduction, width, model, simplify=False) -> Scorer:
-    config = PipelineConfig(descriptor_width=width)
+def _scorer(threads, normalize, width, model, simplify=False, **match) -> Scorer:
+    """A scorer for the preset and overrides in ``match`` (``options.pick_config``'s)."""
     with _exit_on(ModelMismatch, FileNotFoundError, ValueError):
+        widths = {} if width is None else {"descriptor_width": width}
+        config = pick_config(**match, **widths)
         return Scorer(
             config,
             model=model,
             threads=threads,
             normalization=normalize,
-            reduction=reduction,
-            symmetric=symmetric,
             face_budget=face_budget(config) if simplify else None,
         )
 
@@ -83,14 +88,21 @@ def pair(
     as_json: Annotated[bool, typer.Option("--json", help="Print a JSON object.")] = False,
     threads: Threads = None,
     normalize: Normalize = "joint",
+    preset: Preset = "default",
+    matching: Matching = None,
+    window: Window = None,
+    direction: Direction = None,
+    reduction: Reduction = None,
     symmetric: Symmetric = False,
-    reduction: Reduction = "sum",
-    width: Width = 1.0,
+    width: Width = None,
     model: Model = None,
     decimate: Decimate = False,
 ) -> None:
     """Score MESH_A against the reference MESH_B (0 for identical meshes)."""
-    scorer = _scorer(threads, normalize, symmetric, reduction, width, model, decimate)
+    scorer = _scorer(
+        threads, normalize, width, model, decimate, preset=preset, matching=matching,
+        window=window, direction=direction, reduction=reduction, symmetric=symmetric,
+    )  # fmt: skip
     start = time.perf_counter()
     with _exit_on(MeshError, ValueError):
         value = scorer.score(mesh_a, _reference(mesh_b))
@@ -98,7 +110,7 @@ def pair(
     if as_json:
         report = {"score": value, "seconds": seconds, "model_version": scorer.model_version}
         report.update(mesh_a=str(mesh_a), mesh_b=str(mesh_b), normalize=normalize)
-        report.update(symmetric=symmetric, reduction=reduction)
+        report.update(config=scorer.config.to_dict())
         typer.echo(json.dumps(report))
     else:
         typer.echo(f"{value:.6g}")
@@ -110,12 +122,13 @@ def features(
     out: Annotated[Path, typer.Option(help="The .npz file to write.")],
     threads: Threads = None,
     normalize: Normalize = "joint",
-    width: Width = 1.0,
+    preset: Preset = "default",
+    width: Width = None,
     model: Model = None,
     decimate: Decimate = False,
 ) -> None:
     """Describe a reference mesh once; pass the .npz as MESH_B to ``pair`` or in a batch CSV."""
-    scorer = _scorer(threads, normalize, False, "sum", width, model, decimate)
+    scorer = _scorer(threads, normalize, width, model, decimate, preset=preset)
     with _exit_on(MeshError):
         result = scorer.features(mesh)
     result.save(out)
@@ -156,9 +169,13 @@ def batch(
     out: Annotated[Path, typer.Option(help="CSV of results; rerunning resumes it.")],
     threads: Threads = None,
     normalize: Normalize = "joint",
+    preset: Preset = "default",
+    matching: Matching = None,
+    window: Window = None,
+    direction: Direction = None,
+    reduction: Reduction = None,
     symmetric: Symmetric = False,
-    reduction: Reduction = "sum",
-    width: Width = 1.0,
+    width: Width = None,
     model: Model = None,
     decimate: Decimate = False,
 ) -> None:
@@ -169,7 +186,10 @@ def batch(
     """
     todo = _pairs(pairs)
     done = _done(out)
-    scorer = _scorer(threads, normalize, symmetric, reduction, width, model, decimate)
+    scorer = _scorer(
+        threads, normalize, width, model, decimate, preset=preset, matching=matching,
+        window=window, direction=direction, reduction=reduction, symmetric=symmetric,
+    )  # fmt: skip
     fresh = not out.exists() or out.stat().st_size == 0
     failed, scored, skipped = [], 0, 0
     with open(out, "a", newline="") as handle:

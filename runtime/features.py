@@ -1,5 +1,5 @@
-"""One mesh's descriptors as the runtime keeps them: the non-empty patches' descriptors, and the
-one descriptor the background patches share with their count."""
+"""One mesh's descriptors as the runtime keeps them: the non-empty patches' descriptors with their
+positions, and the one descriptor the background patches share."""
 
 from __future__ import annotations
 
@@ -9,25 +9,48 @@ from pathlib import Path
 
 import numpy as np
 
+from drkfs_onnx.config import PipelineConfig
+
 from .nearest import lift, row_hashes
 
-FORMAT = "drkfs-features-2"
+FORMAT = "drkfs-features-3"
 
 
 @dataclass(frozen=True)
 class MeshFeatures:
-    """descriptors: (N, D) float32 of the patches that see the mesh; empty: how many of the
-    K * P patches see only background, and empty_descriptor (D,) the descriptor they share;
-    centre (3,) and scale: the frame the mesh was placed in (v' = (v - centre) / scale), which
-    joint normalisation applies to meshes scored against it; model: sha256 of the feature graph
-    that computed them. The match's forms of the rows are computed once per mesh."""
+    """descriptors: (N, D) float32 of the patches that see the mesh, at patch_index (N,) sorted
+    rows of the row-major (K * P) patch list; the other patches see only background and share
+    empty_descriptor (D,); centre (3,) and scale: the frame the mesh was placed in
+    (v' = (v - centre) / scale), which joint normalisation applies to meshes scored against it;
+    model: sha256 of the feature graph that computed them; config: the pipeline config they were
+    computed for (its match settings do not matter). The match's forms of the rows are computed
+    once per mesh."""
 
     descriptors: np.ndarray
-    empty: int
+    patch_index: np.ndarray
     empty_descriptor: np.ndarray
     centre: np.ndarray
     scale: float
     model: str
+    config: PipelineConfig
+
+    @property
+    def patches(self) -> int:
+        """K * P: every patch of every view."""
+        return self.config.num_views * self.config.patches_per_view
+
+    @property
+    def empty(self) -> int:
+        """How many patches see only background."""
+        return self.patches - len(self.patch_index)
+
+    @cached_property
+    def dense(self) -> np.ndarray:
+        """(K * P, D) every patch's descriptor, background patches included (window matching)."""
+        rows = np.broadcast_to(self.empty_descriptor, (self.patches, len(self.empty_descriptor)))
+        rows = rows.copy()
+        rows[self.patch_index] = self.descriptors
+        return rows
 
     @cached_property
     def rows(self) -> np.ndarray:
@@ -57,11 +80,12 @@ class MeshFeatures:
             path,
             format=FORMAT,
             descriptors=self.descriptors,
-            empty=self.empty,
+            patch_index=self.patch_index,
             empty_descriptor=self.empty_descriptor,
             centre=self.centre,
             scale=self.scale,
             model=self.model,
+            config=self.config.features_part().to_json(),
         )
 
     @classmethod
@@ -71,9 +95,10 @@ class MeshFeatures:
                 raise ValueError(f"{path}: not a drkfs-score features file ({FORMAT})")
             return cls(
                 descriptors=data["descriptors"],
-                empty=int(data["empty"]),
+                patch_index=data["patch_index"],
                 empty_descriptor=data["empty_descriptor"],
                 centre=data["centre"],
                 scale=float(data["scale"]),
                 model=str(data["model"]),
+                config=PipelineConfig.from_json(str(data["config"])),
             )

@@ -13,13 +13,13 @@ from pathlib import Path
 
 import numpy as np
 
-from drkfs_onnx.config import REDUCTIONS, PipelineConfig
+from drkfs_onnx.config import PipelineConfig
 from drkfs_onnx.mesh import Mesh, check_normalization, frame_of, load_mesh
 from drkfs_onnx.patch_grid import nonempty_patches
 
 from .decimate import decimate
 from .features import MeshFeatures
-from .nearest import exact_copies, nearest_indices
+from .match import match
 from .render import NumpyRenderer
 from .sessions import open_features
 
@@ -48,17 +48,12 @@ class Scorer:
         model: str | Path | None = None,
         threads: int | None = None,
         normalization: str = "joint",
-        reduction: str = "sum",
-        symmetric: bool = False,
         view_batch: int | None = None,
         face_budget: int | None = None,
         cache_size: int = 32,
     ):
-        if reduction not in REDUCTIONS:
-            raise ValueError(f"unknown reduction {reduction!r}; use one of {', '.join(REDUCTIONS)}")
         self.config = config or PipelineConfig()
         self.normalization = check_normalization(normalization)
-        self.reduction, self.symmetric = reduction, symmetric
         self.view_batch = view_batch or self.config.num_views
         self.face_budget = face_budget
         self.features_graph = open_features(self.config, model, threads)
@@ -99,14 +94,15 @@ class Scorer:
     ) -> MeshFeatures:
         """Features of rendered views (K, S, S), e.g. ``self.renderer``'s, of a mesh placed in
         ``frame``."""
-        mask = nonempty_patches(images, self.config)
+        index = np.flatnonzero(nonempty_patches(images, self.config))
         return MeshFeatures(
-            descriptors=self._describe_views(images, np.nonzero(mask)[0]),
-            empty=int(len(mask) - mask.sum()),
+            descriptors=self._describe_views(images, index),
+            patch_index=index,
             empty_descriptor=self._empty,
             centre=np.asarray(frame[0], dtype=np.float64),
             scale=float(frame[1]),
             model=self.features_graph.sha256,
+            config=self.config.features_part(),
         )
 
     def score(self, a: MeshLike, b: MeshLike | MeshFeatures) -> float:
@@ -122,9 +118,8 @@ class Scorer:
         return self.match(self.features(a, frame), reference)
 
     def match(self, a: MeshFeatures, b: MeshFeatures) -> float:
-        """Reduce A's best-match distances into B (both directions averaged when symmetric)."""
-        directions = [(a, b), (b, a)] if self.symmetric else [(a, b)]
-        return float(np.mean([self._best_matches(q, t) for q, t in directions]))
+        """The score of described A against described B under the scorer's config."""
+        return match(a, b, self.config)
 
     def _own_frame(self, vertices: np.ndarray) -> tuple[np.ndarray, float]:
         if self.normalization == "none":
@@ -151,20 +146,3 @@ class Scorer:
                 inputs = {"views": views, "patch_index": chosen - start * per_view}
                 parts.append(self.features_graph.session.run(None, inputs)[0])
         return np.concatenate(parts)
-
-    def _best_matches(self, queries: MeshFeatures, targets: MeshFeatures) -> float:
-        """Weighted best-match distances. A row with an exact copy in B matches at 0 (most rows,
-        for small changes); the others' nearest rows are found in float32 (``nearest_indices``) and
-        the distances to them computed in float64."""
-        rows = queries.rows
-        best = np.zeros(len(rows))
-        rest = np.flatnonzero(
-            ~exact_copies(rows, queries.row_hashes, targets.rows, targets.row_hashes)
-        )
-        if len(rest):
-            searched = rows if len(rest) == len(rows) else rows[rest]
-            nearest = targets.rows[nearest_indices(searched, targets.lifted)]
-            diff = np.subtract(searched, nearest, dtype=np.float64)
-            best[rest] = np.einsum("ij,ij->i", diff, diff)
-        total = float((queries.weights * best).sum())
-        return total / queries.weights.sum() if self.reduction == "mean" else total

@@ -66,17 +66,17 @@ def open_features(
     config: PipelineConfig, path: str | Path | None = None, threads: int | None = None
 ) -> Graph:
     """The feature graph for ``config`` (the shipped one unless ``path``), refused with a
-    ModelMismatch naming the differing settings when it was built for another config."""
+    ModelMismatch naming the differing settings when it was built for another config (the match
+    settings and the view count aside: the graph describes any number of views)."""
     graph = Graph.open(*_read(path, features_file(config)), threads)
     if CONFIG_KEY not in graph.metadata:
         raise ModelMismatch(f"{graph.source}: no {CONFIG_KEY} metadata; not a DR-KFS feature graph")
     built = PipelineConfig.from_json(graph.metadata[CONFIG_KEY])
-    if built != config:
-        asked, made = config.to_dict(), built.to_dict()
-        changed = [key for key in asked if asked[key] != made[key]]
-        differences = ", ".join(f"{key} {made[key]!r} (asked {asked[key]!r})" for key in changed)
+    built = built.features_part().replace(num_views=config.num_views)
+    if built != config.features_part():
         raise ModelMismatch(
-            f"{graph.source} was built for another pipeline config: {differences}; "
+            f"{graph.source} was built for another pipeline config: "
+            f"{built.differences(config.features_part())}; "
             "export a model for this config or score with the model's config"
         )
     return graph

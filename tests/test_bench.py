@@ -91,7 +91,7 @@ def _png_size_and_pixels(data: bytes):
 
 
 def test_chart_is_a_valid_png_with_a_dot_per_method(tmp_path):
-    points = {"DR-KFS onnx w1": (1.5, 0.8), "Chamfer-L1": (0.5, 0.7), "pixel MSE": (0.7, 0.6)}
+    points = {"DR-KFS": (1.5, 0.8), "Chamfer-L1": (0.5, 0.7), "pixel MSE": (0.7, 0.6)}
     path = write_chart(tmp_path / "chart.png", points, pareto_front(points))
     width, height, pixels = _png_size_and_pixels(path.read_bytes())
     assert (width, height) == (1000, 640)
@@ -126,7 +126,10 @@ def test_quick_bench_writes_results_chart_and_the_variant_set(quick):
 def test_quick_bench_scores_every_method_on_the_same_rows(quick):
     _, results = quick
     names = set(results["methods"])
-    assert {"DR-KFS torch w1", "DR-KFS onnx w1", "Chamfer-L1", "volumetric IoU"} <= names
+    assert {"DR-KFS torch", "DR-KFS", "DR-KFS paper", "Chamfer-L1", "volumetric IoU"} <= names
+    assert results["methods"]["DR-KFS"]["default"] is True
+    assert results["methods"]["DR-KFS paper"]["preset"] == "paper"
+    assert sum(row.get("default", False) for row in results["methods"].values()) == 1
     rows = {name: set(values) for name, values in results["values"].items()}
     assert all(r == rows["Chamfer-L1"] for r in rows.values())
     for name, row in results["methods"].items():
@@ -137,7 +140,7 @@ def test_quick_bench_scores_every_method_on_the_same_rows(quick):
 
 def test_quick_bench_torch_and_onnx_agree(quick):
     _, results = quick
-    onnx, torch_ = results["values"]["DR-KFS onnx w1"], results["values"]["DR-KFS torch w1"]
+    onnx, torch_ = results["values"]["DR-KFS"], results["values"]["DR-KFS torch"]
     scale = max(torch_.values())  # near-zero scores differ by float rounding of that scale
     for key, value in onnx.items():
         assert value == pytest.approx(torch_[key], rel=2e-3, abs=2e-3 * scale), key
@@ -145,7 +148,7 @@ def test_quick_bench_torch_and_onnx_agree(quick):
 
 def test_quick_bench_stability_rows_and_torch_checks(quick):
     _, results = quick
-    table = results["stability"]["DR-KFS onnx w1"]
+    table = results["stability"]["DR-KFS"]
     assert set(table) == set(STABILITY) - {"over_200k_faces"}
     assert table["hidden_cavity"]["value"] == 0.0  # the known blind spot: no camera sees it
     assert table["hidden_cavity"]["passed"] is False

@@ -9,8 +9,8 @@ from drkfs_onnx.cameras import hemisphere_directions, make_cameras
 from drkfs_onnx.config import PipelineConfig
 
 
-def test_defaults_are_the_papers_pipeline():
-    config = PipelineConfig()
+def test_paper_preset_is_the_papers_pipeline():
+    config = PipelineConfig.paper()
     assert (config.num_views, config.image_size) == (25, 256)
     assert (config.patch_size, config.patch_stride, config.patches_per_view) == (32, 16, 225)
     assert config.descriptor_dim == 128
@@ -51,7 +51,7 @@ def test_views_cover_the_upper_hemisphere_evenly():
 
 
 def test_cameras_look_at_the_origin_with_orthonormal_frames():
-    cams = make_cameras(PipelineConfig())
+    cams = make_cameras(PipelineConfig.paper())
     assert len(cams) == 25
     for rot in cams.rotations:
         assert np.allclose(rot @ rot.T, np.eye(3), atol=1e-12)

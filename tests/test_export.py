@@ -67,18 +67,23 @@ def test_match_graph_finds_each_rows_nearest(exported):
 
 
 def test_shipped_graphs_are_current_exports_of_the_shipped_weights(tmp_path):
-    """Every weights file in the manifest has its feature graph, tagged with its sha256, and
-    re-exporting the default one gives the shipped graph's outputs."""
+    """Every weights file in the manifest has its feature graph at the paper's image size and
+    the default's, tagged with its sha256, and re-exporting the default one gives the shipped
+    graph's outputs."""
     for entry in shipped_weights():
-        config = PipelineConfig.from_dict(entry["config"])
-        shipped = models_dir() / features_file(config)
-        meta = ort.InferenceSession(shipped.read_bytes()).get_modelmeta().custom_metadata_map
-        assert meta[WEIGHTS_KEY] == entry["sha256"]
-        assert PipelineConfig.from_json(meta[CONFIG_KEY]) == config
+        trained = PipelineConfig.from_dict(entry["config"])
+        for size in {trained.image_size, PipelineConfig().image_size}:
+            config = trained.replace(image_size=size)
+            shipped = models_dir() / features_file(config)
+            meta = ort.InferenceSession(shipped.read_bytes()).get_modelmeta().custom_metadata_map
+            assert meta[WEIGHTS_KEY] == entry["sha256"]
+            built = PipelineConfig.from_json(meta[CONFIG_KEY])
+            assert built.features_part() == config.features_part()
     config = PipelineConfig()
     fresh = export_features(DRKFS.pretrained(config), tmp_path / "f.onnx", "sha")
-    views = np.random.default_rng(1).random((2, 1, 256, 256), dtype=np.float32)
-    inputs = {"views": views, "patch_index": np.arange(0, 450, 7)}
+    size = config.image_size
+    views = np.random.default_rng(1).random((2, 1, size, size), dtype=np.float32)
+    inputs = {"views": views, "patch_index": np.arange(0, 2 * config.patches_per_view, 7)}
     got = ort.InferenceSession(fresh).run(None, inputs)[0]
     shipped = ort.InferenceSession((models_dir() / features_file(config)).read_bytes())
     assert np.abs(got - shipped.run(None, inputs)[0]).max() <= 1e-6

@@ -10,7 +10,7 @@ from drkfs_onnx.hardnet import HardNet
 from drkfs_onnx.matching import best_match_distances, match_score, nearest_indices
 from drkfs_onnx.patches import nonempty_patches, select_patches
 
-CONFIG = PipelineConfig()
+CONFIG = PipelineConfig.paper()
 
 
 def test_detector_maps_images_to_probabilities_of_the_same_size():
@@ -118,24 +118,27 @@ def test_best_match_equals_brute_force_across_chunks(monkeypatch):
     torch.manual_seed(0)
     a, b = torch.randn(700, 16), torch.randn(300, 16)
     monkeypatch.setattr(matching, "CHUNK_ROWS", 64)
-    assert torch.allclose(best_match_distances(a, b).double(), _brute_force(a, b), atol=1e-4)
+    found = best_match_distances(a, b, PipelineConfig.paper()).double()
+    assert torch.allclose(found, _brute_force(a, b), atol=1e-4)
     assert nearest_indices(a[:0], b).shape == (0,)
 
 
-def test_match_score_reductions_and_symmetry():
+def test_paper_match_sums_forward_best_matches_and_both_averages_the_directions():
     torch.manual_seed(0)
     a, b = torch.randn(50, 8), torch.randn(30, 8)
     ab, ba = _brute_force(a, b), _brute_force(b, a)
-    assert torch.isclose(match_score(a, b, "sum").double(), ab.sum(), rtol=1e-5)
-    assert torch.isclose(match_score(a, b, "mean").double(), ab.mean(), rtol=1e-5)
-    both = match_score(a, b, "sum", symmetric=True).double()
+    paper = PipelineConfig.paper()
+    assert torch.isclose(match_score(a, b, paper).double(), ab.sum(), rtol=1e-5)
+    mean = paper.replace(reduction="mean")
+    assert torch.isclose(match_score(a, b, mean).double(), ab.mean(), rtol=1e-5)
+    both = match_score(a, b, paper.replace(direction="both")).double()
     assert torch.isclose(both, (ab.sum() + ba.sum()) / 2, rtol=1e-5)
-    with pytest.raises(ValueError, match="unknown reduction"):
-        match_score(a, b, "max")
+    backward = match_score(a, b, paper.replace(direction="backward")).double()
+    assert torch.isclose(backward, ba.sum(), rtol=1e-5)
 
 
 def test_match_gradient_reaches_both_sets():
     a = torch.randn(20, 8, requires_grad=True)
     b = torch.randn(10, 8, requires_grad=True)
-    match_score(a, b).backward()
+    match_score(a, b, PipelineConfig.paper()).backward()
     assert a.grad.abs().sum() > 0 and b.grad.abs().sum() > 0

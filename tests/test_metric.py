@@ -32,7 +32,7 @@ def _mesh(parts=None, dtype=torch.float32):
 def test_features_at_the_paper_config_have_225_descriptors_per_view():
     torch.manual_seed(0)
     verts, faces = icosphere(1)
-    metric = DRKFS(PipelineConfig(descriptor_width=0.25))
+    metric = DRKFS(PipelineConfig.paper(descriptor_width=0.25))
     feats = metric.features(torch.tensor(verts, dtype=torch.float32), torch.tensor(faces))
     assert feats.shape == (25 * 225, 128)
 
@@ -52,7 +52,7 @@ def test_score_is_deterministic_and_positive_for_a_change(metric):
 def test_gradients_reach_both_meshes_vertices():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        metric = DRKFS.pretrained(FAST, symmetric=True)
+        metric = DRKFS.pretrained(FAST.replace(direction="both"))
     verts_a, faces_a = _mesh(without(chair(), "back"))
     verts_b, faces_b = _mesh()
     verts_a.requires_grad_(True)

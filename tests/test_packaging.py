@@ -22,7 +22,7 @@ def test_runtime_imports_where_torch_cannot_be_imported():
         "from drkfs_onnx import PipelineConfig, load_mesh\n"
         "from drkfs_onnx.cameras import make_cameras\n"
         f"mesh = load_mesh({str(ROOT / 'examples' / 'chair.obj')!r})\n"
-        "assert len(make_cameras(PipelineConfig())) == 25 and len(mesh.faces) > 0\n"
+        "assert len(make_cameras(PipelineConfig.paper())) == 25 and len(mesh.faces) > 0\n"
         "try:\n    drkfs_onnx.DRKFS\nexcept ImportError:\n    print('torch-free')\n"
     )
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)

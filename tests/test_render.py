@@ -46,7 +46,7 @@ def test_sparse_renderer_equals_dense_reference(mesh, sigma, mode):
 
 def test_image_shows_the_mesh_on_background():
     verts, faces = _tensors(*icosphere(2), dtype=torch.float32)
-    images = Renderer(PipelineConfig(num_views=4)).render(verts, faces)
+    images = Renderer(PipelineConfig.paper(num_views=4)).render(verts, faces)
     assert images.shape == (4, 256, 256)
     assert images[:, 0, 0].eq(0).all(), "corners are background"
     centre = images[:, 128, 128]

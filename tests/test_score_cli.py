@@ -11,6 +11,8 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
+from drkfs_onnx import PipelineConfig
+from drkfs_onnx.model_files import features_file
 from drkfs_onnx.runtime.cli import app
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
@@ -52,10 +54,12 @@ def test_precomputed_reference_gives_the_same_score(tmp_path):
 
 
 def test_a_model_for_another_config_is_refused(tmp_path):
-    shipped = Path(__file__).resolve().parents[1] / "models" / "features_w0.5.onnx"
+    asked = PipelineConfig().descriptor_width
+    other = PipelineConfig(descriptor_width=0.5 if asked != 0.5 else 1.0)
+    shipped = Path(__file__).resolve().parents[1] / "models" / features_file(other)
     result = _run("pair", NO_LEG, CHAIR, "--model", shipped)
     assert result.exit_code == 2
-    assert "descriptor_width 0.5 (asked 1.0)" in result.output
+    assert f"descriptor_width {other.descriptor_width!r} (asked {asked!r})" in result.output
 
 
 def _records(path: Path) -> dict[int, dict]:
@@ -93,8 +97,30 @@ def test_a_batch_without_failures_exits_zero(tmp_path):
     assert float(_records(tmp_path / "scores.csv")[0]["score"]) == 0.0
 
 
-@pytest.mark.parametrize("option", ["--symmetric", "--threads=1", "--normalize=each"])
-def test_options_are_accepted(option):
+@pytest.mark.parametrize(
+    "option",
+    ["--symmetric", "--threads=1", "--normalize=each", "--preset=paper", "--reduction=mean",
+     "--matching=window", "--window=2", "--direction=backward"],
+)  # fmt: skip
+def test_options_are_accepted_and_a_mesh_scores_zero_against_itself(option):
     result = _run("pair", CHAIR, CHAIR, option, *FAST)
     assert result.exit_code == 0, result.output
     assert float(result.stdout) == 0.0
+
+
+@pytest.mark.parametrize(
+    ("options", "message"),
+    [(["--reduction", "max"], "unknown reduction 'max'"),
+     (["--preset", "fast"], "unknown preset 'fast'"),
+     (["--symmetric", "--direction", "forward"], "--symmetric searches both directions")],
+)  # fmt: skip
+def test_bad_match_options_are_named(options, message):
+    result = _run("pair", NO_LEG, CHAIR, *options, *FAST)
+    assert result.exit_code == 2
+    assert message in result.output
+
+
+def test_json_report_carries_the_config_it_scored_with():
+    result = _run("pair", NO_LEG, CHAIR, "--json", "--preset", "paper", *FAST)
+    config = PipelineConfig.from_dict(json.loads(result.stdout)["config"])
+    assert config == PipelineConfig.paper(descriptor_width=0.25)

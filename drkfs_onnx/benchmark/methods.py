@@ -14,16 +14,18 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from ..config import PipelineConfig
+from ..config import MATCH_FIELDS, PipelineConfig
 from ..matching import match_score
 from ..metric import DRKFS
 from ..model_files import features_file
 from ..runtime.render import NumpyRenderer
 from ..runtime.scorer import Scorer
-from ..weights import shipped_entry, shipped_weights
+from ..weights import models_dir, shipped_entry
 from .point_metrics import iou, is_watertight, occupancy, sample_surface, surface_distances
 
 SURFACE_SAMPLES = 20_000
+DEFAULT_NAME = "DR-KFS"  # the shipped default config, marked "default": true in results.json
+PAPER_NAME = "DR-KFS paper"  # PipelineConfig.paper(), marked "preset": "paper"
 
 
 @dataclass
@@ -71,6 +73,7 @@ class DrkfsOnnx(Method):
     def __init__(self, name: str, config: PipelineConfig, model: Path | None, threads: int):
         self.outputs = (name,)
         self.scorer = Scorer(config, model, threads=threads)
+        self.symmetric = config.direction == "both"  # match(a, b) == match(b, a)
 
     def prepare(self, placed):
         images, render_s = placed.views(self.scorer.renderer)
@@ -97,7 +100,7 @@ class DrkfsTorch(Method):
         return _timed(self._features, placed)
 
     def compare(self, a, b):
-        return (float(match_score(a, b, self.metric.reduction)),)
+        return (float(match_score(a, b, self.metric.config)),)
 
 
 class ImageMSE(Method):
@@ -159,44 +162,48 @@ class VolumeIoU(Method):
         return (None if a is None or b is None else 1.0 - iou(a, b),)
 
 
-def build_methods(models: Path, threads: int, views: int = 25) -> list[Method]:
-    """Every method and variant at ``views`` cameras (the paper's 25 unless a quick run asks
-    for fewer). Feature graphs the shipped ones do not cover (other view counts, 128 px) are
-    exported into ``models``."""
+def _match_of(config: PipelineConfig) -> dict:
+    return {name: getattr(config, name) for name in MATCH_FIELDS}
+
+
+def drkfs_configs(views: int | None = None) -> dict[str, PipelineConfig]:
+    """The DR-KFS rows of the benchmark by name: the default, the paper preset, and each with
+    the other's match (what the cameras and what the match contribute). ``views`` caps the
+    camera count (the quick run)."""
+    default, paper = PipelineConfig(), PipelineConfig.paper()
+    configs = {
+        DEFAULT_NAME: default,
+        PAPER_NAME: paper,
+        "DR-KFS default cameras, paper match": default.replace(**_match_of(paper)),
+        "DR-KFS paper cameras, default match": paper.replace(**_match_of(default)),
+    }
+    if views is None:
+        return configs
+    return {name: c.replace(num_views=min(c.num_views, views)) for name, c in configs.items()}
+
+
+def build_methods(models: Path, threads: int, views: int | None = None) -> list[Method]:
+    """Every method; DR-KFS in the configs of ``drkfs_configs(views)``. A config whose feature
+    graph is not shipped gets one exported into ``models`` (``drkfs export``'s function)."""
     from ..export.onnx_files import export_features
 
-    shipped = PipelineConfig()
-    base = shipped.replace(num_views=views)
-
     def onnx(name: str, config: PipelineConfig) -> DrkfsOnnx:
-        if shipped_entry(config) is not None:  # shipped graph, shipped weights
+        if (models_dir() / features_file(config)).is_file():
             return DrkfsOnnx(name, config, None, threads)
-        stem = Path(features_file(config)).stem
-        path = models / f"{stem}_{config.num_views}v_{config.image_size}px.onnx"
+        path = models / features_file(config)
         weights = shipped_entry(config, any_cameras=True)  # what DRKFS.pretrained loads
-        export_features(DRKFS.pretrained(config), path, weights["sha256"])
+        if not path.is_file():
+            export_features(DRKFS.pretrained(config), path, weights["sha256"])
         return DrkfsOnnx(name, config, path, threads)
 
-    methods: list[Method] = []
-    for entry in shipped_weights():
-        weights = PipelineConfig.from_dict(entry["config"])
-        if weights.replace(descriptor_width=1.0) == shipped:
-            name = f"DR-KFS onnx w{weights.descriptor_width:g}"
-            methods.append(onnx(name, weights.replace(num_views=views)))
-    for config in (
-        base.replace(num_views=max(1, views // 2)),
-        base.replace(num_views=max(1, views // 4)),
-        base.replace(image_size=128),
-    ):
-        label = (
-            f"{config.image_size} px" if config.image_size != 256 else f"{config.num_views} views"
-        )
-        methods.append(onnx(f"DR-KFS onnx w1 {label}", config))
-    metric = DRKFS.pretrained(base)
-    renderer = NumpyRenderer(base, threads=threads)
+    configs = drkfs_configs(views)
+    methods: list[Method] = [onnx(name, config) for name, config in configs.items()]
+    default = configs[DEFAULT_NAME]
+    renderer = NumpyRenderer(PipelineConfig.paper(num_views=configs[PAPER_NAME].num_views), threads)
+    metric = DRKFS.pretrained(default)
     return [
         *methods,
-        DrkfsTorch("DR-KFS torch w1", metric),
+        DrkfsTorch("DR-KFS torch", metric),
         ImageMSE("pixel MSE", renderer, None),
         ImageMSE("PoI-map MSE", renderer, metric.detector),
         Surface(),

@@ -16,10 +16,19 @@ from ..mesh import frame_of
 from ..variants import structural_wins
 from . import sets
 from .chart import pareto_front, write_chart
-from .methods import SURFACE_SAMPLES, DrkfsTorch, Method, Placed, build_methods
+from .methods import (
+    DEFAULT_NAME,
+    PAPER_NAME,
+    SURFACE_SAMPLES,
+    DrkfsOnnx,
+    DrkfsTorch,
+    Method,
+    Placed,
+    build_methods,
+)
 from .torch_checks import gradient_check, self_score, slide
 
-QUICK_VIEWS = 6  # the quick run's camera count: its DR-KFS variants cost a quarter
+QUICK_VIEWS = 6  # the quick run caps every DR-KFS config at this camera count
 
 
 @dataclass
@@ -199,11 +208,15 @@ def run_bench(out: Path, quick: bool, threads: int = 2, progress=print) -> dict:
     bench = sets.build(quick)
     bench.write(out / "set")
     progress(f"{len(bench.shapes)} meshes, {len(bench.comparisons)} comparisons written")
-    methods = build_methods(out / "models", threads, QUICK_VIEWS if quick else 25)
+    methods = build_methods(out / "models", threads, QUICK_VIEWS if quick else None)
     scores, costs = score_everything(bench, methods, progress)
     summary = {}
+    configs = {m.outputs[0]: m.scorer.config for m in methods if isinstance(m, DrkfsOnnx)}
     for name, values in scores.comparisons.items():
         summary[name] = {
+            **({"config": configs[name].to_dict()} if name in configs else {}),
+            **({"default": True} if name == DEFAULT_NAME else {}),
+            **({"preset": "paper"} if name == PAPER_NAME else {}),
             **costs[name],
             "sensitivity": _accuracy(bench, values),
             "bars": _bars(bench, values),

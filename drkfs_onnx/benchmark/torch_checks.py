@@ -49,7 +49,8 @@ def slide(metric: DRKFS, steps: int = SLIDE_STEPS) -> dict:
         for t in offsets:
             v, f = assemble(shifted(parts, "leg_3", (t * size, 0.0, 0.0)), 1)
             v = torch.as_tensor((v - centre) / scale, dtype=torch.float32)
-            scores.append(float(match_score(metric.features(v, torch.as_tensor(f)), ref_features)))
+            own = metric.features(v, torch.as_tensor(f))
+            scores.append(float(match_score(own, ref_features, metric.config)))
     steps_ = np.abs(np.diff(scores))
     ratio = float(steps_.max() / steps_.mean()) if steps_.mean() > 0 else float("inf")
     return {"offsets": offsets.tolist(), "scores": scores, "max_over_mean_step": ratio,

@@ -49,8 +49,9 @@ class StudyPlan:
 
 
 FULL = StudyPlan(
-    fit_config=PipelineConfig(num_views=8, image_size=128),
-    judge_config=PipelineConfig(),
+    # the committed study's configs: the paper's match (global sum) at both
+    fit_config=PipelineConfig.paper(num_views=8, image_size=128),
+    judge_config=PipelineConfig.paper(),
     settings=FitSettings(),
     problems=("chair:3", "table:3", "airplane:3", "cow", "homer", "fandisk"),
     tuning="sofa:3",
@@ -58,8 +59,8 @@ FULL = StudyPlan(
     weights=(0.1, 1.0, 10.0),
 )
 QUICK = StudyPlan(
-    fit_config=PipelineConfig(num_views=2, image_size=64),
-    judge_config=PipelineConfig(num_views=4, image_size=128),
+    fit_config=PipelineConfig.paper(num_views=2, image_size=64),
+    judge_config=PipelineConfig.paper(num_views=4, image_size=128),
     settings=FitSettings(steps=3),
     problems=("chair:3", "cow"),
     tuning="sofa:3",

@@ -132,12 +132,13 @@ def variant_ranking(
     features: Callable[[torch.Tensor, torch.Tensor], torch.Tensor],
     seed: int,
     shapes_per_family: int,
-    reduction: str = "sum",
+    config: PipelineConfig,
 ) -> dict[str, float]:
     """Share of (structural, mild) variant pairs of one base shape where the structural variant
     scores further from the base; over ``shapes_per_family`` held-out shapes per family.
 
-    features: mesh already in the metric's frame (V, 3), (F, 3) -> descriptors.
+    features: mesh already in the metric's frame (V, 3), (F, 3) -> descriptors; config: the
+    match they are scored with.
     """
     rng = np.random.default_rng(seed)
     wins, total = 0, 0
@@ -156,7 +157,7 @@ def variant_ranking(
                 if ref is None:
                     ref = features(ref_verts, torch.tensor(base_faces))
                 own = features(verts, torch.tensor(variant.faces))
-                scores[variant.kind].append(float(match_score(own, ref, reduction)))
+                scores[variant.kind].append(float(match_score(own, ref, config)))
             won, pairs = structural_wins(scores["structural"], scores["mild"])
             wins, total = wins + won, total + pairs
     return {"accuracy": wins / total, "pairs": total}

@@ -60,7 +60,8 @@ class TrainPlan:
     hardnet_lr: float = 1e-3
     ranking_shapes_per_family: int = 1
     checkpoint_every: int = 50
-    config: dict = field(default_factory=lambda: PipelineConfig().to_dict())
+    # the config the shipped nets were trained at: the paper's cameras and image size
+    config: dict = field(default_factory=lambda: PipelineConfig.paper().to_dict())
 
     @property
     def pipeline(self) -> PipelineConfig:
@@ -366,7 +367,7 @@ def train(plan: TrainPlan, out: Path, work: Path, command: str) -> dict:
     for name, metric in (("trained", trained), ("untrained", untrained_metric)):
         with torch.no_grad():
             ranking[name] = variant_ranking(
-                metric.features, plan.seed + 2, plan.ranking_shapes_per_family
+                metric.features, plan.seed + 2, plan.ranking_shapes_per_family, metric.config
             )
     run._timed("ranking", start)
 

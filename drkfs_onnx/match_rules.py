@@ -1,0 +1,90 @@
+"""The match contract, written once for torch and numpy: which patches a query may match
+(``window_table``), which directions are searched (``directions``), and how the best-match
+squared distances become one score (``reduce``).
+
+Torch-free: ``drkfs_onnx.matching`` passes ``TORCH_OPS`` (built there), the runtime passes
+``NUMPY_OPS``. A row stands for ``weight`` patches: the torch path gives every patch a row of
+weight 1, the runtime one row for all background patches weighted by their count; ``reduce`` is
+the same number either way.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+from types import SimpleNamespace
+from typing import TypeVar
+
+import numpy as np
+
+from .config import PipelineConfig
+
+T = TypeVar("T")
+
+NUMPY_OPS = SimpleNamespace(
+    argsort=np.argsort,
+    cumsum=np.cumsum,
+    clamp_min=np.maximum,
+    minimum=np.minimum,
+    where=np.where,
+    exp=np.exp,
+    log=np.log,
+    amax=np.max,
+)
+
+
+@lru_cache(maxsize=8)
+def window_table(config: PipelineConfig) -> np.ndarray:
+    """(K * P, W) int64, read-only and cached per config: the patches each patch may match under
+    'window' matching, as rows of the row-major (K * P) patch list; W = (2 * window + 1)^2.
+
+    Same view, row and column each within ``window`` grid steps. At the image border a
+    neighbour is clamped into the grid, which gives a patch that is also within the window, so
+    border rows repeat entries instead of needing a mask (a repeat does not change a minimum).
+    """
+    side, per_view = config.patches_per_side, config.patches_per_view
+    rows, cols = np.divmod(np.arange(per_view), side)
+    steps = np.arange(-config.window, config.window + 1)
+    near_rows = np.clip(rows[:, None, None] + steps[None, :, None], 0, side - 1)
+    near_cols = np.clip(cols[:, None, None] + steps[None, None, :], 0, side - 1)
+    one_view = (near_rows * side + near_cols).reshape(per_view, -1)
+    views = np.arange(config.num_views)[:, None, None] * per_view
+    table = (views + one_view[None]).reshape(config.num_views * per_view, -1)
+    table.setflags(write=False)
+    return table
+
+
+def directions(a: T, b: T, config: PipelineConfig) -> list[tuple[T, T]]:
+    """(queries, targets) pairs searched for the score of A against B: 'forward' A -> B (the
+    paper), 'backward' B -> A, 'both' the two (their reductions are averaged)."""
+    return {"forward": [(a, b)], "backward": [(b, a)], "both": [(a, b), (b, a)]}[config.direction]
+
+
+def reduce(distances, weights, config: PipelineConfig, ops=NUMPY_OPS):
+    """(R,) best-match squared distances, (R,) patch counts -> () score.
+
+    sum: Σ w·d (the paper). mean: Σ w·d / Σ w. tail: the mean over the k = tail_fraction · Σ w
+    largest distances (at least one patch; the boundary row counts with the fraction of its
+    weight that fits). power: (Σ w·d^p / Σ w)^(1/p), p = ``power``. softmax: t·log(Σ w·e^(d/t) /
+    Σ w), t = ``temperature``, a smooth maximum that tends to the mean as t grows. Every one is
+    0 when all distances are 0 and differentiable in the distances.
+    """
+    total = float(weights.sum())
+    if config.reduction == "sum":
+        return (weights * distances).sum()
+    if config.reduction == "mean":
+        return (weights * distances).sum() / total
+    if config.reduction == "tail":
+        k = min(total, max(config.tail_fraction * total, 1.0))
+        order = ops.argsort(-distances)
+        ranked, counts = distances[order], weights[order]
+        before = ops.cumsum(counts, 0) - counts  # patches ranked above each row
+        taken = ops.minimum(ops.clamp_min(k - before, 0.0), counts)
+        return (taken * ranked).sum() / k
+    if config.reduction == "power":
+        mean = (weights * distances**config.power).sum() / total
+        # the root's slope is infinite at 0: take it only where the mean is positive
+        positive = mean > 0
+        return ops.where(positive, ops.where(positive, mean, 1.0) ** (1.0 / config.power), 0.0)
+    top = ops.amax(distances)  # log-mean-exp shifted by the maximum, so exp never overflows
+    t = config.temperature
+    return top + t * ops.log((weights * ops.exp((distances - top) / t)).sum() / total)

@@ -1,0 +1,54 @@
+"""The command-line options that pick a pipeline config, shared by ``drkfs`` and ``drkfs-score``
+(torch-free)."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+import typer
+
+from .config import DIRECTIONS, MATCHINGS, NORMALIZATIONS, REDUCTIONS, PipelineConfig
+
+PRESETS = {"default": PipelineConfig, "paper": PipelineConfig.paper}
+
+Normalize = Annotated[
+    str, typer.Option(help=f"Frame of the two meshes: {', '.join(NORMALIZATIONS)}.")
+]
+Preset = Annotated[
+    str,
+    typer.Option(help="default (chosen by the benchmark) or paper (25 views, 256 px, global sum)."),
+]
+Matching = Annotated[
+    str | None, typer.Option(help=f"Override the preset's matching: {', '.join(MATCHINGS)}.")
+]
+Window = Annotated[int | None, typer.Option(help="Override the window matching's grid radius.")]
+Direction = Annotated[
+    str | None, typer.Option(help=f"Override the searched direction: {', '.join(DIRECTIONS)}.")
+]
+Reduction = Annotated[
+    str | None, typer.Option(help=f"Override the reduction: {', '.join(REDUCTIONS)}.")
+]
+Symmetric = Annotated[
+    bool, typer.Option(help="Search both directions (same as --direction both; order-free).")
+]
+
+
+def pick_config(
+    preset: str = "default",
+    matching: str | None = None,
+    window: int | None = None,
+    direction: str | None = None,
+    reduction: str | None = None,
+    symmetric: bool = False,
+    **changes,
+) -> PipelineConfig:
+    """The preset's config with the given overrides; ValueError names a bad value."""
+    if preset not in PRESETS:
+        raise ValueError(f"unknown preset {preset!r}; use one of {', '.join(PRESETS)}")
+    if symmetric:
+        if direction not in (None, "both"):
+            raise ValueError(f"--symmetric searches both directions, not {direction!r}")
+        direction = "both"
+    picked = dict(matching=matching, window=window, direction=direction, reduction=reduction)
+    changes.update({key: value for key, value in picked.items() if value is not None})
+    return PRESETS[preset]().replace(**changes)

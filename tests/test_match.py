@@ -1,0 +1,182 @@
+"""The match contract: which patches may match, how best matches reduce to a score, and that the
+torch path and the runtime compute the same number from the same descriptors."""
+
+import numpy as np
+import pytest
+import torch
+
+from drkfs_onnx import match_rules
+from drkfs_onnx.config import DIRECTIONS, PipelineConfig
+from drkfs_onnx.matching import TORCH_OPS, match_score
+from drkfs_onnx.runtime.features import MeshFeatures
+from drkfs_onnx.runtime.match import match
+
+GRID = PipelineConfig(num_views=3, image_size=96)  # 5 x 5 patches per view
+REDUCTIONS = [
+    {"reduction": "sum"},
+    {"reduction": "mean"},
+    {"reduction": "tail", "tail_fraction": 0.07},
+    {"reduction": "power", "power": 4.0},
+    {"reduction": "softmax", "temperature": 0.05},
+]
+
+
+def test_window_table_holds_exactly_the_patches_within_r_steps_of_the_same_view():
+    config = GRID.replace(matching="window", window=1)
+    side, per_view = config.patches_per_side, config.patches_per_view
+    table = match_rules.window_table(config)
+    assert table.shape == (3 * per_view, 9)
+    for index, near in enumerate(table):
+        view, cell = divmod(index, per_view)
+        row, col = divmod(cell, side)
+        expected = {
+            view * per_view + r * side + c
+            for r in range(row - 1, row + 2)
+            for c in range(col - 1, col + 2)
+            if 0 <= r < side and 0 <= c < side
+        }
+        assert set(near.tolist()) == expected
+    assert (match_rules.window_table(config.replace(window=0)) == np.arange(75)[:, None]).all()
+
+
+def _expanded_tail(distances, weights, fraction):
+    """The tail's definition on one row per patch: the mean of the k largest, k = q * patches."""
+    rows = np.repeat(distances, weights.astype(int))
+    k = max(fraction * len(rows), 1.0)
+    ranked = np.sort(rows)[::-1]
+    whole = int(np.floor(k))
+    return (ranked[:whole].sum() + (k - whole) * ranked[min(whole, len(rows) - 1)]) / k
+
+
+@pytest.mark.parametrize("fraction", [0.01, 0.1, 0.35, 1.0])
+def test_tail_of_weighted_rows_equals_the_tail_of_one_row_per_patch(fraction):
+    rng = np.random.default_rng(0)
+    distances, weights = rng.random(40), rng.integers(1, 6, 40).astype(float)
+    config = GRID.replace(reduction="tail", tail_fraction=fraction)
+    expected = _expanded_tail(distances, weights, fraction)
+    assert match_rules.reduce(distances, weights, config) == pytest.approx(expected, rel=1e-12)
+    if fraction == 1.0:
+        assert expected == pytest.approx(np.average(distances, weights=weights), rel=1e-12)
+
+
+def test_power_and_softmax_follow_their_formulas_and_tend_to_the_maximum():
+    rng = np.random.default_rng(1)
+    distances, weights = rng.random(30), rng.integers(1, 4, 30).astype(float)
+    power = GRID.replace(reduction="power", power=3.0)
+    expected = (np.average(distances**3, weights=weights)) ** (1 / 3)
+    assert match_rules.reduce(distances, weights, power) == pytest.approx(expected, rel=1e-12)
+    soft = GRID.replace(reduction="softmax", temperature=0.2)
+    expected = 0.2 * np.log(np.average(np.exp(distances / 0.2), weights=weights))
+    assert match_rules.reduce(distances, weights, soft) == pytest.approx(expected, rel=1e-12)
+    sharp = GRID.replace(reduction="softmax", temperature=1e-4)
+    assert match_rules.reduce(distances, weights, sharp) == pytest.approx(distances.max(), abs=1e-3)
+
+
+@pytest.mark.parametrize("options", REDUCTIONS)
+def test_every_reduction_is_exactly_zero_on_zero_distances_with_finite_gradients(options):
+    config = GRID.replace(**options)
+    zeros = torch.zeros(20, dtype=torch.float64, requires_grad=True)
+    value = match_rules.reduce(zeros, torch.ones(20, dtype=torch.float64), config, TORCH_OPS)
+    value.backward()
+    assert value.item() == 0.0
+    assert torch.isfinite(zeros.grad).all()
+
+
+def _features(dense: np.ndarray, empty: np.ndarray, config: PipelineConfig) -> MeshFeatures:
+    seen = np.flatnonzero((dense != empty).any(1))
+    return MeshFeatures(
+        descriptors=dense[seen],
+        patch_index=seen,
+        empty_descriptor=empty,
+        centre=np.zeros(3),
+        scale=1.0,
+        model="test",
+        config=config,
+    )
+
+
+def _near_tie_sets():
+    """Two descriptor sets of every patch of GRID: background rows share one descriptor, and
+    each of B's rows has a rival at a distance within 1e-6 of its best match."""
+    rng = np.random.default_rng(2)
+    rows, dim = GRID.num_views * GRID.patches_per_view, 16
+    empty = np.full(dim, 0.25, np.float32)
+    a = rng.normal(size=(rows, dim)).astype(np.float32)
+    b = a + rng.normal(scale=0.05, size=(rows, dim)).astype(np.float32)
+    # near ties: B's odd row mirrors its even neighbour through A's even row (its grid
+    # neighbour too), so that row of A has two best matches within float rounding
+    even = np.arange(0, rows - 1, 2)
+    b[even + 1] = 2 * a[even] - b[even] + rng.normal(scale=1e-7, size=(len(even), dim))
+    for dense in (a, b):
+        dense[rng.random(rows) < 0.3] = empty
+    b[:10] = a[:10]  # exact copies match at 0
+    return a, b, empty
+
+
+@pytest.mark.parametrize("options", REDUCTIONS)
+@pytest.mark.parametrize("matching", [{"matching": "global"}, {"matching": "window", "window": 1}])
+@pytest.mark.parametrize("direction", DIRECTIONS)
+def test_torch_and_runtime_compute_the_same_score(options, matching, direction):
+    config = GRID.replace(**options, **matching, direction=direction)
+    a, b, empty = _near_tie_sets()
+    expected = float(match_score(torch.from_numpy(a), torch.from_numpy(b), config))
+    got = match(_features(a, empty, config), _features(b, empty, config), config)
+    assert got == pytest.approx(expected, rel=1e-5)
+
+
+@pytest.mark.parametrize("matching", ["global", "window"])
+def test_both_directions_make_the_score_order_free_and_zero_on_copies(matching):
+    config = GRID.replace(matching=matching, direction="both", reduction="tail")
+    a, b, empty = _near_tie_sets()
+    fa, fb = _features(a, empty, config), _features(b, empty, config)
+    assert match(fa, fb, config) == match(fb, fa, config)
+    assert match(fa, _features(a.copy(), empty, config), config) == 0.0
+
+
+def test_window_matching_sees_a_patch_that_moved_where_global_matching_finds_it_elsewhere():
+    a, _, empty = _near_tie_sets()
+    b = a.copy()
+    b[[7, 60]] = a[[60, 7]]  # two patches of different views swap: the same descriptors
+    glob = GRID.replace(matching="global", reduction="sum")
+    window = glob.replace(matching="window", window=1)
+    fa, fb = _features(a, empty, glob), _features(b, empty, glob)
+    assert match(fa, fb, glob) == 0.0
+    assert match(fa, fb, window) > 0.0
+
+
+def test_global_matching_sees_a_part_missing_from_a_only_backward_window_both_ways():
+    """Globally, A's background patches find B's background elsewhere (forward 0); only B's
+    patches of the part search A in vain (backward). Position-wise, A's background where B has
+    the part is a mismatch too."""
+    a, _, empty = _near_tie_sets()
+    config = GRID.replace(matching="global", reduction="sum")
+    without = a.copy()
+    without[20:25] = empty  # a part that B shows and A lacks
+    fa, fb = _features(without, empty, config), _features(a, empty, config)
+    assert match(fa, fb, config.replace(direction="forward")) == 0.0
+    assert match(fa, fb, config.replace(direction="backward")) > 0.0
+    window = config.replace(matching="window", window=0)
+    assert min(match(fa, fb, window.replace(direction=d)) for d in DIRECTIONS) > 0.0
+
+
+def test_runtime_refuses_features_of_another_config_or_graph():
+    a, b, empty = _near_tie_sets()
+    fa = _features(a, empty, GRID)
+    other_size = _features(b, empty, GRID.replace(image_size=128))
+    with pytest.raises(ValueError, match="image_size 128 \\(asked 96\\)"):
+        match(fa, other_size, GRID)
+    other_graph = MeshFeatures(**{**vars(_features(b, empty, GRID)), "model": "other"})
+    with pytest.raises(ValueError, match="different feature graphs"):
+        match(fa, other_graph, GRID)
+
+
+def test_config_checks_match_settings_and_keeps_the_paper_preset():
+    paper = PipelineConfig.paper()
+    assert (paper.num_views, paper.image_size) == (25, 256)
+    assert (paper.matching, paper.direction, paper.reduction) == ("global", "forward", "sum")
+    assert paper.features_part() == PipelineConfig.paper(reduction="tail").features_part()
+    bad = [{"matching": "nearest"}, {"direction": "up"}, {"reduction": "max"}, {"window": -1},
+           {"tail_fraction": 0.0}, {"power": 0.5}, {"temperature": 0.0}]  # fmt: skip
+    for settings in bad:
+        with pytest.raises(ValueError):
+            PipelineConfig(**settings)
