@@ -222,7 +222,7 @@ def _child(args: list[str]) -> dict:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", type=Path, required=True, help="e.g. bench/results/score.json")
+    parser.add_argument("--out", type=Path, help="the JSON to write: bench/results/score.json")
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--case", nargs=2, help=argparse.SUPPRESS)
     parser.add_argument("--decimation", help=argparse.SUPPRESS)
@@ -233,6 +233,8 @@ def main() -> None:
     if args.decimation:
         print(json.dumps(run_decimation(args.decimation, args.repeats)))
         return
+    if args.out is None:
+        parser.error("--out is required")
     cases = []
     for label, path in CASES.items():
         for preset in PRESETS:

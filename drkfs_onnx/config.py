@@ -71,15 +71,15 @@ class PipelineConfig:
     # in row and column; 0 is the same position). direction: 'forward' (A's patches search B, the
     # paper), 'backward' (B's search A: sees parts missing from A), 'both' (their mean: a part
     # missing from either side counts, and match(a, b) == match(b, a)).
-    matching: str = "window"
+    matching: str = "global"
     window: int = 0
     direction: str = "both"
     # Reduction of the best-match squared distances (see ``match_rules.reduce``): 'sum' and
     # 'mean' (the paper), 'tail' (mean of the largest ``tail_fraction`` of them), 'power' (power
     # mean of order ``power``), 'softmax' (log-mean-exp at ``temperature``).
-    reduction: str = "tail"
+    reduction: str = "power"
     tail_fraction: float = 0.05
-    power: float = 4.0
+    power: float = 8.0
     temperature: float = 0.1
 
     def __post_init__(self) -> None:

@@ -47,8 +47,7 @@ class MeshFeatures:
     @cached_property
     def dense(self) -> np.ndarray:
         """(K * P, D) every patch's descriptor, background patches included (window matching)."""
-        rows = np.broadcast_to(self.empty_descriptor, (self.patches, len(self.empty_descriptor)))
-        rows = rows.copy()
+        rows = np.tile(self.empty_descriptor, (self.patches, 1))
         rows[self.patch_index] = self.descriptors
         return rows
 

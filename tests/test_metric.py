@@ -142,3 +142,18 @@ def test_package_root_exposes_drkfs_lazily():
     assert drkfs_onnx.DRKFS is DRKFS
     with pytest.raises(AttributeError):
         drkfs_onnx.NoSuchThing  # noqa: B018
+
+
+def test_demo_ranks_the_structural_edits_above_the_mild_ones(tmp_path):
+    """``drkfs demo`` with the shipped default: the missing leg and backrest score above the
+    shifted leg and the retessellated chair, and the reference scores 0."""
+    from typer.testing import CliRunner
+
+    from drkfs_onnx.cli import app
+
+    result = CliRunner().invoke(app, ["demo", "--folder", str(tmp_path)])
+    assert result.exit_code == 0, result.output
+    scores = {line.split()[0]: float(line.split()[1]) for line in result.output.splitlines()[1:]}
+    assert scores["chair.obj"] == 0.0
+    mild = max(scores["chair_retessellated.obj"], scores["chair_leg_shifted.obj"])
+    assert min(scores["chair_no_leg.obj"], scores["chair_no_back.obj"]) > mild
