@@ -2,16 +2,15 @@
 (``window_table``), which directions are searched (``directions``), and how the best-match
 squared distances become one score (``reduce``).
 
-Torch-free: ``drkfs_onnx.matching`` passes ``TORCH_OPS`` (built there), the runtime passes
-``NUMPY_OPS``. A row stands for ``weight`` patches: the torch path gives every patch a row of
-weight 1, the runtime one row for all background patches weighted by their count; ``reduce`` is
-the same number either way.
+Torch-free: ``reduce`` takes the array module as ``ops``, ``numpy`` (the default) or ``torch``,
+through the functions both name alike. A row stands for ``weight`` patches: the torch path gives
+every patch a row of weight 1, the runtime one row for all background patches weighted by their
+count; ``reduce`` is the same number either way.
 """
 
 from __future__ import annotations
 
 from functools import lru_cache
-from types import SimpleNamespace
 from typing import TypeVar
 
 import numpy as np
@@ -19,17 +18,6 @@ import numpy as np
 from .config import PipelineConfig
 
 T = TypeVar("T")
-
-NUMPY_OPS = SimpleNamespace(
-    argsort=np.argsort,
-    cumsum=np.cumsum,
-    clamp_min=np.maximum,
-    minimum=np.minimum,
-    where=np.where,
-    exp=np.exp,
-    log=np.log,
-    amax=np.max,
-)
 
 
 @lru_cache(maxsize=8)
@@ -59,7 +47,7 @@ def directions(a: T, b: T, config: PipelineConfig) -> list[tuple[T, T]]:
     return {"forward": [(a, b)], "backward": [(b, a)], "both": [(a, b), (b, a)]}[config.direction]
 
 
-def reduce(distances, weights, config: PipelineConfig, ops=NUMPY_OPS):
+def reduce(distances, weights, config: PipelineConfig, ops=np):
     """(R,) best-match squared distances, (R,) patch counts -> () score.
 
     sum: Σ w·d (the paper). mean: Σ w·d / Σ w. tail: the mean over the k = tail_fraction · Σ w
@@ -78,7 +66,7 @@ def reduce(distances, weights, config: PipelineConfig, ops=NUMPY_OPS):
         order = ops.argsort(-distances)
         ranked, counts = distances[order], weights[order]
         before = ops.cumsum(counts, 0) - counts  # patches ranked above each row
-        taken = ops.minimum(ops.clamp_min(k - before, 0.0), counts)
+        taken = ops.minimum(ops.clip(k - before, 0.0, None), counts)
         return (taken * ranked).sum() / k
     if config.reduction == "power":
         mean = (weights * distances**config.power).sum() / total

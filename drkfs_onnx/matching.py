@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from types import SimpleNamespace
-
 import torch
 
 from . import match_rules
@@ -12,17 +10,6 @@ from .config import PipelineConfig
 CHUNK_ROWS = 2048
 # Best-match candidates ranked by the fast matmul form, then re-ranked by exact distance.
 MATCH_CANDIDATES = 4
-
-TORCH_OPS = SimpleNamespace(
-    argsort=torch.argsort,
-    cumsum=torch.cumsum,
-    clamp_min=torch.clamp_min,
-    minimum=torch.minimum,
-    where=torch.where,
-    exp=torch.exp,
-    log=torch.log,
-    amax=torch.amax,
-)
 
 
 def nearest_indices(queries: torch.Tensor, targets: torch.Tensor) -> torch.Tensor:
@@ -87,5 +74,5 @@ def match_score(desc_a: torch.Tensor, desc_b: torch.Tensor, config: PipelineConf
     scores = []
     for queries, targets in match_rules.directions(desc_a, desc_b, config):
         distances = best_match_distances(queries, targets, config)
-        scores.append(match_rules.reduce(distances, torch.ones_like(distances), config, TORCH_OPS))
+        scores.append(match_rules.reduce(distances, torch.ones_like(distances), config, torch))
     return torch.stack(scores).mean()
