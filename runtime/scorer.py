@@ -109,6 +109,11 @@ class Scorer:
         """DR-KFS of A against the reference B (0 for identical meshes)."""
         a = a if isinstance(a, Mesh) else load_mesh(a)  # a bad A fails before B's work
         reference = b if isinstance(b, MeshFeatures) else self.features(b)
+        made, asked = reference.config.features_part(), self.config.features_part()
+        if made != asked:
+            raise ValueError(
+                f"reference features were computed for another config: {made.differences(asked)}"
+            )
         if reference.model != self.features_graph.sha256:
             raise ValueError(
                 "reference features were computed by another feature graph "

@@ -124,3 +124,12 @@ def test_json_report_carries_the_config_it_scored_with():
     result = _run("pair", NO_LEG, CHAIR, "--json", "--preset", "paper", *FAST)
     config = PipelineConfig.from_dict(json.loads(result.stdout)["config"])
     assert config == PipelineConfig.paper(descriptor_width=0.25)
+
+
+def test_a_features_file_for_another_preset_is_refused_naming_the_settings(tmp_path):
+    assert _run("features", CHAIR, "--out", tmp_path / "chair.npz").exit_code == 0
+    result = _run("pair", NO_LEG, tmp_path / "chair.npz", "--preset", "paper")
+    assert result.exit_code == 2
+    default = PipelineConfig()
+    assert f"num_views {default.num_views} (asked 25)" in result.output
+    assert f"image_size {default.image_size} (asked 256)" in result.output
