@@ -27,7 +27,7 @@ from drkfs_onnx.benchmark import sets
 from drkfs_onnx.benchmark.methods import Method, Placed, Surface, _timed
 from drkfs_onnx.benchmark.run import _accuracy, _bars, _retrieval, _verdict, score_everything
 from drkfs_onnx.config import PipelineConfig
-from drkfs_onnx.runtime.match import global_distances, window_distances
+from drkfs_onnx.runtime.match import best_matches
 from drkfs_onnx.runtime.scorer import Scorer
 
 WINDOWS = (0, 1, 2)
@@ -83,13 +83,6 @@ class Sweep(Method):
         features, seconds = _timed(self.scorer.describe, images)
         return features, render_s + seconds
 
-    def _distances(self, queries, targets, config: PipelineConfig):
-        if config.matching == "global":
-            return global_distances(queries, targets), queries.weights
-        table = match_rules.window_table(config)
-        distances = window_distances(queries.dense, targets.dense, table)
-        return distances, np.ones(len(distances))
-
     def compare(self, a, b):
         cache = {}
         values = []
@@ -101,7 +94,7 @@ class Sweep(Method):
                 key = (config.matching, config.window, side)
                 if key not in cache:
                     start = time.perf_counter()
-                    cache[key] = self._distances(queries, targets, config)
+                    cache[key] = best_matches(queries, targets, config)
                     label = "global" if config.matching == "global" else f"window r{config.window}"
                     if label in self.match_seconds and side == "forward":
                         self.match_seconds[label] += time.perf_counter() - start

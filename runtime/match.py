@@ -49,30 +49,36 @@ def window_distances(queries: np.ndarray, targets: np.ndarray, table: np.ndarray
     return best
 
 
-def check_compatible(a: MeshFeatures, b: MeshFeatures, config: PipelineConfig) -> None:
-    """Refuse to match features computed by another graph or for another config."""
-    if a.model != b.model:
+def best_matches(
+    queries: MeshFeatures, targets: MeshFeatures, config: PipelineConfig
+) -> tuple[np.ndarray, np.ndarray]:
+    """(R,) squared distance from each of the queries' rows to its best match under the config's
+    matching, and (R,) how many patches each row stands for (``match_rules.reduce``'s input)."""
+    if config.matching == "global":
+        return global_distances(queries, targets), queries.weights
+    distances = window_distances(queries.dense, targets.dense, match_rules.window_table(config))
+    return distances, np.ones(len(distances))
+
+
+def check_features(features: MeshFeatures, config: PipelineConfig, model: str) -> None:
+    """Refuse features computed for another config (naming the settings that differ) or by
+    another feature graph than ``model`` (a sha256)."""
+    made, asked = features.config.features_part(), config.features_part()
+    if made != asked:
+        raise ValueError(f"features computed for another config: {made.differences(asked)}")
+    if features.model != model:
         raise ValueError(
-            f"the two meshes' features come from different feature graphs "
-            f"({a.model[:12]} and {b.model[:12]})"
+            f"features from different feature graphs ({features.model[:12]}, expected {model[:12]})"
         )
-    for features in (a, b):
-        made, asked = features.config.features_part(), config.features_part()
-        if made != asked:
-            raise ValueError(f"features computed for another config: {made.differences(asked)}")
 
 
 def match(a: MeshFeatures, b: MeshFeatures, config: PipelineConfig) -> float:
     """DR-KFS of A against B from their features: each direction the config searches, its
     best-match distances reduced (``match_rules.reduce``), averaged over the directions."""
-    check_compatible(a, b, config)
-    scores = []
-    for queries, targets in match_rules.directions(a, b, config):
-        if config.matching == "global":
-            distances, weights = global_distances(queries, targets), queries.weights
-        else:
-            table = match_rules.window_table(config)
-            distances = window_distances(queries.dense, targets.dense, table)
-            weights = np.ones(len(distances))
-        scores.append(float(match_rules.reduce(distances, weights, config)))
+    for features in (a, b):
+        check_features(features, config, a.model)
+    scores = [
+        float(match_rules.reduce(*best_matches(queries, targets, config), config))
+        for queries, targets in match_rules.directions(a, b, config)
+    ]
     return float(np.mean(scores))

@@ -19,7 +19,7 @@ from drkfs_onnx.patch_grid import nonempty_patches
 
 from .decimate import decimate
 from .features import MeshFeatures
-from .match import match
+from .match import check_features, match
 from .render import NumpyRenderer
 from .sessions import open_features
 
@@ -109,16 +109,7 @@ class Scorer:
         """DR-KFS of A against the reference B (0 for identical meshes)."""
         a = a if isinstance(a, Mesh) else load_mesh(a)  # a bad A fails before B's work
         reference = b if isinstance(b, MeshFeatures) else self.features(b)
-        made, asked = reference.config.features_part(), self.config.features_part()
-        if made != asked:
-            raise ValueError(
-                f"reference features were computed for another config: {made.differences(asked)}"
-            )
-        if reference.model != self.features_graph.sha256:
-            raise ValueError(
-                "reference features were computed by another feature graph "
-                f"({reference.model[:12]}, this scorer has {self.features_graph.sha256[:12]})"
-            )
+        check_features(reference, self.config, self.features_graph.sha256)  # before A's work
         frame = (reference.centre, reference.scale) if self.normalization == "joint" else None
         return self.match(self.features(a, frame), reference)
 
