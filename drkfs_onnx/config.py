@@ -17,6 +17,10 @@ NORMALIZATIONS = ("joint", "each", "none")
 MATCHINGS = ("global", "window")
 DIRECTIONS = ("forward", "backward", "both")
 REDUCTIONS = ("sum", "mean", "tail", "power", "softmax")
+# what the detector and HardNet were trained for: 'metric' (ranking the metric's own mild and
+# structural edits, ``training.metric_objectives``) or 'correspondence' (the paper's way: the
+# same surface point in views 5-30 degrees apart, ``training.objectives``)
+NETS = ("metric", "correspondence")
 # The settings that shape only the match of two descriptor sets, not the descriptors: a feature
 # graph or features file serves every value of these.
 MATCH_FIELDS = (
@@ -62,6 +66,7 @@ class PipelineConfig:
     patch_stride: int = 16
     descriptor_dim: int = 128
     descriptor_width: float = 0.5
+    nets: str = "metric"
     # Instance-norm eps of HardNet's input: sqrt(eps) = 0.03 is a contrast floor. With 1e-6 a flat
     # PoI patch was normalised float rounding, and torch and onnxruntime descriptors of
     # near-flat patches differed by 4e-4.
@@ -101,6 +106,7 @@ class PipelineConfig:
             raise ValueError("descriptor_width must be positive")
         for name, allowed in (
             ("matching", MATCHINGS), ("direction", DIRECTIONS), ("reduction", REDUCTIONS),
+            ("nets", NETS),
         ):  # fmt: skip
             if getattr(self, name) not in allowed:
                 raise ValueError(
@@ -116,9 +122,16 @@ class PipelineConfig:
 
     @classmethod
     def paper(cls, **changes: Any) -> PipelineConfig:
-        """The DR-KFS paper's recipe: 25 views at 256 px, full-width HardNet, every patch of A
-        searches all of B's, and the best-match distances are summed."""
-        recipe = dict(num_views=25, image_size=256, descriptor_width=1.0, matching="global")
+        """The DR-KFS paper's recipe: 25 views at 256 px, full-width HardNet trained on view-pair
+        correspondences, every patch of A searches all of B's, and the best-match distances are
+        summed."""
+        recipe = dict(
+            num_views=25,
+            image_size=256,
+            descriptor_width=1.0,
+            nets="correspondence",
+            matching="global",
+        )
         return cls(**{**recipe, "direction": "forward", "reduction": "sum", **changes})
 
     def features_part(self) -> PipelineConfig:

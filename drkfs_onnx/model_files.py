@@ -12,6 +12,6 @@ WEIGHTS_KEY = "drkfs_weights_sha256"
 
 
 def features_file(config: PipelineConfig) -> str:
-    """File name of the feature graph for a config's descriptor width and image size (the graph
-    takes any number of views)."""
-    return f"features_w{config.descriptor_width:g}_{config.image_size}px.onnx"
+    """File name of the feature graph for a config's nets, descriptor width and image size (the
+    graph takes any number of views)."""
+    return f"features_{config.nets}_w{config.descriptor_width:g}_{config.image_size}px.onnx"

@@ -1,21 +1,15 @@
-"""Held-out measurements: detector repeatability (against Harris and DoG), descriptor FPR95,
-model cost, and whether the metric ranks structural edits above mild ones."""
+"""Held-out measurements of the correspondence stage: detector repeatability (against Harris and
+DoG), descriptor FPR95 and model cost."""
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 
-import numpy as np
 import torch
 import torch.nn.functional as F
 from torch import nn
 
 from ..config import PipelineConfig
-from ..matching import match_score
-from ..mesh import normalize_pair
-from ..shapes import FAMILIES, assemble, random_shape
-from ..variants import make_variants, structural_wins
 from .data import ViewPairs, correspond, crops
 from .objectives import descriptor_distances
 
@@ -126,38 +120,3 @@ def conv_flops(net: nn.Module, example: torch.Tensor) -> int:
     for hook in hooks:
         hook.remove()
     return total
-
-
-def variant_ranking(
-    features: Callable[[torch.Tensor, torch.Tensor], torch.Tensor],
-    seed: int,
-    shapes_per_family: int,
-    config: PipelineConfig,
-) -> dict[str, float]:
-    """Share of (structural, mild) variant pairs of one base shape where the structural variant
-    scores further from the base; over ``shapes_per_family`` held-out shapes per family.
-
-    features: mesh already in the metric's frame (V, 3), (F, 3) -> descriptors; config: the
-    match they are scored with.
-    """
-    rng = np.random.default_rng(seed)
-    wins, total = 0, 0
-    for family in FAMILIES:
-        for _ in range(shapes_per_family):
-            parts = random_shape(family, rng)
-            variants = make_variants(parts, rng)
-            base_verts, base_faces = assemble(parts, 1)  # the variants' own tessellation
-            base_verts = torch.tensor(base_verts, dtype=torch.float32)
-            ref = None
-            scores: dict[str, list[float]] = {"structural": [], "mild": []}
-            for variant in variants:
-                verts, ref_verts = normalize_pair(
-                    torch.tensor(variant.verts, dtype=torch.float32), base_verts
-                )
-                if ref is None:
-                    ref = features(ref_verts, torch.tensor(base_faces))
-                own = features(verts, torch.tensor(variant.faces))
-                scores[variant.kind].append(float(match_score(own, ref, config)))
-            won, pairs = structural_wins(scores["structural"], scores["mild"])
-            wins, total = wins + won, total + pairs
-    return {"accuracy": wins / total, "pairs": total}

@@ -22,7 +22,7 @@ from ..detector import PoIDetector
 from ..hardnet import HardNet
 from ..metric import DRKFS
 from ..shapes import FAMILIES
-from ..weights import MANIFEST, RANDOM_SEED
+from ..weights import MANIFEST
 from .data import ViewPairs, crops, render_pairs, sample_matches
 from .evaluate import (
     conv_flops,
@@ -30,7 +30,17 @@ from .evaluate import (
     difference_of_gaussians,
     harris,
     repeatability,
-    variant_ranking,
+)
+from .metric_stage import (
+    ACCURACY_TOLERANCE,
+    BASELINE,
+    RETRIEVAL,
+    MetricPlan,
+    MetricStage,
+    admissible,
+    choose_objective,
+    choose_width,
+    with_nets,
 )
 from .objectives import detector_loss, hardest_triplet_loss, same_place
 
@@ -58,10 +68,11 @@ class TrainPlan:
     hardnet_steps: int = 500
     hardnet_batch: int = 256
     hardnet_lr: float = 1e-3
-    ranking_shapes_per_family: int = 1
     checkpoint_every: int = 50
-    # the config the shipped nets were trained at: the paper's cameras and image size
+    # the config the correspondence nets are trained at: the paper's cameras and image size
     config: dict = field(default_factory=lambda: PipelineConfig.paper().to_dict())
+    # the second stage: the same nets fine-tuned for the metric, at the default config
+    metric: MetricPlan = field(default_factory=MetricPlan)
 
     @property
     def pipeline(self) -> PipelineConfig:
@@ -81,7 +92,14 @@ QUICK = TrainPlan(
     hardnet_steps=6,
     hardnet_batch=32,
     checkpoint_every=3,
-    config=PipelineConfig(num_views=4, image_size=128).to_dict(),
+    config=PipelineConfig(num_views=4, image_size=128, nets="correspondence").to_dict(),
+    metric=MetricPlan(
+        shapes_per_family=2,
+        objective_width=0.25,
+        steps=2,
+        quick_benchmark=True,
+        config=PipelineConfig(num_views=4).to_dict(),
+    ),
 )
 
 
@@ -261,6 +279,61 @@ class Training:
         return net
 
 
+def _ship(metric: DRKFS, path: Path, default: bool) -> dict:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    torch.save(metric.state_dict(), path)
+    return {
+        "file": path.name,
+        "sha256": sha256(path),
+        "config": metric.config.to_dict(),
+        "default": default,
+    }
+
+
+def metric_stage(
+    plan: TrainPlan, run: Training, size: tuple[int, int, int], start: dict[float, DRKFS]
+) -> tuple[dict, dict[float, DRKFS]]:
+    """Fine-tune the correspondence nets (``start``, per width) with each objective at the
+    plan's objective width, choose the objective on the benchmark, then train every width with
+    it and choose the width. -> (the manifest's "metric" section, the tuned metric per width)."""
+    p = plan.metric
+    stage = MetricStage(p, run.work, plan.seed + 2, fit, run._timed)
+    data = stage.data()
+    config = _detector_config(p.pipeline, size)
+    begin = {w: with_nets(config.replace(descriptor_width=w), m.detector, m.descriptor)
+             for w, m in start.items()}  # fmt: skip
+    chamfer = stage.row("chamfer", None)
+    w0 = p.objective_width
+    rows = {BASELINE: stage.row(f"baseline_w{w0:g}", begin[w0])}
+    tuned = {}
+    for objective in p.objectives:
+        name = f"{objective}_w{w0:g}"
+        tuned[objective] = stage.fine_tune(begin[w0], objective, data, name)
+        rows[objective] = stage.row(name, tuned[objective])
+    objective = choose_objective(rows, chamfer)
+    nets, widths = {w0: tuned[objective]}, {w0: rows[objective]}
+    for w in plan.widths:
+        if w != w0:
+            name = f"{objective}_w{w:g}"
+            nets[w] = stage.fine_tune(begin[w], objective, data, name)
+            widths[w] = stage.row(name, nets[w])
+    width = choose_width(widths, chamfer)
+    section = {
+        "data": {"bases": len(data), "meshes_per_base": data.images.shape[1], "seed": stage.seed},
+        "chamfer_l1": chamfer,
+        "objectives": {n: {**r, "admissible": admissible(r, chamfer)} for n, r in rows.items()},
+        "objective": objective,
+        "widths": {
+            f"{w:g}": {**r, "admissible": admissible(r, chamfer)} for w, r in widths.items()
+        },
+        "width": width,
+        "rule": f"admissible: above Chamfer-L1 on both halves and retrieval >= {RETRIEVAL}; the "
+        f"admissible objective with the best accuracy at width {w0:g}, then the smallest width "
+        f"within {ACCURACY_TOLERANCE} of the best admissible accuracy",
+    }
+    return section, nets
+
+
 def train(plan: TrainPlan, out: Path, work: Path, command: str) -> dict:
     """Run the plan; write ``out/drkfs_w*.pt`` and ``out/manifest.json``; return the manifest."""
     run = Training(plan, work / plan_key(plan))
@@ -336,40 +409,19 @@ def train(plan: TrainPlan, out: Path, work: Path, command: str) -> dict:
     best_fpr = min(r["fpr95"] for r in descriptor_rows)
     width = min(r["width"] for r in descriptor_rows if r["fpr95"] <= best_fpr + FPR95_TOLERANCE)
 
-    # Ship every width with the chosen detector.
-    out.mkdir(parents=True, exist_ok=True)
-    entries = []
-    for w, net in nets.items():
-        shipped = _detector_config(config, size).replace(descriptor_width=w)
-        metric = DRKFS(shipped)
-        metric.detector.load_state_dict(detector.state_dict())
-        metric.descriptor.load_state_dict(net.state_dict())
-        path = out / f"drkfs_w{w:g}.pt"
-        torch.save(metric.state_dict(), path)
-        entries.append(
-            {
-                "file": path.name,
-                "sha256": sha256(path),
-                "config": shipped.to_dict(),
-                "default": w == width,
-            }
-        )
+    correspondence = {
+        w: with_nets(_detector_config(config, size).replace(descriptor_width=w), detector, net)
+        for w, net in nets.items()
+    }
+    metric_rows, tuned = metric_stage(plan, run, size, correspondence)
 
-    # Does training help the metric rank structural edits above mild ones?
-    start = time.perf_counter()
-    chosen = _detector_config(config, size).replace(descriptor_width=width)
-    trained = DRKFS(chosen)
-    trained.load_state_dict(torch.load(out / f"drkfs_w{width:g}.pt", weights_only=True))
-    with torch.random.fork_rng():
-        torch.manual_seed(RANDOM_SEED)
-        untrained_metric = DRKFS(chosen)
-    ranking = {}
-    for name, metric in (("trained", trained), ("untrained", untrained_metric)):
-        with torch.no_grad():
-            ranking[name] = variant_ranking(
-                metric.features, plan.seed + 2, plan.ranking_shapes_per_family, metric.config
-            )
-    run._timed("ranking", start)
+    out.mkdir(parents=True, exist_ok=True)
+    entries = [
+        _ship(m, out / f"drkfs_correspondence_w{w:g}.pt", False) for w, m in correspondence.items()
+    ] + [
+        _ship(m, out / f"drkfs_metric_w{w:g}.pt", w == metric_rows["width"])
+        for w, m in tuned.items()
+    ]
 
     manifest = {
         "command": command,
@@ -399,7 +451,7 @@ def train(plan: TrainPlan, out: Path, work: Path, command: str) -> dict:
             "rule": f"smallest detector within {REPEAT_TOLERANCE} repeatability and smallest "
             f"width within {FPR95_TOLERANCE} FPR95 point of the best",
         },
-        "ranking": ranking,
+        "metric": metric_rows,
         "weights": entries,
     }
     (out / MANIFEST).write_text(json.dumps(manifest, indent=1) + "\n")

@@ -1,0 +1,163 @@
+"""The metric stage of ``drkfs train``: fine-tune the correspondence-trained nets for what the
+metric must see, objective against objective and width against width, each judged on the
+project's benchmark (``drkfs bench``'s sensitivity, bars and retrieval sets)."""
+
+from __future__ import annotations
+
+import copy
+import json
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import torch
+
+from ..benchmark import sets
+from ..benchmark.methods import DrkfsTorch, Surface
+from ..benchmark.run import _accuracy, _bars, _retrieval, score_everything
+from ..config import PipelineConfig
+from ..metric import DRKFS
+from ..shapes import FAMILIES
+from .metric_objectives import metric_ranking, patch_contrast
+from .variant_views import VariantViews, render_variant_views
+
+RETRIEVAL = 0.83  # the retrieval the correspondence nets reach on the benchmark: not to be lost
+ACCURACY_TOLERANCE = 0.01  # ship the smallest width within 1 point of the best accuracy
+# objective name -> (VariantViews, seed) -> loss function of (metric, step)
+OBJECTIVES = {
+    "ranking": lambda data, seed: metric_ranking(data, seed, tiers=False),
+    "ranking with tiers": lambda data, seed: metric_ranking(data, seed, tiers=True),
+    "patch contrast": lambda data, seed: patch_contrast(data, seed, 8, 32),
+}
+BASELINE = "correspondence triplet (paper-style)"
+
+
+@dataclass(frozen=True)
+class MetricPlan:
+    """What decides the metric-trained nets, besides the correspondence stage they start from."""
+
+    shapes_per_family: int = 5
+    objectives: tuple[str, ...] = tuple(OBJECTIVES)
+    objective_width: float = 0.5  # the width the objectives are compared at
+    steps: int = 100
+    lr: float = 1e-4
+    quick_benchmark: bool = False  # the benchmark's quick subset (tests)
+    # the cameras, image size and match the nets are trained and judged at: the default's
+    config: dict = field(default_factory=lambda: PipelineConfig().to_dict())
+
+    @property
+    def pipeline(self) -> PipelineConfig:
+        return PipelineConfig.from_dict(self.config)
+
+
+def benchmark_set(quick: bool) -> sets.BenchSet:
+    """The benchmark's sensitivity, bars and retrieval sets (``sets.build`` without the
+    stability cases, which score no ranking)."""
+    bench = sets.BenchSet()
+    if quick:
+        sets.sensitivity(bench, ["chair"], [])
+        sets.retrieval(bench, ["chair", "table", "lamp"], 2)
+    else:
+        sets.sensitivity(bench, list(FAMILIES), sets.SWEPT_MESHES)
+        sets.retrieval(bench, list(FAMILIES), 2)
+    sets.bars(bench)
+    return bench
+
+
+def benchmark_row(metric: DRKFS, bench: sets.BenchSet) -> dict:
+    """The metric's structural-ranking accuracy (overall and per half), bars ratio and
+    retrieval on ``bench``, as ``drkfs bench`` computes them."""
+    name = "candidate"
+    scores, _ = score_everything(bench, [DrkfsTorch(name, metric)], lambda _: None)
+    return {
+        **_accuracy(bench, scores.comparisons[name]),
+        "bars": _bars(bench, scores.comparisons[name])["deletion_over_max_shift"],
+        "retrieval": _retrieval(bench, scores.retrieval[name])["nearest_neighbour_accuracy"],
+    }
+
+
+def chamfer_row(bench: sets.BenchSet) -> dict:
+    """Chamfer-L1's accuracy on the same sensitivity set: the bar both halves must clear."""
+    sensitivity = sets.BenchSet(
+        shapes=bench.shapes, comparisons=[c for c in bench.comparisons if c.group == "sensitivity"]
+    )
+    scores, _ = score_everything(sensitivity, [Surface()], lambda _: None)
+    return _accuracy(sensitivity, scores.comparisons["Chamfer-L1"])
+
+
+def admissible(row: dict, chamfer: dict) -> bool:
+    """Above Chamfer-L1 on both halves and retrieval kept (a half the set lacks is skipped)."""
+    halves = [
+        row[key] > chamfer[key]
+        for key in ("accuracy_synthetic", "accuracy_real")
+        if chamfer[key] is not None
+    ]
+    return all(halves) and row["retrieval"] >= RETRIEVAL
+
+
+def choose_objective(rows: dict[str, dict], chamfer: dict) -> str:
+    """The trained objective with the best accuracy among the admissible ones; the best
+    accuracy overall when none is admissible (the manifest says so)."""
+    trained = {name: row for name, row in rows.items() if name != BASELINE}
+    allowed = {n: r for n, r in trained.items() if admissible(r, chamfer)} or trained
+    return max(allowed, key=lambda n: allowed[n]["accuracy"])
+
+
+def choose_width(rows: dict[float, dict], chamfer: dict) -> float:
+    """The smallest width within ACCURACY_TOLERANCE of the best admissible accuracy (of the
+    best accuracy when none is admissible)."""
+    allowed = {w: r for w, r in rows.items() if admissible(r, chamfer)} or rows
+    best = max(r["accuracy"] for r in allowed.values())
+    return min(w for w, r in allowed.items() if r["accuracy"] >= best - ACCURACY_TOLERANCE)
+
+
+def with_nets(config: PipelineConfig, detector: torch.nn.Module, descriptor: torch.nn.Module):
+    """A DRKFS at ``config`` carrying copies of the given detector and HardNet."""
+    metric = DRKFS(config)
+    metric.detector.load_state_dict(detector.state_dict())
+    metric.descriptor.load_state_dict(descriptor.state_dict())
+    return metric
+
+
+class MetricStage:
+    """One run of a MetricPlan in a work folder; ``fit`` is ``training.run.fit``."""
+
+    def __init__(self, plan: MetricPlan, work: Path, seed: int, fit, timed):
+        self.plan, self.work, self.seed = plan, work, seed
+        self.config = plan.pipeline
+        self.fit, self.timed = fit, timed
+        self.bench = benchmark_set(plan.quick_benchmark)
+
+    def data(self) -> VariantViews:
+        path = self.work / "variant_views.pt"
+        if path.exists():
+            return VariantViews(**torch.load(path, weights_only=True))
+        start = time.perf_counter()
+        data = render_variant_views(
+            self.config, list(FAMILIES), self.plan.shapes_per_family, self.seed
+        )
+        torch.save(data.to_dict(), path)
+        self.timed("variant_views", start)
+        return data
+
+    def row(self, name: str, metric: DRKFS | None) -> dict:
+        """``benchmark_row`` of ``metric`` (None: ``chamfer_row``), computed once per work
+        folder."""
+        path = self.work / f"bench_{name.replace(' ', '_')}.json"
+        if not path.exists():
+            start = time.perf_counter()
+            row = chamfer_row(self.bench) if metric is None else benchmark_row(metric, self.bench)
+            path.write_text(json.dumps(row))
+            self.timed(f"bench_{name}", start)
+        return json.loads(path.read_text())
+
+    def fine_tune(self, start: DRKFS, objective: str, data: VariantViews, name: str) -> DRKFS:
+        metric = copy.deepcopy(start)
+        metric.detector.requires_grad_(True)
+        metric.descriptor.requires_grad_(True)
+        loss_fn = OBJECTIVES[objective](data, self.seed)
+        began = time.perf_counter()
+        checkpoint = self.work / f"metric_{name.replace(' ', '_')}.pt"
+        self.fit(metric, loss_fn, self.plan.steps, self.plan.lr, checkpoint, 20)
+        self.timed(checkpoint.stem, began)
+        return metric.requires_grad_(False)
