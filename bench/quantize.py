@@ -2,8 +2,9 @@
 
     python bench/quantize.py [--out bench/results/quantize.json]
 
-Quantises ``models/features_w1.onnx`` with onnxruntime (calibrated on renders of six synthetic
-shapes that the evaluation does not use), then, in the same run and process, with 2 threads:
+Quantises the paper preset's feature graph (``models/features_correspondence_w1_256px.onnx``)
+with onnxruntime (calibrated on renders of six synthetic shapes that the evaluation does not
+use), then, in the same run and process, with 2 threads:
 seconds per new mesh (render + features, best of 3) for fp32 and int8 as a ratio; and on the
 variants of nine other synthetic shapes (two structural and five mild edits each, scored against
 their base) the relative score change, Kendall's tau between the two score lists, and whether

@@ -131,8 +131,9 @@ def test_pretrained_loads_weights_listed_for_its_config(tmp_path, monkeypatch):
     # other cameras or pixels use the same nets; other nets do not
     other_views = DRKFS.pretrained(FAST.replace(num_views=5, image_size=64))
     assert torch.equal(other_views.detector.conv.weight, trained.detector.conv.weight)
-    with pytest.warns(UserWarning, match="random weights"):
-        DRKFS.pretrained(FAST.replace(detector_m=2))
+    for other_nets in (FAST.replace(detector_m=2), FAST.replace(nets="correspondence")):
+        with pytest.warns(UserWarning, match="random weights"):
+            DRKFS.pretrained(other_nets)
     (tmp_path / "fast.pt").write_bytes(b"tampered")
     with pytest.raises(ValueError, match="does not match the manifest"):
         DRKFS.pretrained(FAST)

@@ -15,10 +15,11 @@ from drkfs_onnx import DRKFS, PipelineConfig
 from drkfs_onnx.cli import app
 from drkfs_onnx.shapes import FAMILIES, assemble, random_shape
 from drkfs_onnx.training.data import correspond, render_pairs, sample_matches
+from drkfs_onnx.training.metric_stage import BASELINE, OBJECTIVES
 from drkfs_onnx.training.objectives import detector_loss, hardest_triplet_loss
 from drkfs_onnx.training.run import fit
 from drkfs_onnx.variants import MILD, STRUCTURAL, make_variants
-from drkfs_onnx.weights import MANIFEST, models_dir
+from drkfs_onnx.weights import MANIFEST, models_dir, shipped_entry
 
 
 @pytest.mark.parametrize("family", list(FAMILIES))
@@ -133,16 +134,22 @@ def test_quick_training_writes_weights_that_match_their_manifest(tmp_path):
     manifest = _check_manifest(tmp_path / "out")
     assert manifest["command"].startswith("drkfs train") and "--quick" in manifest["command"]
     assert {row["detector"] for row in manifest["detectors"]} >= {"harris", "dog"}
-    for row in manifest["descriptors"]:
-        assert 0 <= row["fpr95"] <= 100 and row["params"] > 0 and row["flops_per_patch"] > 0
+    stage = manifest["metric"]
+    # every objective and the paper-style baseline judged on the benchmark, the choice among them
+    assert set(stage["objectives"]) == {BASELINE, *OBJECTIVES}
+    assert stage["objective"] in OBJECTIVES
+    nets = {PipelineConfig.from_dict(e["config"]).nets for e in manifest["weights"]}
+    assert nets == {"metric", "correspondence"}
 
 
-def test_shipped_weights_match_the_manifest_and_load_by_default():
+def test_shipped_weights_match_the_manifest_and_serve_both_presets():
     manifest = _check_manifest(models_dir())
     default = next(e for e in manifest["weights"] if e["default"])
-    # trained at the paper's cameras and image size; they serve every config's cameras
-    trained = PipelineConfig.from_dict(default["config"])
-    assert trained.features_part() == PipelineConfig.paper().features_part()
+    assert shipped_entry(PipelineConfig(), any_cameras=True) == default
+    paper = shipped_entry(PipelineConfig.paper(), any_cameras=True)
+    # the paper preset's nets were trained the paper's way, at its cameras and image size
+    assert PipelineConfig.from_dict(paper["config"]) == PipelineConfig.paper().features_part()
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         DRKFS.pretrained()
+        DRKFS.pretrained(PipelineConfig.paper())

@@ -18,7 +18,9 @@ NMS_WINDOW = 5
 REPEAT_PIXELS = 3.0  # a keypoint repeats if one is detected this close to its projection
 
 
-def _gaussian(images: torch.Tensor, sigma: float) -> torch.Tensor:
+def gaussian_blur(images: torch.Tensor, sigma: float) -> torch.Tensor:
+    """(B, 1, S, S) -> the same blurred by a separable Gaussian of ``sigma`` pixels (edges
+    replicated)."""
     radius = max(1, math.ceil(3 * sigma))
     x = torch.arange(-radius, radius + 1, dtype=images.dtype)
     k = torch.exp(-(x**2) / (2 * sigma**2))
@@ -29,17 +31,17 @@ def _gaussian(images: torch.Tensor, sigma: float) -> torch.Tensor:
 
 def harris(images: torch.Tensor, k: float = 0.04) -> torch.Tensor:
     """(B, 1, S, S) -> Harris corner response (Gaussian derivatives at sigma 1, window 2)."""
-    smooth = _gaussian(images, 1.0)
+    smooth = gaussian_blur(images, 1.0)
     dx = (smooth[..., :, 2:] - smooth[..., :, :-2]) / 2
     dy = (smooth[..., 2:, :] - smooth[..., :-2, :]) / 2
     dx, dy = F.pad(dx, (1, 1, 0, 0)), F.pad(dy, (0, 0, 1, 1))
-    xx, yy, xy = (_gaussian(t, 2.0) for t in (dx * dx, dy * dy, dx * dy))
+    xx, yy, xy = (gaussian_blur(t, 2.0) for t in (dx * dx, dy * dy, dx * dy))
     return xx * yy - xy * xy - k * (xx + yy) ** 2
 
 
 def difference_of_gaussians(images: torch.Tensor, sigma: float = 1.6) -> torch.Tensor:
     """(B, 1, S, S) -> |DoG| at one octave step, Lowe's base scale."""
-    return (_gaussian(images, sigma * math.sqrt(2)) - _gaussian(images, sigma)).abs()
+    return (gaussian_blur(images, sigma * math.sqrt(2)) - gaussian_blur(images, sigma)).abs()
 
 
 def keypoints(response: torch.Tensor, foreground: torch.Tensor) -> list[torch.Tensor]:

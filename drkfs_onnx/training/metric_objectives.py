@@ -125,7 +125,7 @@ def patch_contrast(data: VariantViews, seed: int, bases_per_step: int, per_base:
         rng = np.random.default_rng([seed, 4, step])
         config = metric.config
         anchors, positives, negatives, shows, places = [], [], [], [], []
-        for i, b in enumerate(rng.choice(len(data), bases_per_step, replace=False)):
+        for i, b in enumerate(rng.choice(len(data), min(bases_per_step, len(data)), False)):
             mild_cols, structural_cols = _source_columns(rng)
             mild, structural = int(rng.choice(mild_cols)), int(rng.choice(structural_cols))
             rows, show = _positions(

@@ -9,7 +9,9 @@ import json
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import NamedTuple
 
+import numpy as np
 import torch
 
 from ..benchmark import sets
@@ -18,16 +20,45 @@ from ..benchmark.run import _accuracy, _bars, _retrieval, score_everything
 from ..config import PipelineConfig
 from ..metric import DRKFS
 from ..shapes import FAMILIES
-from .metric_objectives import metric_ranking, patch_contrast
+from .metric_objectives import LossFn, metric_ranking, patch_contrast
+from .objectives import correspondence_triplet
 from .variant_views import VariantViews, render_variant_views
 
 RETRIEVAL = 0.83  # the retrieval the correspondence nets reach on the benchmark: not to be lost
 ACCURACY_TOLERANCE = 0.01  # ship the smallest width within 1 point of the best accuracy
-# objective name -> (VariantViews, seed) -> loss function of (metric, step)
+REGULARISER_BATCH = 128  # correspondences per step when the correspondence triplet joins in
+
+
+class Correspondences(NamedTuple):
+    """The correspondence stage's training views as its chosen detector maps them, (N, 2, S, S),
+    and their (C, 5) matches: what the paper-style triplet trains on."""
+
+    maps: torch.Tensor
+    matches: torch.Tensor
+
+
+def _ranking_and_triplet(data: VariantViews, seed: int, pairs: Correspondences) -> LossFn:
+    """The metric ranking plus the correspondence triplet on HardNet (the detector's maps of
+    the view pairs are fixed): structure learned without forgetting what tells places apart."""
+    ranking = metric_ranking(data, seed, tiers=False)
+
+    def loss_fn(metric: DRKFS, step: int) -> torch.Tensor:
+        rng = np.random.default_rng([seed, 5, step])
+        size = metric.config.patch_size
+        triplet = correspondence_triplet(
+            metric.descriptor, pairs.maps, pairs.matches, rng, REGULARISER_BATCH, size
+        )
+        return ranking(metric, step) + triplet
+
+    return loss_fn
+
+
+# objective name -> (VariantViews, seed, Correspondences) -> loss function of (metric, step)
 OBJECTIVES = {
-    "ranking": lambda data, seed: metric_ranking(data, seed, tiers=False),
-    "ranking with tiers": lambda data, seed: metric_ranking(data, seed, tiers=True),
-    "patch contrast": lambda data, seed: patch_contrast(data, seed, 8, 32),
+    "ranking": lambda data, seed, _: metric_ranking(data, seed, tiers=False),
+    "ranking with tiers": lambda data, seed, _: metric_ranking(data, seed, tiers=True),
+    "patch contrast": lambda data, seed, _: patch_contrast(data, seed, 8, 32),
+    "ranking + correspondence triplet": _ranking_and_triplet,
 }
 BASELINE = "correspondence triplet (paper-style)"
 
@@ -103,12 +134,13 @@ def choose_objective(rows: dict[str, dict], chamfer: dict) -> str:
     return max(allowed, key=lambda n: allowed[n]["accuracy"])
 
 
-def choose_width(rows: dict[float, dict], chamfer: dict) -> float:
-    """The smallest width within ACCURACY_TOLERANCE of the best admissible accuracy (of the
-    best accuracy when none is admissible)."""
-    allowed = {w: r for w, r in rows.items() if admissible(r, chamfer)} or rows
+def choose_smallest(rows: dict, cost: dict, chamfer: dict):
+    """The key of the cheapest row (by ``cost``) within ACCURACY_TOLERANCE of the best
+    admissible accuracy (of the best accuracy when none is admissible)."""
+    allowed = {k: r for k, r in rows.items() if admissible(r, chamfer)} or rows
     best = max(r["accuracy"] for r in allowed.values())
-    return min(w for w, r in allowed.items() if r["accuracy"] >= best - ACCURACY_TOLERANCE)
+    return min((k for k, r in allowed.items() if r["accuracy"] >= best - ACCURACY_TOLERANCE),
+               key=cost.get)  # fmt: skip
 
 
 def with_nets(config: PipelineConfig, detector: torch.nn.Module, descriptor: torch.nn.Module):
@@ -120,12 +152,14 @@ def with_nets(config: PipelineConfig, detector: torch.nn.Module, descriptor: tor
 
 
 class MetricStage:
-    """One run of a MetricPlan in a work folder; ``fit`` is ``training.run.fit``."""
+    """One run of a MetricPlan in a work folder; ``fit`` is ``training.run.fit``, ``timed``
+    records a stage's seconds."""
 
-    def __init__(self, plan: MetricPlan, work: Path, seed: int, fit, timed):
-        self.plan, self.work, self.seed = plan, work, seed
+    def __init__(self, plan: MetricPlan, work: Path, seed: int, pairs: Correspondences, fit, timed):
+        self.plan, self.work, self.seed, self.pairs = plan, work, seed, pairs
         self.config = plan.pipeline
         self.fit, self.timed = fit, timed
+        work.mkdir(parents=True, exist_ok=True)
         self.bench = benchmark_set(plan.quick_benchmark)
 
     def data(self) -> VariantViews:
@@ -155,7 +189,7 @@ class MetricStage:
         metric = copy.deepcopy(start)
         metric.detector.requires_grad_(True)
         metric.descriptor.requires_grad_(True)
-        loss_fn = OBJECTIVES[objective](data, self.seed)
+        loss_fn = OBJECTIVES[objective](data, self.seed, self.pairs)
         began = time.perf_counter()
         checkpoint = self.work / f"metric_{name.replace(' ', '_')}.pt"
         self.fit(metric, loss_fn, self.plan.steps, self.plan.lr, checkpoint, 20)

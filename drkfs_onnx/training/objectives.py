@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import torch
 import torch.nn.functional as F
 
@@ -14,6 +15,7 @@ SHIFT = 4  # pixels: a window this far off the true match is a different place
 PEAK_WINDOW = 15  # neighbourhood in which a map should have one clear peak
 MARGIN = 1.0
 NEAR_PIXELS = 16  # same pair and closer than this in view 0: not a negative
+JITTER = 3  # pixels a positive patch is moved by, for the metric's grid misalignment
 
 
 def detector_loss(
@@ -88,3 +90,25 @@ def same_place(matches: torch.Tensor) -> torch.Tensor:
     same_pair = matches[:, 0, None] == matches[None, :, 0]
     gap = (matches[:, None, 1:3] - matches[None, :, 1:3]).abs().amax(-1)
     return same_pair & (gap < NEAR_PIXELS)
+
+
+def correspondence_triplet(
+    net: torch.nn.Module,
+    maps: torch.Tensor,
+    matches: torch.Tensor,
+    rng: np.random.Generator,
+    batch: int,
+    patch_size: int,
+) -> torch.Tensor:
+    """HardNet's objective on view pairs: ``batch`` random correspondences, the second patch
+    moved by up to JITTER pixels, through ``hardest_triplet_loss``.
+
+    maps: (N, 2, S, S) PoI maps of the pairs; matches: (C, 5) correspondences (``sample_matches``).
+    """
+    rows = matches[torch.as_tensor(rng.choice(len(matches), batch, False))]
+    moved = rows[:, [0, 3, 4]].clone()
+    moved[:, 1:] += torch.as_tensor(rng.integers(-JITTER, JITTER + 1, (len(rows), 2)))
+    first = crops(maps[:, 0], rows[:, [0, 1, 2]], patch_size)
+    second = crops(maps[:, 1], moved, patch_size)
+    anchors, positives = net(torch.cat([first, second]).unsqueeze(1)).chunk(2)
+    return hardest_triplet_loss(anchors, positives, same_place(rows))

@@ -23,7 +23,7 @@ from ..hardnet import HardNet
 from ..metric import DRKFS
 from ..shapes import FAMILIES
 from ..weights import MANIFEST
-from .data import ViewPairs, crops, render_pairs, sample_matches
+from .data import ViewPairs, render_pairs, sample_matches
 from .evaluate import (
     conv_flops,
     descriptor_fpr95,
@@ -35,17 +35,17 @@ from .metric_stage import (
     ACCURACY_TOLERANCE,
     BASELINE,
     RETRIEVAL,
+    Correspondences,
     MetricPlan,
     MetricStage,
     admissible,
     choose_objective,
-    choose_width,
+    choose_smallest,
     with_nets,
 )
-from .objectives import detector_loss, hardest_triplet_loss, same_place
+from .objectives import correspondence_triplet, detector_loss
 
-BORDER = 20  # matches stay this far inside the image: 16 for a 32-pixel patch, plus jitter
-JITTER = 3  # pixels a positive patch is moved by, for the metric's grid misalignment
+BORDER = 20  # matches stay this far inside the image: 16 for a 32-pixel patch, plus JITTER
 FPR95_TOLERANCE = 1.0  # ship the smallest net within this many FPR95 points of the best
 REPEAT_TOLERANCE = 0.01  # and the smallest detector within this repeatability of the best
 
@@ -107,9 +107,13 @@ def sha256(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
-def plan_key(plan: TrainPlan) -> str:
-    """A short hash of the plan: checkpoints of different plans never mix in one work folder."""
-    return hashlib.sha256(json.dumps(asdict(plan), sort_keys=True).encode()).hexdigest()[:12]
+def plan_key(plan) -> str:
+    """A short hash of a plan (a dataclass): checkpoints of different plans never mix in one
+    work folder. A TrainPlan's key leaves out its metric stage, which keys its own subfolder,
+    so a change there does not retrain the correspondence stage."""
+    fields = asdict(plan)
+    fields.pop("metric", None)
+    return hashlib.sha256(json.dumps(fields, sort_keys=True).encode()).hexdigest()[:12]
 
 
 def _git_commit() -> str:
@@ -263,14 +267,7 @@ class Training:
 
         def loss_fn(model: nn.Module, step: int) -> torch.Tensor:
             rng = np.random.default_rng([p.seed, 2, step])
-            batch = matches[torch.as_tensor(rng.choice(len(matches), p.hardnet_batch, False))]
-            moved = batch[:, [0, 3, 4]].clone()
-            moved[:, 1:] += torch.as_tensor(rng.integers(-JITTER, JITTER + 1, (len(batch), 2)))
-            first = crops(maps[:, 0], batch[:, [0, 1, 2]], size)
-            second = crops(maps[:, 1], moved, size)
-            out = model(torch.cat([first, second]).unsqueeze(1))
-            anchors, positives = out.chunk(2)
-            return hardest_triplet_loss(anchors, positives, same_place(batch))
+            return correspondence_triplet(model, maps, matches, rng, p.hardnet_batch, size)
 
         start = time.perf_counter()
         checkpoint = self.work / f"hardnet_w{width:g}.pt"
@@ -291,13 +288,21 @@ def _ship(metric: DRKFS, path: Path, default: bool) -> dict:
 
 
 def metric_stage(
-    plan: TrainPlan, run: Training, size: tuple[int, int, int], start: dict[float, DRKFS]
+    plan: TrainPlan,
+    run: Training,
+    size: tuple[int, int, int],
+    start: dict[float, DRKFS],
+    detectors: dict[tuple[int, int, int], PoIDetector],
+    pairs: Correspondences,
 ) -> tuple[dict, dict[float, DRKFS]]:
-    """Fine-tune the correspondence nets (``start``, per width) with each objective at the
-    plan's objective width, choose the objective on the benchmark, then train every width with
-    it and choose the width. -> (the manifest's "metric" section, the tuned metric per width)."""
+    """Fine-tune the correspondence nets (``start``, per width, with the detector of ``size``)
+    with each objective at the plan's objective width and choose the objective on the
+    benchmark; train every width with it and choose the width; then try the other detector
+    sizes at that width and keep the smallest within a point of the best.
+    -> (the manifest's "metric" section, the tuned metric per width)."""
     p = plan.metric
-    stage = MetricStage(p, run.work, plan.seed + 2, fit, run._timed)
+    work = run.work / f"metric-{plan_key(p)}"
+    stage = MetricStage(p, work, plan.seed + 2, pairs, fit, run._timed)
     data = stage.data()
     config = _detector_config(p.pipeline, size)
     begin = {w: with_nets(config.replace(descriptor_width=w), m.detector, m.descriptor)
@@ -317,7 +322,18 @@ def metric_stage(
             name = f"{objective}_w{w:g}"
             nets[w] = stage.fine_tune(begin[w], objective, data, name)
             widths[w] = stage.row(name, nets[w])
-    width = choose_width(widths, chamfer)
+    width = choose_smallest(widths, {w: w for w in widths}, chamfer)
+    sizes = {_size_name(size): (widths[width], nets[width])}
+    for other in plan.detector_sizes:
+        if other != size:
+            name = f"{objective}_w{width:g}_{_size_name(other)}"
+            config = _detector_config(p.pipeline, other).replace(descriptor_width=width)
+            begin_other = with_nets(config, detectors[other], start[width].descriptor)
+            tuned_other = stage.fine_tune(begin_other, objective, data, name)
+            sizes[_size_name(other)] = (stage.row(name, tuned_other), tuned_other)
+    params = {n: _params(m.detector) for n, (_, m) in sizes.items()}
+    detector = choose_smallest({n: r for n, (r, _) in sizes.items()}, params, chamfer)
+    nets[width] = sizes[detector][1]
     section = {
         "data": {"bases": len(data), "meshes_per_base": data.images.shape[1], "seed": stage.seed},
         "chamfer_l1": chamfer,
@@ -327,15 +343,22 @@ def metric_stage(
             f"{w:g}": {**r, "admissible": admissible(r, chamfer)} for w, r in widths.items()
         },
         "width": width,
+        "detectors": {
+            n: {**r, "params": params[n], "admissible": admissible(r, chamfer)}
+            for n, (r, _) in sizes.items()
+        },
+        "detector": detector,
         "rule": f"admissible: above Chamfer-L1 on both halves and retrieval >= {RETRIEVAL}; the "
-        f"admissible objective with the best accuracy at width {w0:g}, then the smallest width "
-        f"within {ACCURACY_TOLERANCE} of the best admissible accuracy",
+        f"admissible objective with the best accuracy at width {w0:g}, then the smallest width, "
+        f"then the smallest detector, within {ACCURACY_TOLERANCE} of the best admissible "
+        "accuracy",
     }
     return section, nets
 
 
 def train(plan: TrainPlan, out: Path, work: Path, command: str) -> dict:
     """Run the plan; write ``out/drkfs_w*.pt`` and ``out/manifest.json``; return the manifest."""
+    commit = _git_commit()  # the code that runs, before anyone edits the tree during the run
     run = Training(plan, work / plan_key(plan))
     config = run.config
     data = run.data()
@@ -413,7 +436,8 @@ def train(plan: TrainPlan, out: Path, work: Path, command: str) -> dict:
         w: with_nets(_detector_config(config, size).replace(descriptor_width=w), detector, net)
         for w, net in nets.items()
     }
-    metric_rows, tuned = metric_stage(plan, run, size, correspondence)
+    pairs = Correspondences(train_maps, data["train_matches"])
+    metric_rows, tuned = metric_stage(plan, run, size, correspondence, detectors, pairs)
 
     out.mkdir(parents=True, exist_ok=True)
     entries = [
@@ -426,7 +450,7 @@ def train(plan: TrainPlan, out: Path, work: Path, command: str) -> dict:
     manifest = {
         "command": command,
         "seed": plan.seed,
-        "commit": _git_commit(),
+        "commit": commit,
         "torch": torch.__version__,
         "plan": asdict(plan),
         "data": {
