@@ -115,3 +115,16 @@ def test_one_step_of_each_objective_has_a_gradient_for_both_nets(views, objectiv
     assert torch.isfinite(loss) and loss > 0
     for net in (metric.detector, metric.descriptor):
         assert any(p.grad is not None and p.grad.abs().sum() > 0 for p in net.parameters())
+
+
+def test_an_edit_shows_only_where_it_changes_more_than_every_mild_edit_there():
+    meshes = 1 + len(VARIANT_NAMES)
+    changed = torch.zeros(1, meshes, 1, 3)
+    mild, structural = VariantViews.sources()[0]
+    changed[0, mild[0]] = torch.tensor([0.1, 0.0, 0.0])  # a silhouette a mild edit moved
+    changed[0, structural[0]] = torch.tensor([0.12, 0.3, 0.0])
+    changed[0, structural[1]] = torch.tensor([0.14, 0.0, 0.0])  # an edit no camera really sees
+    views = VariantViews(torch.zeros(1, meshes, 1, 4, 4), changed, torch.zeros(1))
+    shows = views.shows_edit()[0]
+    assert shows[structural[0]].tolist() == [False, True, False]
+    assert not shows[structural[1]].any() and not shows[mild].any()

@@ -22,21 +22,15 @@ from .variant_views import VariantViews
 
 RANK_MARGIN = 0.5  # log-ratio: a structural variant should score >= e^0.5 = 1.65x a mild one
 BARS_MARGIN = float(np.log(2.0))  # a removed part should score twice a moved one (bars ratio 2)
+RETRIEVAL_MARGIN = 0.1  # a shape of the same family only needs to come first
 PATCH_MARGIN = 1.0  # HardNet's margin, in descriptor distance
-# a patch shows the structural edit when its changed share exceeds every mild variant's there
-# by this much: silhouettes that a mild edit moves are not counted as structure
-STRUCTURAL_SHARE = 0.05
 
 LossFn = Callable[[DRKFS, int], torch.Tensor]
 
 
 def _source_columns(rng: np.random.Generator) -> tuple[list[int], list[int]]:
     """Mild and structural columns of one variant source (part-based or surface edits)."""
-    mild, structural = VariantViews.columns("mild"), VariantViews.columns("structural")
-    half = len(mild) // 2, len(structural) // 2
-    if rng.random() < 0.5:
-        return mild[: half[0]], structural[: half[1]]
-    return mild[half[0] :], structural[half[1] :]
+    return VariantViews.sources()[0 if rng.random() < 0.5 else 1]
 
 
 def ranking_loss(lower: torch.Tensor, higher: torch.Tensor, margin: float) -> torch.Tensor:
@@ -47,27 +41,43 @@ def ranking_loss(lower: torch.Tensor, higher: torch.Tensor, margin: float) -> to
     return (margin - gap).clamp_min(0).mean()
 
 
-def _other_bases(data: VariantViews, base: int, rng: np.random.Generator) -> tuple[int, int]:
-    """Another base of the same family and one of another family."""
+def _family_split(data: VariantViews, base: int) -> tuple[np.ndarray, np.ndarray]:
+    """The other bases of ``base``'s family, and the bases of other families."""
     family = data.family
     same = np.flatnonzero((family == family[base]).numpy() & (np.arange(len(data)) != base))
-    other = np.flatnonzero((family != family[base]).numpy())
+    return same, np.flatnonzero((family != family[base]).numpy())
+
+
+def _other_bases(data: VariantViews, base: int, rng: np.random.Generator) -> tuple[int, int]:
+    """Another base of the same family and one of another family."""
+    same, other = _family_split(data, base)
     return int(rng.choice(same)), int(rng.choice(other))
 
 
-def metric_ranking(data: VariantViews, seed: int, tiers: bool) -> LossFn:
+def metric_ranking(data: VariantViews, seed: int, tiers: bool, retrieval: int = 0) -> LossFn:
     """End to end through the metric: each step scores one base's variants (part-based or
     surface edits) against the base with ``match_score`` at the metric's config and ranks mild
     below structural. With ``tiers`` it also ranks a mild edit below a part moved by
     MOVED_SHIFT, the moved part below half a structural edit (the paper's bars test), a
     structural edit below a shape of another family, and another shape of the same family below
-    one of another family (retrieval)."""
+    one of another family (retrieval). With ``retrieval`` > 0 it instead ranks that many other
+    bases of the same family below that many of other families, every pair, by
+    RETRIEVAL_MARGIN: the order the benchmark's retrieval needs, without asking a family to be
+    tight."""
+
+    # an edit no camera sees cannot be ranked: it would only push the nets towards noise
+    visible = data.shows_edit().any(-1)
 
     def loss_fn(metric: DRKFS, step: int) -> torch.Tensor:
         rng = np.random.default_rng([seed, 3, step])
-        base = int(rng.integers(len(data)))
+        base = int(
+            rng.choice(torch.nonzero(visible[:, VariantViews.columns("structural")].any(1))[:, 0])
+        )
         mild, structural = _source_columns(rng)
-        part_source = mild[0] < VariantViews.columns("structural")[2]
+        structural = [j for j in structural if visible[base, j]] or [
+            j for j in VariantViews.columns("structural") if visible[base, j]
+        ]
+        part_source = mild == VariantViews.sources()[0][0]
         views = data.images[base][:, :, None]  # (1 + V, K, 1, S, S)
         reference = metric.describe(views[0])
 
@@ -78,6 +88,15 @@ def metric_ranking(data: VariantViews, seed: int, tiers: bool) -> LossFn:
 
         d_mild, d_structural = scores(views[mild]), scores(views[structural])
         loss = ranking_loss(d_mild, d_structural, RANK_MARGIN)
+        if retrieval:
+            same, other = _family_split(data, base)
+            near = rng.choice(same, min(retrieval, len(same)), replace=False)
+            far = rng.choice(other, retrieval, replace=False)
+            d_near, d_far = (
+                scores(data.images[near, 0, :, None]),
+                scores(data.images[far, 0, :, None]),
+            )
+            return loss + ranking_loss(d_near, d_far, RETRIEVAL_MARGIN)
         if not tiers:
             return loss
         same, other = _other_bases(data, base, rng)
@@ -94,12 +113,11 @@ def metric_ranking(data: VariantViews, seed: int, tiers: bool) -> LossFn:
 
 
 def _positions(
-    changed: torch.Tensor, seen: np.ndarray, mild: int, structural: int, count: int, rng
+    shows: np.ndarray, seen: np.ndarray, mild: int, count: int, rng
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Patch rows for one base: half where the structural variant shows its edit (when it
-    does), the rest anywhere the base or the mild variant sees something. -> (rows, shows)."""
-    mild_share = changed[VariantViews.columns("mild")].flatten(1).amax(0)
-    shows = (changed[structural].flatten() > mild_share + STRUCTURAL_SHARE).numpy()
+    """Patch rows for one base: half where the structural variant shows its edit (``shows``,
+    (K * P,) bool; when it does), the rest anywhere the base or the mild variant sees something.
+    -> (rows, shows)."""
     edited = np.flatnonzero(shows)
     anywhere = np.flatnonzero(seen[0] | seen[mild])
     picked = rng.choice(edited, min(len(edited), count // 2), replace=False)
@@ -114,6 +132,7 @@ def patch_contrast(data: VariantViews, seed: int, bases_per_step: int, per_base:
     variant shows its edit, that variant's patch at the same position:
     max(0, margin + d(a, p) - d(a, s))."""
     k = data.images.shape[2]
+    edit_shows = data.shows_edit().numpy()
     cache: dict[int, np.ndarray] = {}
 
     def nonempty(b: int, config) -> np.ndarray:
@@ -129,7 +148,7 @@ def patch_contrast(data: VariantViews, seed: int, bases_per_step: int, per_base:
             mild_cols, structural_cols = _source_columns(rng)
             mild, structural = int(rng.choice(mild_cols)), int(rng.choice(structural_cols))
             rows, show = _positions(
-                data.changed[b], nonempty(b, config), mild, structural, per_base, rng
+                edit_shows[b, structural], nonempty(b, config), mild, per_base, rng
             )
             index = torch.as_tensor(rows)
             maps = metric.detector(data.images[b][[0, mild, structural]].flatten(0, 1)[:, None])

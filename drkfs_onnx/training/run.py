@@ -348,16 +348,20 @@ def metric_stage(
             for n, (r, _) in sizes.items()
         },
         "detector": detector,
+        # the default config uses the metric nets only when they are admissible; else the
+        # correspondence nets stay its nets
+        "default_nets": "metric" if admissible(sizes[detector][0], chamfer) else "correspondence",
         "rule": f"admissible: above Chamfer-L1 on both halves and retrieval >= {RETRIEVAL}; the "
         f"admissible objective with the best accuracy at width {w0:g}, then the smallest width, "
         f"then the smallest detector, within {ACCURACY_TOLERANCE} of the best admissible "
-        "accuracy",
+        "accuracy; the default uses the chosen metric nets if they are admissible",
     }
     return section, nets
 
 
 def train(plan: TrainPlan, out: Path, work: Path, command: str) -> dict:
-    """Run the plan; write ``out/drkfs_w*.pt`` and ``out/manifest.json``; return the manifest."""
+    """Run the plan; write ``out/drkfs_{correspondence,metric}_w*.pt`` and
+    ``out/manifest.json``; return the manifest."""
     commit = _git_commit()  # the code that runs, before anyone edits the tree during the run
     run = Training(plan, work / plan_key(plan))
     config = run.config
@@ -440,11 +444,17 @@ def train(plan: TrainPlan, out: Path, work: Path, command: str) -> dict:
     metric_rows, tuned = metric_stage(plan, run, size, correspondence, detectors, pairs)
 
     out.mkdir(parents=True, exist_ok=True)
+    # the default config's weights: the chosen metric nets, or the correspondence nets at the
+    # width the objectives were compared at
+    default = (
+        ("metric", metric_rows["width"])
+        if metric_rows["default_nets"] == "metric"
+        else ("correspondence", plan.metric.objective_width)
+    )
     entries = [
-        _ship(m, out / f"drkfs_correspondence_w{w:g}.pt", False) for w, m in correspondence.items()
-    ] + [
-        _ship(m, out / f"drkfs_metric_w{w:g}.pt", w == metric_rows["width"])
-        for w, m in tuned.items()
+        _ship(m, out / f"drkfs_{nets}_w{w:g}.pt", (nets, w) == default)
+        for nets, trained in (("correspondence", correspondence), ("metric", tuned))
+        for w, m in trained.items()
     ]
 
     manifest = {

@@ -35,6 +35,9 @@ from .data import _camera_depth, hard_depth
 # surface: twice the largest mild shift (2.5% of the diagonal), so only silhouettes that move
 # mark a mild edit
 CHANGED_DEPTH = 0.1
+# a patch shows a structural edit when its changed share exceeds every mild variant's there by
+# this much: silhouettes that a mild edit moves are not counted as structure
+STRUCTURAL_SHARE = 0.05
 # a part moved this far (share of the diagonal): more than a mild shift (2.5%), less than a
 # removal; the paper's feature-level test moves a chair's bars by about this much
 MOVED_SHIFT = 0.08
@@ -72,6 +75,23 @@ class VariantViews:
         or 'moved')."""
         names = {"structural": STRUCTURAL, "mild": MILD, "moved": ("moved",)}[kind]
         return [1 + i for i, v in enumerate(VARIANT_NAMES) if v.split(":")[1] in names]
+
+    def shows_edit(self) -> torch.Tensor:
+        """(B, 1 + V, K * P) bool: the patches where each mesh differs from its base by more
+        than any mild variant does there (STRUCTURAL_SHARE more). A structural variant with no
+        such patch made its edit where no camera sees it: DR-KFS's blind spot."""
+        mild = self.changed[:, self.columns("mild")].amax(1, keepdim=True)
+        return (self.changed > mild + STRUCTURAL_SHARE).flatten(2)
+
+    @staticmethod
+    def sources() -> list[tuple[list[int], list[int]]]:
+        """(mild columns, structural columns) of each variant source: part-based edits, then
+        surface edits."""
+
+        def columns(source: str, names: tuple[str, ...]) -> list[int]:
+            return [1 + VARIANT_NAMES.index(f"{source}:{name}") for name in names]
+
+        return [(columns(s, MILD), columns(s, STRUCTURAL)) for s in ("part", "surface")]
 
 
 def _camera_z(depth: torch.Tensor, config: PipelineConfig) -> torch.Tensor:
