@@ -9,14 +9,21 @@ import typer
 
 from .config import DIRECTIONS, MATCHINGS, NORMALIZATIONS, REDUCTIONS, PipelineConfig
 
-PRESETS = {"default": PipelineConfig, "paper": PipelineConfig.paper}
+PRESETS = {
+    "default": PipelineConfig,
+    "paper": PipelineConfig.paper,
+    "structure": PipelineConfig.structure,
+}
 
 Normalize = Annotated[
     str, typer.Option(help=f"Frame of the two meshes: {', '.join(NORMALIZATIONS)}.")
 ]
 Preset = Annotated[
     str,
-    typer.Option(help="default (chosen by the benchmark) or paper (25 views, 256 px, global sum)."),
+    typer.Option(
+        help="default (chosen by the benchmark), paper (25 views, 256 px, global sum) or "
+        "structure (the default with the nets fine-tuned for the metric)."
+    ),
 ]
 Matching = Annotated[
     str | None, typer.Option(help=f"Override the preset's matching: {', '.join(MATCHINGS)}.")

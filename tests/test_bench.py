@@ -162,11 +162,6 @@ def test_quick_bench_stability_rows_and_torch_checks(quick):
     assert scores[0] == 0.0 and scores[-1] == max(scores) > 0  # a slid leg scores, most at 5%
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="the default's power mean of order 8 acts like a maximum near 0: the first 0.5% of "
-    "slide scores a third of the 5% value (largest step 3.1x the mean, limit 3; README)",
-)
 def test_quick_bench_score_rises_without_a_jump_as_a_leg_slides(quick):
     _, results = quick
     assert results["torch_stability"]["slide"]["passed"]

@@ -11,6 +11,7 @@ from conftest import icosphere
 import drkfs_onnx
 import drkfs_onnx.weights as weights
 from drkfs_onnx import DRKFS, PipelineConfig
+from drkfs_onnx.config import NETS
 from drkfs_onnx.shapes import assemble, chair
 from drkfs_onnx.variants import without
 
@@ -131,9 +132,10 @@ def test_pretrained_loads_weights_listed_for_its_config(tmp_path, monkeypatch):
     # other cameras or pixels use the same nets; other nets do not
     other_views = DRKFS.pretrained(FAST.replace(num_views=5, image_size=64))
     assert torch.equal(other_views.detector.conv.weight, trained.detector.conv.weight)
-    for other_nets in (FAST.replace(detector_m=2), FAST.replace(nets="correspondence")):
+    other_nets = next(nets for nets in NETS if nets != FAST.nets)
+    for other in (FAST.replace(detector_m=3), FAST.replace(nets=other_nets)):
         with pytest.warns(UserWarning, match="random weights"):
-            DRKFS.pretrained(other_nets)
+            DRKFS.pretrained(other)
     (tmp_path / "fast.pt").write_bytes(b"tampered")
     with pytest.raises(ValueError, match="does not match the manifest"):
         DRKFS.pretrained(FAST)

@@ -15,9 +15,9 @@ from drkfs_onnx import DRKFS, PipelineConfig
 from drkfs_onnx.cli import app
 from drkfs_onnx.shapes import FAMILIES, assemble, random_shape
 from drkfs_onnx.training.data import correspond, render_pairs, sample_matches
-from drkfs_onnx.training.metric_stage import BASELINE, OBJECTIVES
+from drkfs_onnx.training.metric_stage import BASELINE
 from drkfs_onnx.training.objectives import detector_loss, hardest_triplet_loss
-from drkfs_onnx.training.run import fit
+from drkfs_onnx.training.run import QUICK, fit
 from drkfs_onnx.variants import MILD, STRUCTURAL, make_variants
 from drkfs_onnx.weights import MANIFEST, models_dir, shipped_entry
 
@@ -136,8 +136,8 @@ def test_quick_training_writes_weights_that_match_their_manifest(tmp_path):
     assert {row["detector"] for row in manifest["detectors"]} >= {"harris", "dog"}
     stage = manifest["metric"]
     # every objective and the paper-style baseline judged on the benchmark, the choice among them
-    assert set(stage["objectives"]) == {BASELINE, *OBJECTIVES}
-    assert stage["objective"] in OBJECTIVES
+    assert set(stage["objectives"]) == {BASELINE, *QUICK.metric.objectives}
+    assert stage["objective"] in QUICK.metric.objectives
     nets = {PipelineConfig.from_dict(e["config"]).nets for e in manifest["weights"]}
     assert nets == {"metric", "correspondence"}
 
@@ -146,10 +146,12 @@ def test_shipped_weights_match_the_manifest_and_serve_both_presets():
     manifest = _check_manifest(models_dir())
     default = next(e for e in manifest["weights"] if e["default"])
     assert shipped_entry(PipelineConfig(), any_cameras=True) == default
-    paper = shipped_entry(PipelineConfig.paper(), any_cameras=True)
+    paper = PipelineConfig.from_dict(shipped_entry(PipelineConfig.paper())["config"])
     # the paper preset's nets were trained the paper's way, at its cameras and image size
-    assert PipelineConfig.from_dict(paper["config"]) == PipelineConfig.paper().features_part()
+    assert paper.features_part() == PipelineConfig.paper().features_part()
+    structure = shipped_entry(PipelineConfig.structure(), any_cameras=True)
+    assert structure["file"].startswith("drkfs_metric_") and not structure["default"]
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        DRKFS.pretrained()
-        DRKFS.pretrained(PipelineConfig.paper())
+        for config in (PipelineConfig(), PipelineConfig.paper(), PipelineConfig.structure()):
+            DRKFS.pretrained(config)

@@ -19,6 +19,7 @@ from .chart import pareto_front, write_chart
 from .methods import (
     DEFAULT_NAME,
     PAPER_NAME,
+    STRUCTURE_NAME,
     SURFACE_SAMPLES,
     DrkfsOnnx,
     DrkfsTorch,
@@ -217,6 +218,7 @@ def run_bench(out: Path, quick: bool, threads: int = 2, progress=print) -> dict:
             **({"config": configs[name].to_dict()} if name in configs else {}),
             **({"default": True} if name == DEFAULT_NAME else {}),
             **({"preset": "paper"} if name == PAPER_NAME else {}),
+            **({"preset": "structure"} if name == STRUCTURE_NAME else {}),
             **costs[name],
             "sensitivity": _accuracy(bench, values),
             "bars": _bars(bench, values),

@@ -63,6 +63,8 @@ OBJECTIVES = {
     "ranking + correspondence triplet": _ranking_and_triplet,
     "ranking + retrieval": lambda data, seed, _: metric_ranking(data, seed, False, retrieval=2),
 }
+# a plan config's detector fields: placeholders, each detector size's stage sets its own
+PLAN_DETECTOR = {"detector_kernel": 5, "detector_n": 4, "detector_m": 4}
 BASELINE = "correspondence triplet (paper-style)"
 
 
@@ -76,8 +78,11 @@ class MetricPlan:
     steps: int = 100
     lr: float = 1e-4
     quick_benchmark: bool = False  # the benchmark's quick subset (tests)
-    # the cameras, image size and match the nets are trained and judged at: the default's
-    config: dict = field(default_factory=lambda: PipelineConfig().to_dict())
+    # the cameras, image size and match the nets are trained and judged at: the default's (the
+    # detector fields are placeholders, as in TrainPlan.config)
+    config: dict = field(
+        default_factory=lambda: PipelineConfig.structure(**PLAN_DETECTOR).to_dict()
+    )
 
     @property
     def pipeline(self) -> PipelineConfig:

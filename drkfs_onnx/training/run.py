@@ -34,6 +34,7 @@ from .evaluate import (
 from .metric_stage import (
     ACCURACY_TOLERANCE,
     BASELINE,
+    PLAN_DETECTOR,
     RETRIEVAL,
     Correspondences,
     MetricPlan,
@@ -69,8 +70,10 @@ class TrainPlan:
     hardnet_batch: int = 256
     hardnet_lr: float = 1e-3
     checkpoint_every: int = 50
-    # the config the correspondence nets are trained at: the paper's cameras and image size
-    config: dict = field(default_factory=lambda: PipelineConfig.paper().to_dict())
+    # the config the correspondence nets are trained at: the paper's cameras and image size. Its
+    # detector fields are placeholders (the sweep sets each size), at the values the shipped run
+    # recorded, so that its plan and work folder stay those of models/manifest.json.
+    config: dict = field(default_factory=lambda: PipelineConfig.paper(**PLAN_DETECTOR).to_dict())
     # the second stage: the same nets fine-tuned for the metric, at the default config
     metric: MetricPlan = field(default_factory=MetricPlan)
 
@@ -92,13 +95,14 @@ QUICK = TrainPlan(
     hardnet_steps=6,
     hardnet_batch=32,
     checkpoint_every=3,
-    config=PipelineConfig(num_views=4, image_size=128, nets="correspondence").to_dict(),
+    config=PipelineConfig(num_views=4, image_size=128).to_dict(),
     metric=MetricPlan(
         shapes_per_family=2,
+        objectives=("ranking", "patch contrast"),
         objective_width=0.25,
         steps=2,
         quick_benchmark=True,
-        config=PipelineConfig(num_views=4).to_dict(),
+        config=PipelineConfig.structure(num_views=2, image_size=64).to_dict(),
     ),
 )
 
