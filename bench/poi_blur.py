@@ -30,7 +30,6 @@ class Blurred(nn.Module):
     def __init__(self, detector: nn.Module, sigma: float):
         super().__init__()
         self.detector, self.sigma = detector, sigma
-        self.conv = detector.conv  # DRKFS.describe reads the detector's dtype from it
 
     def forward(self, images: torch.Tensor) -> torch.Tensor:
         return gaussian_blur(self.detector(images), self.sigma)

@@ -94,7 +94,7 @@ class DRKFS(nn.Module):
 
         Patches that see only background share one descriptor, computed once.
         """
-        dtype = self.detector.conv.weight.dtype
+        dtype = next(self.detector.parameters()).dtype
         images = images.to(dtype)
         index = torch.nonzero(nonempty_patches(images, self.config)).squeeze(1)
         size = self.config.patch_size

@@ -67,12 +67,11 @@ def metric_ranking(data: VariantViews, seed: int, tiers: bool, retrieval: int = 
 
     # an edit no camera sees cannot be ranked: it would only push the nets towards noise
     visible = data.shows_edit().any(-1)
+    bases = torch.nonzero(visible[:, VariantViews.columns("structural")].any(1))[:, 0]
 
     def loss_fn(metric: DRKFS, step: int) -> torch.Tensor:
         rng = np.random.default_rng([seed, 3, step])
-        base = int(
-            rng.choice(torch.nonzero(visible[:, VariantViews.columns("structural")].any(1))[:, 0])
-        )
+        base = int(rng.choice(bases))
         mild, structural = _source_columns(rng)
         structural = [j for j in structural if visible[base, j]] or [
             j for j in VariantViews.columns("structural") if visible[base, j]

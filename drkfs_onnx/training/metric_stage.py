@@ -8,6 +8,7 @@ import copy
 import json
 import time
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 from typing import NamedTuple
 
@@ -197,7 +198,9 @@ class MetricStage:
         self.bench = benchmark_set(plan.quick_benchmark)
         self.heldout = heldout_set(plan.quick_benchmark)
 
+    @cached_property
     def data(self) -> VariantViews:
+        """The training views, rendered once per work folder and loaded once per stage."""
         path = self.work / "variant_views.pt"
         if path.exists():
             return VariantViews(**torch.load(path, weights_only=True))
@@ -221,17 +224,17 @@ class MetricStage:
                 row = {
                     **benchmark_row(metric, self.bench),
                     "heldout": benchmark_row(metric, self.heldout)["accuracy"],
-                    "training": training_accuracy(metric, self.data())["accuracy"],
+                    "training": training_accuracy(metric, self.data)["accuracy"],
                 }
             path.write_text(json.dumps(row))
             self.timed(f"judge_{name}", start)
         return json.loads(path.read_text())
 
-    def fine_tune(self, start: DRKFS, objective: str, data: VariantViews, name: str) -> DRKFS:
+    def fine_tune(self, start: DRKFS, objective: str, name: str) -> DRKFS:
         metric = copy.deepcopy(start)
         metric.detector.requires_grad_(True)
         metric.descriptor.requires_grad_(True)
-        loss_fn = OBJECTIVES[objective](data, self.seed, self.pairs)
+        loss_fn = OBJECTIVES[objective](self.data, self.seed, self.pairs)
         began = time.perf_counter()
         checkpoint = self.work / f"metric_{name.replace(' ', '_')}.pt"
         self.fit(metric, loss_fn, self.plan.steps, self.plan.lr, checkpoint, 20)

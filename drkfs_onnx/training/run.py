@@ -281,7 +281,6 @@ class Training:
 
 
 def _ship(metric: DRKFS, path: Path, default: bool) -> dict:
-    path.parent.mkdir(parents=True, exist_ok=True)
     torch.save(metric.state_dict(), path)
     return {
         "file": path.name,
@@ -307,7 +306,7 @@ def metric_stage(
     p = plan.metric
     work = run.work / f"metric-{plan_key(p)}"
     stage = MetricStage(p, work, plan.seed + 2, pairs, fit, run._timed)
-    data = stage.data()
+    data = stage.data
     config = _detector_config(p.pipeline, size)
     begin = {w: with_nets(config.replace(descriptor_width=w), m.detector, m.descriptor)
              for w, m in start.items()}  # fmt: skip
@@ -317,14 +316,14 @@ def metric_stage(
     tuned = {}
     for objective in p.objectives:
         name = f"{objective}_w{w0:g}"
-        tuned[objective] = stage.fine_tune(begin[w0], objective, data, name)
+        tuned[objective] = stage.fine_tune(begin[w0], objective, name)
         rows[objective] = stage.row(name, tuned[objective])
     objective = choose_objective(rows, chamfer)
     nets, widths = {w0: tuned[objective]}, {w0: rows[objective]}
     for w in plan.widths:
         if w != w0:
             name = f"{objective}_w{w:g}"
-            nets[w] = stage.fine_tune(begin[w], objective, data, name)
+            nets[w] = stage.fine_tune(begin[w], objective, name)
             widths[w] = stage.row(name, nets[w])
     width = choose_smallest(widths, {w: w for w in widths}, chamfer)
     sizes = {_size_name(size): (widths[width], nets[width])}
@@ -333,7 +332,7 @@ def metric_stage(
             name = f"{objective}_w{width:g}_{_size_name(other)}"
             config = _detector_config(p.pipeline, other).replace(descriptor_width=width)
             begin_other = with_nets(config, detectors[other], start[width].descriptor)
-            tuned_other = stage.fine_tune(begin_other, objective, data, name)
+            tuned_other = stage.fine_tune(begin_other, objective, name)
             sizes[_size_name(other)] = (stage.row(name, tuned_other), tuned_other)
     params = {n: _params(m.detector) for n, (_, m) in sizes.items()}
     detector = choose_smallest({n: r for n, (r, _) in sizes.items()}, params, chamfer)
