@@ -58,13 +58,13 @@ class DRKFS(nn.Module):
     def pretrained(cls, config: PipelineConfig | None = None, **options) -> DRKFS:
         """The metric with the weights shipped in ``models/``.
 
-        Weights trained at another view count, image size or match serve a config that differs
-        only there (the nets are the same). Without shipped weights for the config, this warns
-        and returns nets initialised from torch.manual_seed(RANDOM_SEED): deterministic, but
-        random.
+        Weights trained at another view count, image size, renderer softness (sigma, gamma) or
+        match serve a config that differs only there (the nets are the same). Without shipped
+        weights for the config, this warns and returns nets initialised from
+        torch.manual_seed(RANDOM_SEED): deterministic, but random.
         """
         config = config or PipelineConfig()
-        state = load_shipped_state(config, any_cameras=True)
+        state = load_shipped_state(config, any_rendering=True)
         if state is None:
             warnings.warn(
                 f"no trained weights shipped for this config in models/; using random weights "

@@ -27,25 +27,29 @@ def shipped_weights() -> list[dict]:
     return json.loads(manifest_file.read_text()).get("weights", [])
 
 
-def shipped_entry(config: PipelineConfig, any_cameras: bool = False) -> dict | None:
+# Settings that change what the nets are shown but not the nets: a reduced config (fitting, a
+# quick run) or the softer training renderer (``PipelineConfig.training()``) reuses the weights.
+RENDER_FIELDS = ("num_views", "image_size", "sigma", "gamma")
+
+
+def shipped_entry(config: PipelineConfig, any_rendering: bool = False) -> dict | None:
     """The manifest's weights entry trained for ``config``, or None when none is shipped.
 
-    any_cameras: also accept weights trained at another view count or image size; neither
-    changes the nets' shapes (a reduced config for fitting or a quick run reuses them). The
-    match settings never matter: they do not touch the nets.
+    any_rendering: also accept weights trained at other RENDER_FIELDS values. The match
+    settings never matter: they do not touch the nets.
     """
     for entry in shipped_weights():
         trained = PipelineConfig.from_dict(entry["config"])
-        if any_cameras:
-            trained = trained.replace(num_views=config.num_views, image_size=config.image_size)
+        if any_rendering:
+            trained = trained.replace(**{name: getattr(config, name) for name in RENDER_FIELDS})
         if trained.features_part() == config.features_part():
             return entry
     return None
 
 
-def load_shipped_state(config: PipelineConfig, any_cameras: bool = False):
+def load_shipped_state(config: PipelineConfig, any_rendering: bool = False):
     """The torch state dict shipped for ``config`` (see ``shipped_entry``), or None."""
-    entry = shipped_entry(config, any_cameras)
+    entry = shipped_entry(config, any_rendering)
     if entry is None:
         return None
     import torch

@@ -194,7 +194,7 @@ def build_methods(models: Path, threads: int, views: int | None = None) -> list[
         if (models_dir() / features_file(config)).is_file():
             return DrkfsOnnx(name, config, None, threads)
         path = models / features_file(config)
-        weights = shipped_entry(config, any_cameras=True)  # what DRKFS.pretrained loads
+        weights = shipped_entry(config, any_rendering=True)  # what DRKFS.pretrained loads
         if not path.is_file():
             export_features(DRKFS.pretrained(config), path, weights["sha256"])
         return DrkfsOnnx(name, config, path, threads)

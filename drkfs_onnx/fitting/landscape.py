@@ -1,36 +1,70 @@
-"""How far a loss's gradient can be trusted: autograd's directional derivative against central
-differences at growing step sizes. Where the two part, the loss is rough at that scale, and a
-first-order optimiser stepping that far is guessing."""
+"""How far a loss's gradient can be trusted at the step lengths its optimiser takes.
+
+The probe follows a fit (its optimiser, step size and smoothness) and every EVERY steps asks two
+questions of the objective alone:
+
+- agreement: does autograd's prediction of the change, g . delta, match the change central
+  differences measure along the optimiser's actual step delta, (f(x + delta) - f(x - delta)) / 2?
+- descent: along the negative gradient, scaled so that no vertex moves further than the
+  optimiser moved any vertex in that step, does f fall at each of DESCENT_POINTS points?
+
+Where either fails, the loss is rough at the scale the optimiser works at, and a first-order
+optimiser is guessing.
+"""
 
 from __future__ import annotations
+
+from dataclasses import replace
 
 import numpy as np
 import torch
 
-STEPS = (1e-6, 1e-4, 1e-2)  # in units of the target's normalised frame (radius 1)
+from .objective import FitSettings, Objective, fit
+
+EVERY = 5  # optimiser steps between checks
+CHECKS = 4  # checks per probe: at steps 0, 5, 10, 15
+DESCENT_POINTS = 4  # points along the negative gradient, one vertex step apart
+AGREEMENT = 0.2  # the median relative error a usable gradient stays within
+TINY = 1e-30
 
 
-def directional_derivatives(loss, verts: torch.Tensor, directions: int = 4, seed: int = 0) -> dict:
-    """``loss(verts (V, 3) float64) -> ()`` at ``verts``, along random unit directions.
+def probe(
+    objective: Objective, template: torch.Tensor, faces: torch.Tensor, settings: FitSettings
+) -> dict:
+    """-> {"checks": [...], "median_relative_error", "monotone_share", "monotone_at_start"}."""
+    checks = []
 
-    -> {"autograd": [...], "central_difference": {step: [...]}, "median_relative_error":
-    {step: median |difference - autograd| / |autograd|}}.
-    """
-    verts = verts.detach().double().requires_grad_(True)
-    (grad,) = torch.autograd.grad(loss(verts), verts)
-    generator = torch.Generator().manual_seed(seed)
-    exact, differences = [], {f"{h:g}": [] for h in STEPS}
-    for _ in range(directions):
-        d = torch.randn(verts.shape, generator=generator, dtype=torch.float64)
-        d /= d.norm()
-        exact.append(float((grad * d).sum()))
+    def check(step: int, verts: torch.Tensor, delta: torch.Tensor) -> None:
+        if step % EVERY:
+            return
+        verts = verts.detach().requires_grad_(True)
+        value = objective(verts)
+        (grad,) = torch.autograd.grad(value, verts)
         with torch.no_grad():
-            for h in STEPS:
-                change = loss(verts + h * d) - loss(verts - h * d)
-                differences[f"{h:g}"].append(float(change) / (2 * h))
-    reference = np.abs(exact)
-    errors = {
-        step: float(np.median(np.abs(np.array(values) - exact) / reference))
-        for step, values in differences.items()
+            predicted = float((grad * delta).sum())
+            measured = float(objective(verts + delta) - objective(verts - delta)) / 2
+            vertex_step = float(delta.norm(dim=1).max())
+            downhill = -grad / grad.norm(dim=1).max().clamp_min(TINY)
+            line = [float(value)] + [
+                float(objective(verts + k * vertex_step * downhill))
+                for k in range(1, DESCENT_POINTS + 1)
+            ]
+        checks.append(
+            {
+                "step": step,
+                "vertex_step": vertex_step,
+                "predicted_change": predicted,
+                "measured_change": measured,
+                "relative_error": abs(measured - predicted) / max(abs(predicted), TINY),
+                "line": line,
+                "monotone": all(b < a for a, b in zip(line, line[1:], strict=False)),
+            }
+        )
+
+    fit(objective, template, faces, replace(settings, steps=CHECKS * EVERY), check)
+    return {
+        "checks": checks,
+        "median_relative_error": float(np.median([c["relative_error"] for c in checks])),
+        "monotone_share": float(np.mean([c["monotone"] for c in checks])),
+        "monotone_at_start": checks[0]["monotone"],
     }
-    return {"autograd": exact, "central_difference": differences, "median_relative_error": errors}

@@ -8,6 +8,7 @@ weight and one learning rate serve losses whose raw scales differ by orders of m
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -90,24 +91,35 @@ class FitResult:
     seconds_per_step: float
 
 
+Watch = Callable[[int, torch.Tensor, torch.Tensor], None]
+
+
 def fit(
-    objective: Objective, template: torch.Tensor, faces: torch.Tensor, settings: FitSettings
+    objective: Objective,
+    template: torch.Tensor,
+    faces: torch.Tensor,
+    settings: FitSettings,
+    watch: Watch | None = None,
 ) -> FitResult:
     """Optimise per-vertex offsets of ``template`` (V, 3) with Adam; the loss each step is
-    objective + smoothness * Smoothness."""
+    objective + smoothness * Smoothness. ``watch(step, verts (V, 3), delta (V, 3))`` sees each
+    step's starting vertices and the move the optimiser made from them."""
     smooth = Smoothness(template, faces)
     offsets = torch.zeros_like(template, requires_grad=True)
     optimizer = torch.optim.Adam([offsets], lr=settings.learning_rate)
     history = []
     start = time.perf_counter()
-    for _ in range(settings.steps):
+    for step in range(settings.steps):
         verts = template + offsets
         value = objective(verts)
         loss = value + settings.smoothness * smooth(verts)
         optimizer.zero_grad()
         loss.backward()
+        before = offsets.detach().clone()
         optimizer.step()
         history.append(float(value.detach()))
+        if watch is not None:
+            watch(step, template + before, offsets.detach() - before)
     seconds = (time.perf_counter() - start) / max(settings.steps, 1)
     verts = (template + offsets).detach().numpy().astype(np.float64)
     return FitResult(verts, history, seconds)

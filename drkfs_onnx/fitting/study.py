@@ -1,8 +1,9 @@
 """``drkfs fit``: fit templates to targets with each loss and judge the results with metrics
 independent of the loss.
 
-Losses run at a reduced config (FIT_CONFIG: fewer views, fewer pixels) so the study fits in
-30 minutes on 2 cores; the judge renders at the paper's config (other cameras than the loss saw).
+The rendered losses run at the training config (``PipelineConfig.training()``: the default's
+cameras and nets, a softer renderer); the judge renders at the paper's config (other cameras
+than the loss saw). Every fitted mesh is saved as PLY beside results.json, for outside judges.
 """
 
 from __future__ import annotations
@@ -14,14 +15,16 @@ import time
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
+import numpy as np
 import torch
+import trimesh
 
 from ..config import PipelineConfig
 from ..metric import DRKFS
 from ..shapes import FAMILIES
 from .evaluate import HIGHER_IS_BETTER, METRICS, SURFACE, VISUAL, Judge, better
 from .gallery import write_gallery
-from .landscape import directional_derivatives
+from .landscape import probe
 from .objective import (
     ChamferLoss,
     DrkfsLoss,
@@ -37,6 +40,10 @@ LOSSES = ("Chamfer", "pixel MSE", "DR-KFS", "DR-KFS + lambda*Chamfer")
 TIMING_STEPS = 2  # steps timed at the paper's config (the second pays no warm-up)
 
 
+CONVERGENCE_WINDOW = 0.1  # a fit's last tenth of steps: how much the objective still fell there
+LANDSCAPE_LOSSES = ("DR-KFS", "pixel MSE")  # the rendered losses (Chamfer resamples every call)
+
+
 @dataclass(frozen=True)
 class StudyPlan:
     fit_config: PipelineConfig
@@ -45,27 +52,40 @@ class StudyPlan:
     problems: tuple[str, ...]  # "family:seed" (synthetic) or a shared mesh's name
     tuning: str  # the problem step sizes and lambda are chosen on (not among ``problems``)
     learning_rates: tuple[float, ...]  # candidates for each single loss
-    weights: tuple[float, ...]  # candidate lambdas, at the step size chosen for DR-KFS
+    smoothness: tuple[float, ...]  # candidate regulariser weights for each single loss
+    weights: tuple[float, ...]  # candidate lambdas, at the settings chosen for DR-KFS
+    # the first study's config and settings (issue 20's fit), probed beside the new ones
+    old_config: PipelineConfig
+    old_settings: dict[str, FitSettings]
 
 
+OLD_SETTINGS = {
+    "DR-KFS": FitSettings(learning_rate=0.005),
+    "pixel MSE": FitSettings(learning_rate=0.001),
+}
 FULL = StudyPlan(
-    # the committed study's configs: the paper's match (global sum) at both
-    fit_config=PipelineConfig.paper(num_views=8, image_size=128),
+    fit_config=PipelineConfig.training(),
     judge_config=PipelineConfig.paper(),
-    settings=FitSettings(),
+    settings=FitSettings(steps=400),
     problems=("chair:3", "table:3", "airplane:3", "cow", "homer", "fandisk"),
     tuning="sofa:3",
-    learning_rates=(0.001, 0.005),
+    learning_rates=(0.001, 0.003),
+    smoothness=(10.0, 100.0),
     weights=(0.1, 1.0, 10.0),
+    old_config=PipelineConfig.paper(num_views=8, image_size=128),
+    old_settings=OLD_SETTINGS,
 )
 QUICK = StudyPlan(
-    fit_config=PipelineConfig.paper(num_views=2, image_size=64),
+    fit_config=PipelineConfig.training(num_views=2, image_size=64),
     judge_config=PipelineConfig.paper(num_views=4, image_size=128),
     settings=FitSettings(steps=3),
     problems=("chair:3", "cow"),
     tuning="sofa:3",
     learning_rates=(0.005,),
+    smoothness=(100.0,),
     weights=(1.0,),
+    old_config=PipelineConfig.paper(num_views=2, image_size=64),
+    old_settings=OLD_SETTINGS,
 )
 
 
@@ -127,8 +147,9 @@ class Choice:
 
 
 def tune(plan: StudyPlan, metric: DRKFS, judge: Judge, progress) -> tuple[dict, dict]:
-    """Each single loss's step size, then lambda at DR-KFS's step size: the candidate with the
-    lowest mean rank over every metric on the tuning problem (ties: the first listed).
+    """Each single loss's step size and smoothness weight, then lambda at DR-KFS's settings: the
+    candidate with the lowest mean rank over every metric on the tuning problem (ties: the first
+    listed).
 
     -> ({loss: Choice}, the sweep's rows and ranks for the results)."""
     problem = load_problem(plan.tuning)
@@ -147,14 +168,83 @@ def tune(plan: StudyPlan, metric: DRKFS, judge: Judge, progress) -> tuple[dict, 
     choices, report = {}, {"problem": problem.description}
     for loss in LOSSES[:3]:
         candidates = {
-            f"lr={rate:g}": Choice(replace(plan.settings, learning_rate=rate))
+            f"lr={rate:g} smoothness={weight:g}": Choice(
+                replace(plan.settings, learning_rate=rate, smoothness=weight)
+            )
             for rate in plan.learning_rates
+            for weight in plan.smoothness
         }
         choices[loss], report[loss] = pick(loss, candidates)
     at = choices["DR-KFS"].settings
     candidates = {f"lambda={w:g}": Choice(at, w) for w in plan.weights}
     choices[LOSSES[3]], report[LOSSES[3]] = pick(LOSSES[3], candidates)
     return choices, report
+
+
+def slug(name: str) -> str:
+    """A file name for a problem or loss: 'DR-KFS + lambda*Chamfer' -> 'dr-kfs_lambda_chamfer'."""
+    return "_".join("".join(c if c.isalnum() or c == "-" else " " for c in name).lower().split())
+
+
+def save_mesh(path: Path, verts, faces) -> str:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    trimesh.Trimesh(verts, faces, process=False).export(path)
+    return str(path.relative_to(path.parents[2]))
+
+
+def converged(history: list[float]) -> float:
+    """How much the objective fell over the fit's last CONVERGENCE_WINDOW of steps, relative."""
+    start = history[-max(1, round(len(history) * CONVERGENCE_WINDOW))]
+    return (start - history[-1]) / max(abs(start), 1e-12)
+
+
+def landscapes(plan: StudyPlan, problems: list[Problem], choices: dict, progress) -> dict:
+    """The gradient probe (``landscape.probe``) of each rendered loss on every problem, at the
+    study's config and chosen settings and at the first study's."""
+    setups = {
+        "new": (plan.fit_config, {loss: choices[loss].settings for loss in LANDSCAPE_LOSSES}),
+        "old": (plan.old_config, plan.old_settings),
+    }
+    report = {}
+    for key, (config, settings) in setups.items():
+        metric = DRKFS.pretrained(config)
+        report[key] = {"config": config.to_dict(), "problems": {}}
+        for problem in problems:
+            template = float_tensor(problem.template_verts)
+            faces = torch.as_tensor(problem.template_faces)
+            rows = {}
+            for loss in LANDSCAPE_LOSSES:
+                goal = objective(loss, 0.0, metric, problem, template, faces)
+                rows[loss] = probe(goal, template, faces, settings[loss])
+                rows[loss]["learning_rate"] = settings[loss].learning_rate
+                progress(
+                    f"landscape {key} {problem.name} {loss}: median relative error "
+                    f"{rows[loss]['median_relative_error']:.3f}, monotone descent "
+                    f"{rows[loss]['monotone_share']:.2f}"
+                )
+            report[key]["problems"][problem.name] = rows
+        report[key]["summary"] = {
+            loss: {
+                "median_relative_error": float(
+                    np.median(
+                        [
+                            rows[loss]["median_relative_error"]
+                            for rows in report[key]["problems"].values()
+                        ]
+                    )
+                ),
+                "monotone_share": float(
+                    np.mean(
+                        [rows[loss]["monotone_share"] for rows in report[key]["problems"].values()]
+                    )
+                ),
+                "monotone_at_start_everywhere": all(
+                    rows[loss]["monotone_at_start"] for rows in report[key]["problems"].values()
+                ),
+            }
+            for loss in LANDSCAPE_LOSSES
+        }
+    return report
 
 
 def run_study(out: Path, quick: bool, threads: int = 2, progress=print) -> dict:
@@ -168,10 +258,16 @@ def run_study(out: Path, quick: bool, threads: int = 2, progress=print) -> dict:
     problems = [load_problem(spec) for spec in plan.problems]
     table, fits, gallery = {}, {}, []
     for problem in problems:
+        folder = out / "meshes" / slug(problem.name)
         target = judge.prepare(problem.target_verts, problem.target_faces)
         template = judge.prepare(problem.template_verts, problem.template_faces)
         rows = {"template": judge.compare(template, target)}
-        fits[problem.name] = {}
+        fits[problem.name] = {
+            "target": save_mesh(folder / "target.ply", problem.target_verts, problem.target_faces),
+            "template": save_mesh(
+                folder / "template.ply", problem.template_verts, problem.template_faces
+            ),
+        }
         meshes = [(problem.target_verts, problem.target_faces)]
         meshes.append((problem.template_verts, problem.template_faces))
         for loss in LOSSES:
@@ -179,8 +275,12 @@ def run_study(out: Path, quick: bool, threads: int = 2, progress=print) -> dict:
             result = run_fit(problem, loss, choice.weight, metric, choice.settings)
             rows[loss] = judge.compare(judge.prepare(result.verts, problem.template_faces), target)
             fits[problem.name][loss] = {
+                "mesh": save_mesh(
+                    folder / f"{slug(loss)}.ply", result.verts, problem.template_faces
+                ),
                 "objective_first": result.objective[0],
                 "objective_last": result.objective[-1],
+                "fall_over_last_tenth": converged(result.objective),
                 "seconds_per_step": result.seconds_per_step,
             }
             meshes.append((result.verts, problem.template_faces))
@@ -198,16 +298,6 @@ def run_study(out: Path, quick: bool, threads: int = 2, progress=print) -> dict:
         step_seconds[loss] = run_fit(
             first, loss, choice.weight, judge.metric, timing
         ).seconds_per_step
-    # is the rendered losses' gradient usable at the step sizes the fits take? (float64)
-    precise = DRKFS.pretrained(plan.fit_config).double()
-    template = torch.as_tensor(first.template_verts)
-    faces = torch.as_tensor(first.template_faces)
-    landscape = {
-        loss: directional_derivatives(
-            objective(loss, 0.0, precise, first, template, faces), template
-        )
-        for loss in ("DR-KFS", "pixel MSE")
-    }
     results = {
         "command": f"drkfs fit{' --quick' if quick else ''} --out {out}",
         "quick": quick,
@@ -219,7 +309,11 @@ def run_study(out: Path, quick: bool, threads: int = 2, progress=print) -> dict:
         "settings": asdict(plan.settings),
         "problems": {problem.name: problem.description for problem in problems},
         "choices": {
-            loss: {"learning_rate": c.settings.learning_rate, "lambda": c.weight}
+            loss: {
+                "learning_rate": c.settings.learning_rate,
+                "smoothness": c.settings.smoothness,
+                "lambda": c.weight,
+            }
             for loss, c in choices.items()
         },
         "tuning": tuning,
@@ -233,13 +327,24 @@ def run_study(out: Path, quick: bool, threads: int = 2, progress=print) -> dict:
             "visual": share(table, LOSSES[3], VISUAL),
             "surface": share(table, LOSSES[3], SURFACE),
         },
+        "chamfer_l1_over_chamfer_fit": {
+            loss: float(
+                np.mean(
+                    [
+                        rows[loss]["Chamfer-L1"] / rows["Chamfer"]["Chamfer-L1"]
+                        for rows in table.values()
+                    ]
+                )
+            )
+            for loss in LOSSES
+        },
         "seconds_per_step": {
             "config": plan.judge_config.to_dict(),
             "problem": first.description,
             "template_faces": len(first.template_faces),
             "losses": step_seconds,
         },
-        "landscape": {"problem": first.description, "config": "fit_config", **landscape},
+        "landscape": landscapes(plan, problems, choices, progress),
     }
     results["seconds_total"] = time.perf_counter() - start
     (out / "results.json").write_text(json.dumps(results, indent=1))
