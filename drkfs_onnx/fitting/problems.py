@@ -4,6 +4,7 @@ normalised frame (its bounding box fills the unit sphere)."""
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from pathlib import Path
 
 import numpy as np
 import trimesh
@@ -27,6 +28,8 @@ class Problem:
     target_faces: np.ndarray  # (F, 3) int64
     template_verts: np.ndarray
     template_faces: np.ndarray
+    # the shared mesh a real target was read from (not copied: ``mesh.frame_of`` normalises it)
+    source: Path | None = None
 
 
 def _in_frame_of(target: np.ndarray, *meshes: np.ndarray) -> list[np.ndarray]:
@@ -68,7 +71,8 @@ def synthetic(family: str, seed: int) -> Problem:
 def real(name: str) -> Problem:
     """A shared mesh (read in place); the template is an icosphere stretched to the ellipsoid
     inscribed in ELLIPSOID_FILL times its bounding box (for genus-0 targets)."""
-    mesh = load_mesh(SHARED_MESHES / f"{name}.obj")
+    source = SHARED_MESHES / f"{name}.obj"
+    mesh = load_mesh(source)
     sphere = trimesh.creation.icosphere(ICOSPHERE_LEVEL)
     lower, upper = mesh.vertices.min(0), mesh.vertices.max(0)
     template = (lower + upper) / 2 + sphere.vertices * (upper - lower) / 2 * ELLIPSOID_FILL
@@ -81,4 +85,5 @@ def real(name: str) -> Problem:
         mesh.faces,
         template_verts,
         np.asarray(sphere.faces, dtype=np.int64),
+        source,
     )

@@ -263,7 +263,10 @@ def run_study(out: Path, quick: bool, threads: int = 2, progress=print) -> dict:
         template = judge.prepare(problem.template_verts, problem.template_faces)
         rows = {"template": judge.compare(template, target)}
         fits[problem.name] = {
-            "target": save_mesh(folder / "target.ply", problem.target_verts, problem.target_faces),
+            # a shared mesh stays where it is: the fits are in its frame_of frame
+            "target": "/".join(problem.source.parts[-3:])  # shared/meshes/<name>.obj
+            if problem.source
+            else save_mesh(folder / "target.ply", problem.target_verts, problem.target_faces),
             "template": save_mesh(
                 folder / "template.ply", problem.template_verts, problem.template_faces
             ),
