@@ -154,20 +154,43 @@ def bench(
 
 @app.command()
 def fit(
-    out: Annotated[Path, typer.Option(help="Where results.json and gallery.png go.")] = Path(
-        "bench/fit"
-    ),
+    out: Annotated[
+        Path | None,
+        typer.Option(help="Where results.json, gallery.png and meshes/ go.", show_default=False),
+    ] = None,
+    network: Annotated[
+        bool, typer.Option(help="Train reconstruction networks instead of fitting templates.")
+    ] = False,
     quick: Annotated[bool, typer.Option(help="A tiny plan that runs in seconds (tests).")] = False,
     threads: Annotated[int, typer.Option(help="Threads for the judge's numpy renderer.")] = 2,
 ) -> None:
-    """Fit templates to targets with DR-KFS, Chamfer, pixel MSE and DR-KFS + lambda*Chamfer;
-    judge every result with metrics independent of the loss."""
+    """Fit templates to targets (or, with --network, train a reconstruction network) with
+    DR-KFS, Chamfer and the others; judge every result with metrics independent of the loss.
+    Output: bench/fit (bench/fit-network) unless --out says otherwise."""
+    progress = lambda line: typer.echo(line, err=True)  # noqa: E731
+    if network:
+        from .fitting.network import run_network_study
+
+        out = out or Path("bench/fit-network")
+        results = run_network_study(out, quick, threads, progress)
+        for loss, row in results["beats_chamfer"].items():
+            typer.echo(
+                f"{loss} beats Chamfer on {row['wins']}/{row['cells']} cells ({row['share']:.0%})"
+            )
+        for loss, ratio in results["chamfer_l1_over_chamfer_trained"].items():
+            typer.echo(f"{loss}: Chamfer-L1 {ratio:.2f} x the Chamfer-trained network's")
+        typer.echo(
+            f"{out / 'results.json'}, {out / 'gallery.png'} in {results['seconds_total']:.0f} s"
+        )
+        return
     from .fitting.study import run_study
 
-    results = run_study(out, quick, threads, lambda line: typer.echo(line, err=True))
+    out = out or Path("bench/fit")
+    results = run_study(out, quick, threads, progress)
     for loss, choice in results["choices"].items():
         typer.echo(
-            f"{loss}: learning rate {choice['learning_rate']:g}, lambda {choice['lambda']:g}"
+            f"{loss}: learning rate {choice['learning_rate']:g}, smoothness "
+            f"{choice['smoothness']:g}, lambda {choice['lambda']:g}"
         )
     for name, key in (("DR-KFS", "drkfs_beats_chamfer"), ("combined", "combination_beats_chamfer")):
         for kind, row in results[key].items():
@@ -175,8 +198,13 @@ def fit(
                 f"{name} beats Chamfer on {row['wins']}/{row['cells']} {kind} cells "
                 f"({row['share']:.0%})"
             )
-    seconds = results["seconds_total"]
-    typer.echo(f"{out / 'results.json'}, {out / 'gallery.png'} in {seconds:.0f} s")
+    for key, setup in results["landscape"].items():
+        for loss, row in setup["summary"].items():
+            typer.echo(
+                f"landscape ({key} config) {loss}: median relative error "
+                f"{row['median_relative_error']:.2f}, monotone descent {row['monotone_share']:.0%}"
+            )
+    typer.echo(f"{out / 'results.json'}, {out / 'gallery.png'} in {results['seconds_total']:.0f} s")
 
 
 def _fmt(value: float | None) -> str:

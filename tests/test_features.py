@@ -101,6 +101,25 @@ def test_hardnet_gives_unit_descriptors(width):
     assert torch.allclose(desc.norm(dim=1), torch.ones(5), atol=1e-5)
 
 
+def test_evaluation_folds_batchnorm_into_the_convs_without_changing_descriptors():
+    torch.manual_seed(0)
+    net = HardNet(PipelineConfig(descriptor_width=0.5))
+    for norm in net.features:  # running statistics far from the identity
+        if isinstance(norm, torch.nn.BatchNorm2d):
+            norm.running_mean.uniform_(-1.0, 1.0)
+            norm.running_var.uniform_(0.5, 4.0)
+    patches = torch.rand(20, 1, 32, 32, requires_grad=True)
+    net.eval()
+    folded = net(patches)
+    normalised = F.instance_norm(patches, eps=net.patch_norm_eps)
+    layered = net.features(normalised).flatten(1)  # the modules one by one, as trained
+    layered = layered / layered.norm(dim=1, keepdim=True)
+    torch.testing.assert_close(folded, layered, atol=1e-5, rtol=1e-5)
+    (grad_folded,) = torch.autograd.grad(folded.sum(), patches)
+    (grad_layered,) = torch.autograd.grad(layered.sum(), patches)
+    torch.testing.assert_close(grad_folded, grad_layered, atol=1e-4, rtol=1e-4)
+
+
 def test_hardnet_ignores_patch_brightness_and_contrast():
     torch.manual_seed(0)
     net = HardNet(CONFIG).eval()

@@ -9,14 +9,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
+import trimesh
 from typer.testing import CliRunner
 
 from drkfs_onnx.cli import app
 from drkfs_onnx.fitting.evaluate import METRICS, VISUAL
 from drkfs_onnx.fitting.geometry import Smoothness, chamfer, surface_points
+from drkfs_onnx.fitting.landscape import AGREEMENT, CHECKS, probe
 from drkfs_onnx.fitting.objective import ChamferLoss, FitSettings, Objective, fit, float_tensor
 from drkfs_onnx.fitting.problems import perturbed, real, synthetic
-from drkfs_onnx.fitting.study import LOSSES, QUICK, mean_ranks, share
+from drkfs_onnx.fitting.study import LOSSES, QUICK, mean_ranks, share, slug
 from drkfs_onnx.shapes import Part, assemble, random_shape
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -72,6 +74,23 @@ def test_fitting_a_small_box_to_a_large_one_with_chamfer_closes_the_gap():
     assert result.objective[-1] < 0.1 * result.objective[0]
     half_size = np.abs(result.verts).max(0)
     np.testing.assert_allclose(half_size, 0.5, atol=0.05)  # from 0.3 to the target's 0.5
+
+
+def test_the_probe_trusts_a_smooth_objective_and_not_a_staircase():
+    template, faces = _box(0.6)
+    goal = template * 1.5
+    smooth = probe(lambda v: ((v - goal) ** 2).sum(), template, faces, FitSettings())
+    assert len(smooth["checks"]) == CHECKS
+    assert smooth["median_relative_error"] < 1e-3  # a quadratic: central differences are exact
+    assert smooth["monotone_share"] == 1.0 and smooth["monotone_at_start"]
+    # ripples far finer than a step: autograd follows the ripple, the step jumps over it
+    rough = probe(
+        lambda v: ((v - goal) ** 2).sum() + 0.01 * torch.sin(2000 * v).sum(),
+        template,
+        faces,
+        FitSettings(),
+    )
+    assert rough["median_relative_error"] > AGREEMENT and rough["monotone_share"] < 1.0
 
 
 def test_templates_share_the_targets_frame_and_differ_from_it():
@@ -135,6 +154,25 @@ def test_quick_study_writes_the_table_the_shares_and_step_times(quick_study):
     for fits in results["fits"].values():  # three steps of Chamfer already help
         assert fits["Chamfer"]["objective_last"] < fits["Chamfer"]["objective_first"]
     assert "beats Chamfer on" in output
+    for key in ("new", "old"):  # both configs probed on every problem, both rendered losses
+        assert set(results["landscape"][key]["problems"]) == names
+        for rows in results["landscape"][key]["problems"].values():
+            assert set(rows) == {"DR-KFS", "pixel MSE"}
+
+
+def test_quick_study_saves_every_fit_as_a_ply_of_the_templates_faces(quick_study):
+    out, _ = quick_study
+    results = json.loads((out / "results.json").read_text())
+    for name, fits in results["fits"].items():
+        template = trimesh.load(out / fits["template"], process=False)
+        for loss in LOSSES:
+            mesh = trimesh.load(out / fits[loss]["mesh"], process=False)
+            assert fits[loss]["mesh"] == f"meshes/{slug(name)}/{slug(loss)}.ply"
+            np.testing.assert_array_equal(mesh.faces, template.faces)
+            assert not np.allclose(mesh.vertices, template.vertices)  # the fit moved it
+    # the shared mesh is named, not copied into the output
+    assert results["fits"]["cow"]["target"] == "shared/meshes/cow.obj"
+    assert not (out / "meshes" / "cow" / "target.ply").exists()
 
 
 def test_quick_study_gallery_is_a_png_with_a_cell_per_mesh(quick_study):

@@ -22,7 +22,9 @@ from ..runtime.render import NumpyRenderer
 
 VISUAL = ("DR-KFS", "pixel MSE", "PoI-map MSE")
 SURFACE = ("F-score 1%", "normal consistency", "Chamfer-L1")
-HIGHER_IS_BETTER = frozenset({"F-score 1%", "normal consistency", "volumetric IoU"})
+HIGHER_IS_BETTER = frozenset(
+    {"F-score 1%", "normal consistency", "volumetric IoU", "silhouette IoU"}
+)
 METRICS = (*SURFACE, "volumetric IoU", *VISUAL)
 
 

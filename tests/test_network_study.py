@@ -1,0 +1,91 @@
+"""The network study (``drkfs fit --network``): the reconstruction network, the cameras its
+silhouettes are judged from, and the quick plan end to end through the CLI."""
+
+import json
+
+import numpy as np
+import pytest
+import torch
+import trimesh
+from typer.testing import CliRunner
+
+from drkfs_onnx.benchmark.point_metrics import is_watertight
+from drkfs_onnx.cameras import make_cameras
+from drkfs_onnx.cli import app
+from drkfs_onnx.fitting.network import (
+    JUDGED,
+    LOSSES,
+    PRIMITIVES,
+    QUICK,
+    TEST_SEED,
+    TRAIN_SEED,
+    Reconstructor,
+    SilhouetteJudge,
+    make_shape,
+    unseen_cameras,
+)
+from drkfs_onnx.fitting.study import slug
+
+
+def test_the_network_starts_as_closed_spheres_and_gives_every_parameter_a_gradient():
+    torch.manual_seed(0)
+    model = Reconstructor()
+    points = make_shape("chair", TRAIN_SEED).points
+    verts = model(torch.stack([points, points * 0.5]))
+    assert verts.shape == (2, PRIMITIVES * 162, 3) and model.faces.shape == (PRIMITIVES * 320, 3)
+    np.testing.assert_allclose(verts[0].detach(), model.spheres().detach(), atol=0.05)
+    assert is_watertight(verts[0].detach().double().numpy(), model.faces.numpy())
+    assert not torch.allclose(verts[0], verts[1])  # the code depends on the input points
+    verts.sum().backward()
+    assert all(p.grad is not None and p.grad.abs().sum() > 0 for p in model.parameters())
+
+
+def test_training_and_test_shapes_differ_and_are_normalised():
+    a, b = make_shape("chair", TRAIN_SEED), make_shape("chair", TEST_SEED)
+    assert not np.allclose(a.verts.max(0), b.verts.max(0))
+    lower, upper = a.verts.min(0), a.verts.max(0)
+    assert np.linalg.norm(upper - lower) == pytest.approx(2.0)
+
+
+def test_silhouette_cameras_are_none_of_the_losses_and_half_look_from_below():
+    cameras = unseen_cameras(QUICK.loss_config, 8)
+    assert (cameras.eyes[:, 1] < 0).sum() == 4
+    for views in (2, 6, 25):  # the quick loss, the training config, the paper's
+        trained = make_cameras(QUICK.loss_config.replace(num_views=views)).eyes
+        distances = np.linalg.norm(cameras.eyes[:, None] - trained[None], axis=-1)
+        assert distances.min() > 0.2  # camera distance 2.5: at least ~5 degrees apart
+    judge = SilhouetteJudge(QUICK.judge_config, 8)
+    box = trimesh.creation.box((0.8, 0.8, 0.8))
+    mask = judge.mask(box.vertices, box.faces)
+    assert judge.iou(mask, mask) == 1.0 and 0 < mask.mean() < 1
+    smaller = judge.mask(box.vertices * 0.5, box.faces)
+    assert judge.iou(smaller, mask) == pytest.approx(0.25, abs=0.05)  # areas scale by 1/4
+
+
+@pytest.fixture(scope="module")
+def quick_network_study(tmp_path_factory):
+    out = tmp_path_factory.mktemp("network")
+    result = CliRunner().invoke(app, ["fit", "--network", "--quick", "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    return out, result.output
+
+
+def test_quick_network_study_judges_every_test_shape_and_saves_its_meshes(quick_network_study):
+    out, output = quick_network_study
+    results = json.loads((out / "results.json").read_text())
+    names = {f"{family} {TEST_SEED}" for family in QUICK.families}
+    assert set(results["table"]) == names
+    for name, rows in results["table"].items():
+        assert set(rows) == set(LOSSES)
+        for loss in LOSSES:
+            assert set(JUDGED) <= set(rows[loss])
+            mesh = trimesh.load(out / results["meshes"][name][loss], process=False)
+            assert len(mesh.faces) == PRIMITIVES * 320
+            assert results["meshes"][name][loss] == f"meshes/{slug(name)}/{slug(loss)}.ply"
+    for loss in LOSSES[1:]:
+        assert results["beats_chamfer"][loss]["cells"] == len(names) * len(JUDGED)
+    # every network starts from the same weights: the first objective is each term's scale
+    assert results["training"]["Chamfer"]["objective_first"] == pytest.approx(1.0)
+    assert results["training"]["DR-KFS"]["objective_first"] == pytest.approx(1.0)
+    assert (out / "gallery.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert "beats Chamfer on" in output
