@@ -70,5 +70,5 @@ class HardNet(nn.Module):
                     layer.padding,
                 )
             elif isinstance(layer, nn.ReLU):
-                x = torch.relu(x)
+                x = torch.relu_(x)  # in place: the conv's output is not needed for its backward
         return x

@@ -16,6 +16,13 @@ def test_paper_preset_is_the_papers_pipeline():
     assert config.descriptor_dim == 128
 
 
+def test_training_preset_is_the_default_with_a_softer_renderer():
+    training, default = PipelineConfig.training(), PipelineConfig()
+    assert training.sigma > default.sigma and training.gamma > default.gamma
+    assert training.replace(sigma=default.sigma, gamma=default.gamma) == default
+    assert PipelineConfig.training(num_views=2).num_views == 2
+
+
 def test_config_is_frozen_and_round_trips_through_json():
     config = PipelineConfig(num_views=12, light_direction=[0, -1, 0])
     with pytest.raises(dataclasses.FrozenInstanceError):
