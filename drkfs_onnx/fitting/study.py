@@ -38,8 +38,6 @@ from .problems import Problem, real, synthetic
 
 LOSSES = ("Chamfer", "pixel MSE", "DR-KFS", "DR-KFS + lambda*Chamfer")
 TIMING_STEPS = 2  # steps timed at the paper's config (the second pays no warm-up)
-
-
 CONVERGENCE_WINDOW = 0.1  # a fit's last tenth of steps: how much the objective still fell there
 LANDSCAPE_LOSSES = ("DR-KFS", "pixel MSE")  # the rendered losses (Chamfer resamples every call)
 
@@ -189,6 +187,7 @@ def slug(name: str) -> str:
 
 
 def save_mesh(path: Path, verts, faces) -> str:
+    """Write ``path`` (OUT/meshes/<problem>/<file>.ply) -> its path relative to OUT."""
     path.parent.mkdir(parents=True, exist_ok=True)
     trimesh.Trimesh(verts, faces, process=False).export(path)
     return str(path.relative_to(path.parents[2]))
