@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from drkfs_onnx.config import PipelineConfig
-from drkfs_onnx.mesh import Mesh, check_normalization, frame_of, load_mesh
+from drkfs_onnx.mesh import Mesh, MeshError, check_normalization, frame_of, load_mesh
 from drkfs_onnx.patch_grid import nonempty_patches
 
 from .decimate import decimate
@@ -72,6 +72,7 @@ class Scorer:
     def features(self, mesh: MeshLike, frame: tuple[np.ndarray, float] | None = None):
         """Descriptors of a mesh placed in ``frame`` (default: its own normalisation frame)."""
         mesh = mesh if isinstance(mesh, Mesh) else load_mesh(mesh)
+        placement = "its own frame" if frame is None else "the reference's frame"
         if frame is None:
             frame = self._own_frame(mesh.vertices)
         centre, scale = frame
@@ -84,6 +85,13 @@ class Scorer:
             self.cache.move_to_end(key)
             return self.cache[key]
         result = self.describe(self.renderer.render(vertices, faces), (centre, scale))
+        if len(result.patch_index) == 0:
+            # every patch would match every other as empty: a silent perfect score
+            raise MeshError(
+                mesh.source,
+                f"nothing visible from any camera after normalisation "
+                f"({self.normalization}: placed in {placement})",
+            )
         self.cache[key] = result
         if len(self.cache) > self.cache_size:
             self.cache.popitem(last=False)

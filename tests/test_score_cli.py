@@ -53,6 +53,25 @@ def test_precomputed_reference_gives_the_same_score(tmp_path):
     assert float(direct.stdout) == float(cached.stdout) > 0
 
 
+def test_a_mesh_no_camera_sees_is_an_error_not_a_perfect_score(tmp_path):
+    far = tmp_path / "far_triangle.obj"
+    far.write_text("v 1e6 1e6 1e6\nv 1000001 1e6 1e6\nv 1e6 1000001 1e6\nf 1 2 3\n")
+    result = _run("pair", far, CHAIR, "--normalize", "joint", *FAST)
+    assert result.exit_code != 0
+    assert "far_triangle.obj: nothing visible from any camera" in result.output
+    assert "reference's frame" in result.output
+    # its own frame makes it visible: a real (non-zero) score, not an error
+    alone = _run("pair", far, CHAIR, "--normalize", "each", *FAST)
+    assert alone.exit_code == 0 and float(alone.stdout) > 0
+    pairs = tmp_path / "pairs.csv"
+    pairs.write_text(f"mesh_a,mesh_b\n{far},{CHAIR}\n{NO_LEG},{CHAIR}\n")
+    out = tmp_path / "scores.csv"
+    _run("batch", pairs, "--out", out, *FAST)
+    rows = list(csv.DictReader(out.open()))
+    assert "nothing visible" in rows[0]["error"] and rows[0]["score"] == ""
+    assert float(rows[1]["score"]) > 0  # the bad row costs no other row its result
+
+
 def test_a_model_for_another_config_is_refused(tmp_path):
     asked = PipelineConfig().descriptor_width
     other = PipelineConfig(descriptor_width=0.5 if asked != 0.5 else 1.0)
