@@ -25,6 +25,9 @@ from .options import (
 )
 
 app = typer.Typer(help="DR-KFS visual similarity of 3D meshes (torch path).", no_args_is_help=True)
+# Where train, export, bench and fit write unless --out says otherwise: never the shipped models/
+# or the committed bench/ results, which only an explicit --out replaces.
+RUNS = Path("runs")
 
 
 def _metric(config: PipelineConfig, normalize: str = "joint"):
@@ -77,9 +80,9 @@ def score(
 
 @app.command()
 def train(
-    out: Annotated[Path, typer.Option(help="Where the weights and manifest.json go.")] = Path(
-        "models"
-    ),
+    out: Annotated[
+        Path, typer.Option(help="Where the weights and manifest.json go (--out models ships them).")
+    ] = RUNS / "models",
     work: Annotated[Path, typer.Option(help="Data cache and checkpoints (resumed from).")] = Path(
         ".drkfs-train"
     ),
@@ -121,7 +124,9 @@ def train(
 
 @app.command()
 def export(
-    out: Annotated[Path, typer.Option(help="Where the ONNX files go.")] = Path("models"),
+    out: Annotated[
+        Path, typer.Option(help="Where the ONNX files go (--out models ships them).")
+    ] = RUNS / "models",
 ) -> None:
     """Export the feature graph of every shipped weights file, and the match graph, to ONNX."""
     from .export import export_shipped
@@ -132,9 +137,8 @@ def export(
 
 @app.command()
 def bench(
-    out: Annotated[Path, typer.Option(help="Where results.json, the chart and the set go.")] = Path(
-        "bench/results"
-    ),
+    out: Annotated[Path, typer.Option(help="Where results.json, the chart and the set go.")] = RUNS
+    / "bench",
     quick: Annotated[bool, typer.Option(help="The small subset the tests run.")] = False,
     threads: Annotated[int, typer.Option(help="Threads for onnxruntime and the renderer.")] = 2,
 ) -> None:
@@ -166,12 +170,12 @@ def fit(
 ) -> None:
     """Fit templates to targets (or, with --network, train a reconstruction network) with
     DR-KFS, Chamfer and the others; judge every result with metrics independent of the loss.
-    Output: bench/fit (bench/fit-network) unless --out says otherwise."""
+    Output: runs/fit (runs/fit-network) unless --out says otherwise."""
     progress = lambda line: typer.echo(line, err=True)  # noqa: E731
     if network:
         from .fitting.network import run_network_study
 
-        out = out or Path("bench/fit-network")
+        out = out or RUNS / "fit-network"
         results = run_network_study(out, quick, threads, progress)
         for loss, row in results["beats_chamfer"].items():
             typer.echo(
@@ -185,7 +189,7 @@ def fit(
         return
     from .fitting.study import run_study
 
-    out = out or Path("bench/fit")
+    out = out or RUNS / "fit"
     results = run_study(out, quick, threads, progress)
     for loss, choice in results["choices"].items():
         typer.echo(

@@ -7,9 +7,10 @@ from pathlib import Path
 
 import numpy as np
 import trimesh
+import typer.main
 from typer.testing import CliRunner
 
-from drkfs_onnx.cli import app
+from drkfs_onnx.cli import RUNS, app
 from drkfs_onnx.examples import example_meshes
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -64,3 +65,26 @@ def test_cli_names_the_bad_file(tmp_path):
     result = CliRunner().invoke(app, ["score", str(bad), str(ROOT / "examples" / "chair.obj")])
     assert result.exit_code == 2
     assert str(bad) in result.output and "no faces" in result.output
+
+
+def test_no_command_writes_into_shipped_files_by_default(monkeypatch):
+    """train, export, bench and fit write under runs/ unless --out names models/ or bench/."""
+    commands = typer.main.get_command(app).commands
+    for name in ("train", "export", "bench"):
+        (out,) = [p for p in commands[name].params if p.name == "out"]
+        assert Path(out.default).parts[0] == RUNS.name, name
+
+    class Called(Exception):
+        pass
+
+    def record(out, *args):
+        raise Called(out)
+
+    for module, function, args in (
+        ("study", "run_study", ["fit"]),
+        ("network", "run_network_study", ["fit", "--network"]),
+    ):
+        monkeypatch.setattr(f"drkfs_onnx.fitting.{module}.{function}", record)
+        result = CliRunner().invoke(app, args)
+        assert isinstance(result.exception, Called), result.output
+        assert Path(result.exception.args[0]).parts[0] == RUNS.name
