@@ -13,7 +13,7 @@ from drkfs_onnx.config import PipelineConfig
 
 from .nearest import lift, row_hashes
 
-FORMAT = "drkfs-features-3"
+FORMAT = "drkfs-features-4"  # 4: records the normalisation
 
 
 @dataclass(frozen=True)
@@ -22,17 +22,21 @@ class MeshFeatures:
     rows of the row-major (K * P) patch list; the other patches see only background and share
     empty_descriptor (D,); centre (3,) and scale: the frame the mesh was placed in
     (v' = (v - centre) / scale), which joint normalisation applies to meshes scored against it;
-    model: sha256 of the feature graph that computed them; config: the pipeline config they were
-    computed for (its match settings do not matter). The match's forms of the rows are computed
-    once per mesh."""
+    normalization: the scorer's normalisation when they were made (it decides the frame, and a
+    scorer with another one would place the meshes scored against them differently); model:
+    sha256 of the feature graph that computed them; config: the pipeline config they were
+    computed for (its match settings do not matter); source: where they were read from, for
+    error messages (not saved). The match's forms of the rows are computed once per mesh."""
 
     descriptors: np.ndarray
     patch_index: np.ndarray
     empty_descriptor: np.ndarray
     centre: np.ndarray
     scale: float
+    normalization: str
     model: str
     config: PipelineConfig
+    source: str = "<features>"
 
     @property
     def patches(self) -> int:
@@ -83,6 +87,7 @@ class MeshFeatures:
             empty_descriptor=self.empty_descriptor,
             centre=self.centre,
             scale=self.scale,
+            normalization=self.normalization,
             model=self.model,
             config=self.config.features_part().to_json(),
         )
@@ -91,13 +96,18 @@ class MeshFeatures:
     def load(cls, path: str | Path) -> MeshFeatures:
         with np.load(path, allow_pickle=False) as data:
             if "format" not in data or str(data["format"]) != FORMAT:
-                raise ValueError(f"{path}: not a drkfs-score features file ({FORMAT})")
+                raise ValueError(
+                    f"{path}: not a drkfs-score features file of this version ({FORMAT}); "
+                    "describe the reference again with drkfs-score features"
+                )
             return cls(
                 descriptors=data["descriptors"],
                 patch_index=data["patch_index"],
                 empty_descriptor=data["empty_descriptor"],
                 centre=data["centre"],
                 scale=float(data["scale"]),
+                normalization=str(data["normalization"]),
                 model=str(data["model"]),
                 config=PipelineConfig.from_json(str(data["config"])),
+                source=str(path),
             )

@@ -65,10 +65,13 @@ def check_features(features: MeshFeatures, config: PipelineConfig, model: str) -
     another feature graph than ``model`` (a sha256)."""
     made, asked = features.config.features_part(), config.features_part()
     if made != asked:
-        raise ValueError(f"features computed for another config: {made.differences(asked)}")
+        raise ValueError(
+            f"{features.source}: features computed for another config: {made.differences(asked)}"
+        )
     if features.model != model:
         raise ValueError(
-            f"features from different feature graphs ({features.model[:12]}, expected {model[:12]})"
+            f"{features.source}: features from different feature graphs "
+            f"({features.model[:12]}, expected {model[:12]})"
         )
 
 

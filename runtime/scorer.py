@@ -109,6 +109,7 @@ class Scorer:
             empty_descriptor=self._empty,
             centre=np.asarray(frame[0], dtype=np.float64),
             scale=float(frame[1]),
+            normalization=self.normalization,
             model=self.features_graph.sha256,
             config=self.config.features_part(),
         )
@@ -118,6 +119,12 @@ class Scorer:
         a = a if isinstance(a, Mesh) else load_mesh(a)  # a bad A fails before B's work
         reference = b if isinstance(b, MeshFeatures) else self.features(b)
         check_features(reference, self.config, self.features_graph.sha256)  # before A's work
+        if reference.normalization != self.normalization:
+            raise ValueError(
+                f"{reference.source}: features made with normalisation "
+                f"{reference.normalization!r}, scoring asked {self.normalization!r}; describe "
+                f"the reference again with --normalize {self.normalization}"
+            )
         frame = (reference.centre, reference.scale) if self.normalization == "joint" else None
         return self.match(self.features(a, frame), reference)
 

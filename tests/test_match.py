@@ -90,6 +90,7 @@ def _features(dense: np.ndarray, empty: np.ndarray, config: PipelineConfig) -> M
         empty_descriptor=empty,
         centre=np.zeros(3),
         scale=1.0,
+        normalization="joint",
         model="test",
         config=config,
     )

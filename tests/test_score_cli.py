@@ -8,6 +8,7 @@ import shutil
 import subprocess
 from pathlib import Path
 
+import numpy as np
 import pytest
 from typer.testing import CliRunner
 
@@ -51,6 +52,21 @@ def test_precomputed_reference_gives_the_same_score(tmp_path):
     cached = _run("pair", NO_LEG, tmp_path / "chair.npz", *FAST)
     assert direct.exit_code == cached.exit_code == 0
     assert float(direct.stdout) == float(cached.stdout) > 0
+
+
+def test_a_features_file_remembers_its_normalisation_and_refuses_another(tmp_path):
+    reference = tmp_path / "chair.npz"
+    assert _run("features", CHAIR, "--out", reference, *FAST).exit_code == 0  # joint
+    refused = _run("pair", CHAIR, reference, "--normalize", "none", *FAST)
+    assert refused.exit_code != 0
+    assert f"{reference}: features made with normalisation 'joint'" in refused.output
+    assert "--normalize none" in refused.output
+    assert float(_run("pair", CHAIR, reference, *FAST).stdout) == 0.0  # itself, as made
+    # an old-format file is named and refused, not misread
+    old = tmp_path / "old.npz"
+    np.savez(old, format="drkfs-features-3")
+    result = _run("pair", CHAIR, old, *FAST)
+    assert result.exit_code != 0 and f"{old}: not a drkfs-score features file" in result.output
 
 
 def test_a_mesh_no_camera_sees_is_an_error_not_a_perfect_score(tmp_path):
