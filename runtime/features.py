@@ -94,20 +94,32 @@ class MeshFeatures:
 
     @classmethod
     def load(cls, path: str | Path) -> MeshFeatures:
-        with np.load(path, allow_pickle=False) as data:
-            if "format" not in data or str(data["format"]) != FORMAT:
-                raise ValueError(
-                    f"{path}: not a drkfs-score features file of this version ({FORMAT}); "
-                    "describe the reference again with drkfs-score features"
-                )
+        """Read a features file; anything wrong with it is a ValueError naming the file."""
+        if not Path(path).is_file():
+            raise ValueError(f"{path}: no such features file")
+        try:
+            with np.load(path, allow_pickle=False) as data:
+                arrays = {name: data[name] for name in data.files}
+        except Exception as exc:  # numpy and zipfile raise many types for a broken file
+            raise ValueError(
+                f"{path}: unreadable features file ({type(exc).__name__}: {exc})"
+            ) from exc
+        if str(arrays.get("format", "")) != FORMAT:
+            raise ValueError(
+                f"{path}: not a drkfs-score features file of this version ({FORMAT}); "
+                "describe the reference again with drkfs-score features"
+            )
+        try:
             return cls(
-                descriptors=data["descriptors"],
-                patch_index=data["patch_index"],
-                empty_descriptor=data["empty_descriptor"],
-                centre=data["centre"],
-                scale=float(data["scale"]),
-                normalization=str(data["normalization"]),
-                model=str(data["model"]),
-                config=PipelineConfig.from_json(str(data["config"])),
+                descriptors=arrays["descriptors"],
+                patch_index=arrays["patch_index"],
+                empty_descriptor=arrays["empty_descriptor"],
+                centre=arrays["centre"],
+                scale=float(arrays["scale"]),
+                normalization=str(arrays["normalization"]),
+                model=str(arrays["model"]),
+                config=PipelineConfig.from_json(str(arrays["config"])),
                 source=str(path),
             )
+        except (KeyError, ValueError) as exc:
+            raise ValueError(f"{path}: incomplete features file ({exc})") from exc

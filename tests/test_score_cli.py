@@ -69,6 +69,35 @@ def test_a_features_file_remembers_its_normalisation_and_refuses_another(tmp_pat
     assert result.exit_code != 0 and f"{old}: not a drkfs-score features file" in result.output
 
 
+def test_a_broken_reference_file_is_its_rows_error_and_the_batch_goes_on(tmp_path):
+    good = tmp_path / "chair.npz"
+    assert _run("features", CHAIR, "--out", good, *FAST).exit_code == 0
+    truncated = tmp_path / "truncated.npz"
+    truncated.write_bytes(good.read_bytes()[: good.stat().st_size // 2])
+    empty = tmp_path / "empty.npz"
+    empty.write_bytes(b"")
+    corrupt = tmp_path / "corrupt.npz"
+    corrupt.write_bytes(b"PK\x03\x04 not a zip at all")
+    missing = tmp_path / "missing.npz"
+    broken = (truncated, empty, corrupt, missing, tmp_path)  # the folder: not a file either
+    pairs = tmp_path / "pairs.csv"
+    rows = [f"{NO_LEG},{path}" for path in (*broken, good)]
+    pairs.write_text("mesh_a,mesh_b\n" + "\n".join(rows) + "\n")
+    out = tmp_path / "scores.csv"
+    result = _run("batch", pairs, "--out", out, *FAST)
+    assert (
+        result.exit_code == 1
+        and result.exception is None
+        or isinstance(result.exception, SystemExit)
+    )
+    records = list(csv.DictReader(out.open()))
+    assert len(records) == len(broken) + 1
+    for path, record in zip(broken, records[:-1], strict=True):
+        assert record["error"].startswith(f"{path}:") and record["score"] == ""
+    assert float(records[-1]["score"]) > 0  # the good row after five bad ones
+    assert "Aborted" not in _run("pair", NO_LEG, empty, *FAST).output
+
+
 def test_a_mesh_no_camera_sees_is_an_error_not_a_perfect_score(tmp_path):
     far = tmp_path / "far_triangle.obj"
     far.write_text("v 1e6 1e6 1e6\nv 1000001 1e6 1e6\nv 1e6 1000001 1e6\nf 1 2 3\n")
