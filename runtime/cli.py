@@ -47,7 +47,9 @@ Model = Annotated[
     Path | None, typer.Option(help="A feature-graph ONNX file instead of the shipped one.")
 ]
 
-BATCH_COLUMNS = ["row", "mesh_a", "mesh_b", "score", "seconds", "error"]
+BATCH_COLUMNS = [
+    "row", "mesh_a", "mesh_b", "score", "seconds", "error", "settings", "model_version",
+]  # fmt: skip
 
 
 @contextmanager
@@ -148,19 +150,27 @@ def _pairs(path: Path) -> list[tuple[str, str]]:
     return [(row[0].strip(), row[1].strip() if len(row) > 1 else "") for row in rows]
 
 
-def _done(out: Path) -> dict[int, dict]:
-    """Rows already in OUT (the last record of each row wins); a line cut by a kill is dropped."""
+def _finished(out: Path) -> list[dict]:
+    """The records of an earlier run of OUT that scored (failed ones are tried again); a line cut
+    by a kill is dropped. OUT is rewritten with just these, so a rerun appends no duplicates."""
     if not out.exists() or out.stat().st_size == 0:
-        return {}
+        return []
     text = out.read_text()
-    if not text.endswith("\n"):
-        text = text[: text.rfind("\n") + 1]
-        out.write_text(text)
-    records = {}
-    for record in csv.DictReader(text.splitlines()):
-        if record.get("row", "").isdigit():
-            records[int(record["row"])] = record
-    return records
+    text = text[: text.rfind("\n") + 1]  # a kill can cut the last line
+    reader = csv.DictReader(text.splitlines())
+    if reader.fieldnames != BATCH_COLUMNS:
+        raise ValueError(
+            f"{out}: not a results file of this drkfs-score (columns {reader.fieldnames}); "
+            "write to a new --out"
+        )
+    kept = [record for record in reader if record["error"] == "" and record["score"] != ""]
+    partial = out.with_name(out.name + ".partial")
+    with open(partial, "w", newline="") as handle:
+        writer = csv.DictWriter(handle, BATCH_COLUMNS)
+        writer.writeheader()
+        writer.writerows(kept)
+    partial.replace(out)
+    return kept
 
 
 @app.command()
@@ -181,31 +191,38 @@ def batch(
 ) -> None:
     """Score every row of PAIRS; results are appended and flushed row by row.
 
-    Rows already scored in OUT are skipped, failed rows are tried again; a row that fails records
+    A pair already scored in OUT with the same settings and model is skipped (wherever its row
+    now is); failed rows are tried again and replace their old record; a row that fails records
     its error and the others go on. Exits 1 when any row failed.
     """
+    if out.resolve() == pairs.resolve():
+        typer.echo(f"error: --out {out} is the pairs file; results go to another file", err=True)
+        raise typer.Exit(2)
     todo = _pairs(pairs)
-    done = _done(out)
     scorer = _scorer(
         threads, normalize, width, model, decimate, preset=preset, matching=matching,
         window=window, direction=direction, reduction=reduction, symmetric=symmetric,
     )  # fmt: skip
-    fresh = not out.exists() or out.stat().st_size == 0
+    with _exit_on(ValueError, OSError):
+        done = {(r["mesh_a"], r["mesh_b"], r["settings"]) for r in _finished(out)}
+    settings, version = scorer.settings, scorer.model_version
     failed, scored, skipped = [], 0, 0
-    with open(out, "a", newline="") as handle:
+    with _exit_on(OSError), open(out, "a", newline="") as handle:
         writer = csv.DictWriter(handle, BATCH_COLUMNS)
-        if fresh:
+        if handle.tell() == 0:
             writer.writeheader()
         with typer.progressbar(list(enumerate(todo)), label="scoring", file=None) as rows:
             for index, (a, b) in rows:
-                if index in done and done[index]["error"] == "":
+                if (a, b, settings) in done:  # scored before with these settings and model
                     skipped += 1
                     continue
                 record = {"row": index, "mesh_a": a, "mesh_b": b, "score": "", "error": ""}
+                record.update(settings=settings, model_version=version)
                 start = time.perf_counter()
                 try:
                     record["score"] = repr(scorer.score(Path(a), _reference(Path(b))))
                     scored += 1
+                    done.add((a, b, settings))
                 except (MeshError, ValueError, OSError) as exc:
                     record["error"] = str(exc) or type(exc).__name__
                     failed.append(index)

@@ -7,6 +7,7 @@ meshes within the face budget.
 from __future__ import annotations
 
 import hashlib
+import json
 import os
 from collections import OrderedDict
 from pathlib import Path
@@ -68,6 +69,18 @@ class Scorer:
     @property
     def model_version(self) -> str:
         return self.features_graph.version
+
+    @property
+    def settings(self) -> str:
+        """A digest of everything that shapes this scorer's scores: the config, the
+        normalisation, the feature graph and the face budget (batch resume keys on it)."""
+        shaping = {
+            "config": self.config.to_dict(),
+            "normalization": self.normalization,
+            "model": self.features_graph.sha256,
+            "face_budget": self.face_budget,
+        }
+        return hashlib.sha256(json.dumps(shaping, sort_keys=True).encode()).hexdigest()[:16]
 
     def features(self, mesh: MeshLike, frame: tuple[np.ndarray, float] | None = None):
         """Descriptors of a mesh placed in ``frame`` (default: its own normalisation frame)."""

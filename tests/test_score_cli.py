@@ -85,11 +85,7 @@ def test_a_broken_reference_file_is_its_rows_error_and_the_batch_goes_on(tmp_pat
     pairs.write_text("mesh_a,mesh_b\n" + "\n".join(rows) + "\n")
     out = tmp_path / "scores.csv"
     result = _run("batch", pairs, "--out", out, *FAST)
-    assert (
-        result.exit_code == 1
-        and result.exception is None
-        or isinstance(result.exception, SystemExit)
-    )
+    assert result.exit_code == 1  # rows failed; the run itself did not crash
     records = list(csv.DictReader(out.open()))
     assert len(records) == len(broken) + 1
     for path, record in zip(broken, records[:-1], strict=True):
@@ -151,6 +147,42 @@ def test_batch_records_errors_goes_on_and_resumes_after_a_kill(tmp_path):
     assert second.exit_code == 1
     assert "1 scored, 1 failed, 1 already done" in second.output
     assert _records(out)[2]["score"] == records[2]["score"]
+
+
+def test_batch_resume_is_keyed_by_the_pair_and_the_settings_not_the_row(tmp_path):
+    pairs, out = tmp_path / "pairs.csv", tmp_path / "scores.csv"
+    missing = tmp_path / "later.obj"
+    pairs.write_text(f"mesh_a,mesh_b\n{NO_LEG},{CHAIR}\n{missing},{CHAIR}\n")
+    assert _run("batch", pairs, "--out", out, *FAST).exit_code == 1
+    # a pair inserted at the top is scored; the scored one is found though its row moved; the
+    # failed one is tried again (its mesh now exists) and replaces its old record
+    shutil.copy(NO_BACK, missing)
+    pairs.write_text(f"mesh_a,mesh_b\n{CHAIR},{CHAIR}\n{NO_LEG},{CHAIR}\n{missing},{CHAIR}\n")
+    rerun = _run("batch", pairs, "--out", out, *FAST)
+    assert rerun.exit_code == 0, rerun.output
+    assert "2 scored, 0 failed, 1 already done" in rerun.output
+    records = list(csv.DictReader(out.open()))
+    assert sorted((r["mesh_a"], r["error"]) for r in records) == sorted(
+        [(str(NO_LEG), ""), (str(CHAIR), ""), (str(missing), "")]
+    )  # one record per pair: no duplicates, no stale error
+    assert {r["model_version"] for r in records} != {""}
+    # other settings are other results: nothing is "already done"
+    wider = _run("batch", pairs, "--out", out, "--width", "0.5")
+    assert "3 scored, 0 failed, 0 already done" in wider.output
+    settings = {r["settings"] for r in csv.DictReader(out.open())}
+    assert len(settings) == 2
+
+
+def test_batch_refuses_to_write_over_its_input_or_an_old_results_file(tmp_path):
+    pairs = tmp_path / "pairs.csv"
+    pairs.write_text(f"mesh_a,mesh_b\n{CHAIR},{CHAIR}\n")
+    result = _run("batch", pairs, "--out", pairs, *FAST)
+    assert result.exit_code == 2 and "is the pairs file" in result.output
+    assert pairs.read_text() == f"mesh_a,mesh_b\n{CHAIR},{CHAIR}\n"
+    old = tmp_path / "old.csv"
+    old.write_text("row,mesh_a,mesh_b,score,seconds,error\n0,a,b,0.1,0.2,\n")
+    result = _run("batch", pairs, "--out", old, *FAST)
+    assert result.exit_code == 2 and f"{old}: not a results file" in result.output
 
 
 def test_a_batch_without_failures_exits_zero(tmp_path):
