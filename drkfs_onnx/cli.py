@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import time
-import warnings
 from pathlib import Path
 from typing import Annotated
 
@@ -31,14 +30,13 @@ RUNS = Path("runs")
 
 
 def _metric(config: PipelineConfig, normalize: str = "joint"):
-    from .metric import DRKFS
+    from .metric import DRKFS, MissingWeights
 
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        metric = DRKFS.pretrained(config, normalization=normalize)
-    for warning in caught:
-        typer.echo(f"note: {warning.message}", err=True)
-    return metric
+    try:
+        return DRKFS.pretrained(config, normalization=normalize)
+    except MissingWeights as exc:
+        typer.echo(f"error: {exc}", err=True)
+        raise typer.Exit(2) from exc
 
 
 def _score(metric, path_a: Path, path_b: Path) -> float:

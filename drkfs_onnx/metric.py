@@ -3,7 +3,6 @@
 
 from __future__ import annotations
 
-import warnings
 from typing import NamedTuple
 
 import torch
@@ -17,6 +16,10 @@ from .mesh import Mesh, check_normalization, normalize_pair, place, reference_fr
 from .patches import nonempty_patches, select_patches
 from .render import Renderer
 from .weights import RANDOM_SEED, load_shipped_state
+
+
+class MissingWeights(ValueError):
+    """No shipped weights serve the asked config."""
 
 
 class Target(NamedTuple):
@@ -55,22 +58,30 @@ class DRKFS(nn.Module):
         self.train(False)
 
     @classmethod
-    def pretrained(cls, config: PipelineConfig | None = None, **options) -> DRKFS:
-        """The metric with the weights shipped in ``models/``.
+    def pretrained(
+        cls, config: PipelineConfig | None = None, random_weights: bool = False, **options
+    ) -> DRKFS:
+        """The metric with the weights shipped in ``models/``, sha256-checked against the
+        manifest (a mismatch raises ValueError).
 
         Weights trained at another view count, image size, renderer softness (sigma, gamma) or
         match serve a config that differs only there (the nets are the same). Without shipped
-        weights for the config, this warns and returns nets initialised from
-        torch.manual_seed(RANDOM_SEED): deterministic, but random.
+        weights for the config this raises ``MissingWeights``, unless ``random_weights=True``
+        asks for nets initialised from torch.manual_seed(RANDOM_SEED): deterministic, but
+        random.
         """
         config = config or PipelineConfig()
         state = load_shipped_state(config, any_rendering=True)
         if state is None:
-            warnings.warn(
-                f"no trained weights shipped for this config in models/; using random weights "
-                f"(seed {RANDOM_SEED})",
-                stacklevel=2,
-            )
+            if not random_weights:
+                nets = config.features_part()
+                raise MissingWeights(
+                    f"no trained weights in models/ for {nets.nets} nets at width "
+                    f"{nets.descriptor_width:g}, detector {nets.detector_n}x{nets.detector_m} "
+                    f"{nets.detector_kernel}x{nets.detector_kernel}, descriptor dim "
+                    f"{nets.descriptor_dim}: train them (drkfs train --out models), or pass "
+                    "random_weights=True for seeded random nets"
+                )
             with torch.random.fork_rng():
                 torch.manual_seed(RANDOM_SEED)
                 return cls(config, **options)

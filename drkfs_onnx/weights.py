@@ -55,6 +55,8 @@ def load_shipped_state(config: PipelineConfig, any_rendering: bool = False):
     import torch
 
     path = models_dir() / entry["file"]
+    if not path.is_file():
+        raise ValueError(f"{path}: listed in the manifest but missing")
     data = path.read_bytes()
     digest = hashlib.sha256(data).hexdigest()
     if digest != entry["sha256"]:

@@ -12,6 +12,7 @@ import drkfs_onnx
 import drkfs_onnx.weights as weights
 from drkfs_onnx import DRKFS, PipelineConfig
 from drkfs_onnx.config import NETS
+from drkfs_onnx.metric import MissingWeights
 from drkfs_onnx.shapes import assemble, chair
 from drkfs_onnx.variants import without
 
@@ -106,14 +107,14 @@ def test_nets_stay_frozen_in_eval_mode(metric):
     assert not any(p.requires_grad for p in metric.parameters())
 
 
-def test_pretrained_without_shipped_weights_is_seeded_random():
+def test_pretrained_without_shipped_weights_refuses_unless_random_is_asked_for():
     unshipped = FAST.replace(descriptor_dim=64)
-    with pytest.warns(UserWarning, match="random weights"):
-        first = DRKFS.pretrained(unshipped)
-    with pytest.warns(UserWarning):
-        second = DRKFS.pretrained(unshipped)
+    with pytest.raises(MissingWeights, match="descriptor dim 64.*random_weights=True"):
+        DRKFS.pretrained(unshipped)
+    first = DRKFS.pretrained(unshipped, random_weights=True)
+    second = DRKFS.pretrained(unshipped, random_weights=True)
     for a, b in zip(first.state_dict().values(), second.state_dict().values(), strict=True):
-        assert torch.equal(a, b)
+        assert torch.equal(a, b)  # seeded: the same random nets every time
 
 
 def test_pretrained_loads_weights_listed_for_its_config(tmp_path, monkeypatch):
@@ -134,10 +135,13 @@ def test_pretrained_loads_weights_listed_for_its_config(tmp_path, monkeypatch):
     assert torch.equal(other_views.detector.conv.weight, trained.detector.conv.weight)
     other_nets = next(nets for nets in NETS if nets != FAST.nets)
     for other in (FAST.replace(detector_m=3), FAST.replace(nets=other_nets)):
-        with pytest.warns(UserWarning, match="random weights"):
+        with pytest.raises(MissingWeights):
             DRKFS.pretrained(other)
     (tmp_path / "fast.pt").write_bytes(b"tampered")
     with pytest.raises(ValueError, match="does not match the manifest"):
+        DRKFS.pretrained(FAST)
+    (tmp_path / "fast.pt").unlink()
+    with pytest.raises(ValueError, match="fast.pt: listed in the manifest but missing"):
         DRKFS.pretrained(FAST)
 
 
