@@ -38,6 +38,8 @@ class Mesh:
 def load_mesh(path: str | Path) -> Mesh:
     """Read any format trimesh reads (scenes are merged) and check it with ``check_mesh``."""
     source = str(path)
+    if Path(path).is_dir():
+        raise MeshError(source, "a folder, not a mesh file")
     if not Path(path).is_file():
         raise MeshError(source, "no such file")
     try:

@@ -33,7 +33,8 @@ app = typer.Typer(
 )
 
 Threads = Annotated[
-    int | None, typer.Option(help="onnxruntime and renderer threads (default: all cores).")
+    int | None,
+    typer.Option(min=1, help="onnxruntime and renderer threads (default: all cores)."),
 ]
 Width = Annotated[
     float | None,
@@ -130,15 +131,21 @@ def features(
     decimate: Decimate = False,
 ) -> None:
     """Describe a reference mesh once; pass the .npz as MESH_B to ``pair`` or in a batch CSV."""
+    out = out if out.suffix == ".npz" else out.with_name(out.name + ".npz")  # numpy adds it
     scorer = _scorer(threads, normalize, width, model, decimate, preset=preset)
     with _exit_on(MeshError):
         result = scorer.features(mesh)
-    result.save(out)
+    with _exit_on(OSError):
+        result.save(out)
     typer.echo(f"{out}: {len(result.descriptors)} patch descriptors, {result.empty} empty patches")
 
 
 def _pairs(path: Path) -> list[tuple[str, str]]:
-    """The CSV's (mesh_a, mesh_b) rows: columns named mesh_a and mesh_b, or the first two."""
+    """The CSV's (mesh_a, mesh_b) rows: columns named mesh_a and mesh_b, or, without a header,
+    the first two columns. A first row that is neither is refused: it is a header with other
+    names (pred,gt), which would otherwise be scored as a pair."""
+    if not path.is_file():
+        raise ValueError(f"{path}: no such pairs file" + (" (a folder)" if path.is_dir() else ""))
     with open(path, newline="") as handle:
         rows = [row for row in csv.reader(handle) if row and any(cell.strip() for cell in row)]
     if not rows:
@@ -146,8 +153,19 @@ def _pairs(path: Path) -> list[tuple[str, str]]:
     header = [cell.strip() for cell in rows[0]]
     if "mesh_a" in header and "mesh_b" in header:
         a, b = header.index("mesh_a"), header.index("mesh_b")
-        return [(row[a].strip(), row[b].strip()) for row in rows[1:]]
-    return [(row[0].strip(), row[1].strip() if len(row) > 1 else "") for row in rows]
+        body = [[_cell(row, a), _cell(row, b)] for row in rows[1:]]
+    elif not all(Path(cell).exists() for cell in header[:2]):
+        raise ValueError(
+            f"{path}: the first row {','.join(header)} is neither the header mesh_a,mesh_b nor "
+            "two existing files; name the columns mesh_a and mesh_b"
+        )
+    else:
+        body = rows
+    return [(_cell(row, 0), _cell(row, 1)) for row in body]
+
+
+def _cell(row: list[str], column: int) -> str:
+    return row[column].strip() if column < len(row) else ""
 
 
 def _finished(out: Path) -> list[dict]:
@@ -198,7 +216,8 @@ def batch(
     if out.resolve() == pairs.resolve():
         typer.echo(f"error: --out {out} is the pairs file; results go to another file", err=True)
         raise typer.Exit(2)
-    todo = _pairs(pairs)
+    with _exit_on(ValueError, OSError):
+        todo = _pairs(pairs)
     scorer = _scorer(
         threads, normalize, width, model, decimate, preset=preset, matching=matching,
         window=window, direction=direction, reduction=reduction, symmetric=symmetric,
@@ -220,6 +239,8 @@ def batch(
                 record.update(settings=settings, model_version=version)
                 start = time.perf_counter()
                 try:
+                    if not a or not b:
+                        raise ValueError("the row needs two meshes, mesh_a and mesh_b")
                     record["score"] = repr(scorer.score(Path(a), _reference(Path(b))))
                     scored += 1
                     done.add((a, b, settings))

@@ -40,9 +40,12 @@ class Graph:
 
     @classmethod
     def open(cls, data: bytes, source: str, threads: int | None) -> Graph:
-        session = ort.InferenceSession(
-            data, session_options(threads), providers=["CPUExecutionProvider"]
-        )
+        try:
+            session = ort.InferenceSession(
+                data, session_options(threads), providers=["CPUExecutionProvider"]
+            )
+        except Exception as exc:  # onnxruntime raises its own types for a file it cannot read
+            raise ModelMismatch(f"{source}: not a readable ONNX model ({exc})") from exc
         metadata = dict(session.get_modelmeta().custom_metadata_map)
         return cls(session, source, hashlib.sha256(data).hexdigest(), metadata)
 
@@ -53,11 +56,14 @@ class Graph:
 
 def _read(path: str | Path | None, default: str) -> tuple[bytes, str]:
     if path is not None:
+        if not Path(path).is_file():
+            raise ModelMismatch(f"{path}: no such model file")
         return Path(path).read_bytes(), str(path)
     shipped = models_dir() / default
     if not shipped.is_file():
         raise FileNotFoundError(
-            f"no {default} in the installed models/; run `drkfs export` (torch extra) to make it"
+            f"no {default} in the installed models/; run `drkfs export --out models` "
+            "(torch extra) to make it"
         )
     return shipped.read_bytes(), f"models/{default}"
 

@@ -229,3 +229,49 @@ def test_a_features_file_for_another_preset_is_refused_naming_the_settings(tmp_p
     default = PipelineConfig()
     assert f"num_views {default.num_views} (asked 25)" in result.output
     assert f"image_size {default.image_size} (asked 256)" in result.output
+
+
+def test_bad_command_lines_get_one_clear_error_line_each(tmp_path):
+    folder = tmp_path / "folder"
+    folder.mkdir()
+    not_onnx = tmp_path / "model.onnx"
+    not_onnx.write_text("not a graph")
+    good = _csv(tmp_path, f"{CHAIR},{CHAIR}", "good.csv")
+    cases = [
+        (("pair", folder, CHAIR), f"{folder}: a folder, not a mesh file"),
+        (("pair", NO_LEG, CHAIR, "--model", not_onnx), f"{not_onnx}: not a readable ONNX model"),
+        (("pair", NO_LEG, CHAIR, "--model", tmp_path / "none.onnx"), "none.onnx: no such model"),
+        (("pair", NO_LEG, CHAIR, "--threads", "-1"), "greater than or equal to 1"),
+        (("batch", tmp_path / "none.csv", "--out", tmp_path / "o.csv"), "no such pairs file"),
+        (("batch", folder, "--out", tmp_path / "o.csv"), "no such pairs file (a folder)"),
+        (("batch", good, "--out", folder), "Is a directory"),
+        (("batch", good, "--out", tmp_path / "no" / "o.csv"), "No such file or directory"),
+        (("batch", _csv(tmp_path, f"pred,gt\n{CHAIR},{CHAIR}", "named.csv"), "--out",
+          tmp_path / "o.csv"), "the first row pred,gt is neither the header mesh_a,mesh_b"),
+    ]  # fmt: skip
+    for args, message in cases:
+        result = _run(*args, *FAST)
+        assert result.exit_code == 2, (args, result.output)
+        assert message in " ".join(result.output.split()), (args, result.output)
+        assert "Traceback" not in result.output
+
+
+def _csv(folder: Path, text: str, name: str = "pairs.csv") -> Path:
+    path = folder / name
+    path.write_text(text + "\n")
+    return path
+
+
+def test_a_one_column_row_is_its_rows_error(tmp_path):
+    pairs = _csv(tmp_path, f"mesh_a,mesh_b\n{NO_LEG}\n{NO_LEG},{CHAIR}")
+    out = tmp_path / "scores.csv"
+    assert _run("batch", pairs, "--out", out, *FAST).exit_code == 1
+    first, second = csv.DictReader(out.open())
+    assert "needs two meshes" in first["error"] and float(second["score"]) > 0
+
+
+def test_features_out_names_the_file_it_wrote(tmp_path):
+    result = _run("features", CHAIR, "--out", tmp_path / "chair", *FAST)
+    assert result.exit_code == 0
+    assert result.output.startswith(f"{tmp_path / 'chair.npz'}:")
+    assert (tmp_path / "chair.npz").is_file()
