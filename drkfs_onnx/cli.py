@@ -235,3 +235,20 @@ def demo(
         start = time.perf_counter()
         value = _score(metric, folder / name, folder / REFERENCE)
         typer.echo(f"{name:28} {value:10.3f} {time.perf_counter() - start:8.2f}  {change}")
+
+
+def main() -> None:
+    """The ``drkfs`` command: the app, with a missing torch named as the extra to install
+    instead of a traceback (the base install is the torch-free server scorer)."""
+    try:
+        app()
+    except ModuleNotFoundError as exc:
+        if exc.name != "torch":
+            raise
+        typer.echo(
+            "error: this drkfs command needs torch; install the torch extra: "
+            "pip install torch==2.13.0 && pip install 'drkfs-onnx[torch]' "
+            "(drkfs-score scores without it)",
+            err=True,
+        )
+        raise SystemExit(2) from None

@@ -88,3 +88,20 @@ def test_no_command_writes_into_shipped_files_by_default(monkeypatch):
         result = CliRunner().invoke(app, args)
         assert isinstance(result.exception, Called), result.output
         assert Path(result.exception.args[0]).parts[0] == RUNS.name
+
+
+def test_the_runtime_imports_from_the_repository_root_without_the_editable_finder():
+    """What a plain `pip install .` meets at the repository root: ./drkfs_onnx shadows the
+    installed package, and no finder maps export/ and runtime/ into it."""
+    code = (
+        "import sys\n"
+        "sys.meta_path[:] = [f for f in sys.meta_path if 'Editable' not in repr(f)]\n"
+        "from drkfs_onnx.runtime import Scorer\n"
+        "from drkfs_onnx.weights import shipped_weights\n"
+        "assert shipped_weights(), 'models/ not found'\n"
+        "assert 'torch' not in sys.modules\n"
+        "import drkfs_onnx.export\n"
+    )
+    root = Path(__file__).resolve().parents[1]
+    result = subprocess.run([sys.executable, "-c", code], cwd=root, capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr

@@ -275,3 +275,18 @@ def test_features_out_names_the_file_it_wrote(tmp_path):
     assert result.exit_code == 0
     assert result.output.startswith(f"{tmp_path / 'chair.npz'}:")
     assert (tmp_path / "chair.npz").is_file()
+
+
+def test_the_torch_command_without_torch_names_the_extra_to_install(tmp_path):
+    blocker = tmp_path / "torch"
+    blocker.mkdir()
+    (blocker / "__init__.py").write_text("raise ModuleNotFoundError('no torch', name='torch')\n")
+    script = shutil.which("drkfs")
+    assert script, "drkfs is not installed (pip install -e .)"
+    env = {**os.environ, "PYTHONPATH": str(tmp_path)}
+    result = subprocess.run(
+        [script, "score", str(NO_LEG), str(CHAIR)], capture_output=True, text=True, env=env
+    )
+    assert result.returncode == 2
+    assert "pip install 'drkfs-onnx[torch]'" in result.stderr
+    assert "Traceback" not in result.stderr
