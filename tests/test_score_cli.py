@@ -27,19 +27,20 @@ def _run(*args: str):
     return CliRunner().invoke(app, [*map(str, args)])
 
 
-def test_drkfs_score_runs_where_torch_cannot_be_imported(tmp_path):
+def _without_torch(tmp_path: Path, command: str, *args: str) -> subprocess.CompletedProcess:
+    """Run an installed command where ``import torch`` fails, as on a base install."""
     blocker = tmp_path / "torch"
     blocker.mkdir()
-    (blocker / "__init__.py").write_text("raise ImportError('no torch on this server')\n")
-    script = shutil.which("drkfs-score")
-    assert script, "drkfs-score is not installed (pip install -e .)"
+    (blocker / "__init__.py").write_text("raise ModuleNotFoundError('no torch', name='torch')\n")
+    script = shutil.which(command)
+    assert script, f"{command} is not installed (pip install -e .)"
     env = {**os.environ, "PYTHONPATH": str(tmp_path)}
-    result = subprocess.run(
-        [script, "pair", str(NO_LEG), str(CHAIR), "--json", *FAST],
-        capture_output=True,
-        text=True,
-        env=env,
-    )
+    return subprocess.run([script, *args], capture_output=True, text=True, env=env)
+
+
+def test_drkfs_score_runs_where_torch_cannot_be_imported(tmp_path):
+    pair = ("pair", str(NO_LEG), str(CHAIR), "--json", *FAST)
+    result = _without_torch(tmp_path, "drkfs-score", *pair)
     assert result.returncode == 0, result.stderr
     report = json.loads(result.stdout)
     assert report["score"] > 0 and report["seconds"] > 0
@@ -278,15 +279,7 @@ def test_features_out_names_the_file_it_wrote(tmp_path):
 
 
 def test_the_torch_command_without_torch_names_the_extra_to_install(tmp_path):
-    blocker = tmp_path / "torch"
-    blocker.mkdir()
-    (blocker / "__init__.py").write_text("raise ModuleNotFoundError('no torch', name='torch')\n")
-    script = shutil.which("drkfs")
-    assert script, "drkfs is not installed (pip install -e .)"
-    env = {**os.environ, "PYTHONPATH": str(tmp_path)}
-    result = subprocess.run(
-        [script, "score", str(NO_LEG), str(CHAIR)], capture_output=True, text=True, env=env
-    )
+    result = _without_torch(tmp_path, "drkfs", "score", str(NO_LEG), str(CHAIR))
     assert result.returncode == 2
     assert "pip install 'drkfs-onnx[torch]'" in result.stderr
     assert "Traceback" not in result.stderr
