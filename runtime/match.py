@@ -60,9 +60,11 @@ def best_matches(
     return distances, np.ones(len(distances))
 
 
-def check_features(features: MeshFeatures, config: PipelineConfig, model: str) -> None:
-    """Refuse features computed for another config (naming the settings that differ) or by
-    another feature graph than ``model`` (a sha256)."""
+def check_features(
+    features: MeshFeatures, config: PipelineConfig, model: str, normalization: str
+) -> None:
+    """Refuse features computed for another config (naming the settings that differ), by
+    another feature graph than ``model`` (a sha256) or under another normalisation."""
     made, asked = features.config.features_part(), config.features_part()
     if made != asked:
         raise ValueError(
@@ -73,13 +75,19 @@ def check_features(features: MeshFeatures, config: PipelineConfig, model: str) -
             f"{features.source}: features from different feature graphs "
             f"({features.model[:12]}, expected {model[:12]})"
         )
+    if features.normalization != normalization:
+        raise ValueError(
+            f"{features.source}: features made with normalisation "
+            f"{features.normalization!r}, scoring asked {normalization!r}; describe "
+            f"the reference again with --normalize {normalization}"
+        )
 
 
 def match(a: MeshFeatures, b: MeshFeatures, config: PipelineConfig) -> float:
     """DR-KFS of A against B from their features: each direction the config searches, its
     best-match distances reduced (``match_rules.reduce``), averaged over the directions."""
     for features in (a, b):
-        check_features(features, config, a.model)
+        check_features(features, config, a.model, a.normalization)
     scores = [
         float(match_rules.reduce(*best_matches(queries, targets, config), config))
         for queries, targets in match_rules.directions(a, b, config)

@@ -131,13 +131,8 @@ class Scorer:
         """DR-KFS of A against the reference B (0 for identical meshes)."""
         a = a if isinstance(a, Mesh) else load_mesh(a)  # a bad A fails before B's work
         reference = b if isinstance(b, MeshFeatures) else self.features(b)
-        check_features(reference, self.config, self.features_graph.sha256)  # before A's work
-        if reference.normalization != self.normalization:
-            raise ValueError(
-                f"{reference.source}: features made with normalisation "
-                f"{reference.normalization!r}, scoring asked {self.normalization!r}; describe "
-                f"the reference again with --normalize {self.normalization}"
-            )
+        # before A's work
+        check_features(reference, self.config, self.features_graph.sha256, self.normalization)
         frame = (reference.centre, reference.scale) if self.normalization == "joint" else None
         return self.match(self.features(a, frame), reference)
 

@@ -22,18 +22,18 @@ import torch
 import trimesh
 from torch import nn
 
-from ..benchmark.point_metrics import sample_surface
-from ..cameras import Cameras, hemisphere_directions, look_at
+from ..benchmark.point_metrics import iou, sample_surface
+from ..cameras import Cameras, hemisphere_directions, look_at, make_cameras
 from ..config import PipelineConfig
 from ..mesh import frame_of
-from ..metric import DRKFS, Target
+from ..metric import DRKFS
 from ..render import Renderer
 from ..shapes import assemble, random_shape
 from .evaluate import HIGHER_IS_BETTER, Judge
 from .gallery import write_gallery
 from .geometry import Smoothness, chamfer, surface_points
-from .objective import CHAMFER_SAMPLES, TARGET_SAMPLES, float_tensor
-from .study import save_mesh, share, slug
+from .objective import CHAMFER_SAMPLES, TARGET_SAMPLES, DrkfsLoss, float_tensor
+from .study import chamfer_ratios, save_mesh, share, slug
 
 # seeds of the shapes the network trains and is tested on: disjoint from the benchmark's
 # (2026-2028), the held-out checks' (3000-3002) and the nets' training data (seeds 0-2)
@@ -120,6 +120,15 @@ def shapes(plan: NetworkPlan, first_seed: int, per_family: int) -> list[Shape]:
     ]
 
 
+def primitives() -> tuple[torch.Tensor, torch.Tensor]:
+    """The unit icosphere's (Vs, 3) vertices and the (PRIMITIVES * Fs, 3) faces of PRIMITIVES
+    copies of it, vertex block after vertex block."""
+    sphere = trimesh.creation.icosphere(SPHERE_LEVEL)
+    faces = torch.as_tensor(np.asarray(sphere.faces, dtype=np.int64))
+    offsets = torch.arange(PRIMITIVES)[:, None, None] * len(sphere.vertices)
+    return float_tensor(sphere.vertices), (faces[None] + offsets).reshape(-1, 3)
+
+
 class Reconstructor(nn.Module):
     """Points -> the vertices of PRIMITIVES deformed icospheres.
 
@@ -132,8 +141,7 @@ class Reconstructor(nn.Module):
         self.encoder = nn.Sequential(
             nn.Linear(3, 64), nn.ReLU(), nn.Linear(64, 128), nn.ReLU(), nn.Linear(128, code)
         )
-        sphere = trimesh.creation.icosphere(SPHERE_LEVEL)
-        unit = float_tensor(sphere.vertices)
+        unit, faces = primitives()
         corners = torch.tensor([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)])
         self.anchors = nn.Parameter(ANCHOR * corners[:PRIMITIVES].float())
         self.embedding = nn.Parameter(0.1 * torch.randn(PRIMITIVES, embedding))
@@ -148,9 +156,7 @@ class Reconstructor(nn.Module):
         nn.init.normal_(last.weight, std=1e-3)  # start from the spheres themselves
         nn.init.zeros_(last.bias)
         self.register_buffer("unit", unit, persistent=False)
-        faces = torch.as_tensor(np.asarray(sphere.faces, dtype=np.int64))
-        offsets = torch.arange(PRIMITIVES)[:, None, None] * len(unit)
-        self.register_buffer("faces", (faces[None] + offsets).reshape(-1, 3), persistent=False)
+        self.register_buffer("faces", faces, persistent=False)
 
     def spheres(self) -> torch.Tensor:
         """(PRIMITIVES * Vs, 3): the primitives before any deformation."""
@@ -173,23 +179,24 @@ class Reconstructor(nn.Module):
 
 class Losses:
     """Each loss of LOSSES for one predicted mesh against a training shape, its targets
-    prepared once (DR-KFS features at the loss config, Chamfer samples)."""
+    prepared once for every network (DR-KFS features at the loss config, Chamfer samples).
+    ``reseed`` restarts the Chamfer draws, so every network sees the same ones."""
 
-    def __init__(self, metric: DRKFS, train: list[Shape], faces: torch.Tensor, seed: int):
-        self.metric, self.faces = metric, faces
-        with torch.no_grad():
-            self.targets: list[Target] = [
-                metric.target(float_tensor(s.verts), torch.as_tensor(s.faces)) for s in train
-            ]
+    def __init__(self, metric: DRKFS, train: list[Shape], faces: torch.Tensor):
+        self.faces = faces
+        self.drkfs_losses = [DrkfsLoss(metric, s.verts, s.faces, faces) for s in train]
         self.samples = [s.samples for s in train]
-        self.generator = torch.Generator().manual_seed(seed)
+        self.generator = torch.Generator()
+
+    def reseed(self, seed: int) -> None:
+        self.generator.manual_seed(seed)
 
     def chamfer(self, verts: torch.Tensor, index: int) -> torch.Tensor:
         points = surface_points(verts, self.faces, CHAMFER_SAMPLES, self.generator)
         return chamfer(points, self.samples[index])
 
     def drkfs(self, verts: torch.Tensor, index: int) -> torch.Tensor:
-        return self.metric.score_to(verts, self.faces, self.targets[index])
+        return self.drkfs_losses[index](verts)
 
 
 def terms(loss: str, weight: float, losses: Losses) -> list[tuple[float, object]]:
@@ -202,22 +209,23 @@ def terms(loss: str, weight: float, losses: Losses) -> list[tuple[float, object]
     raise ValueError(f"unknown loss {loss!r}; use one of {', '.join(LOSSES)}")
 
 
-def train(plan: NetworkPlan, loss: str, train_set: list[Shape], metric: DRKFS, progress) -> dict:
-    """One network trained with ``loss`` -> {"model", "history", "seconds_per_step"}. Every loss
-    starts from the same weights and sees the same batches; each term is divided by its mean
-    over the first batch, so one smoothness weight and one step size serve them all."""
+def train(plan: NetworkPlan, loss: str, points: torch.Tensor, losses: Losses, progress) -> dict:
+    """One network trained with ``loss`` on the training shapes' input ``points`` (S, N, 3) ->
+    {"model", "history", "seconds_per_step"}. Every loss starts from the same weights and sees
+    the same batches; each term is divided by its mean over the first batch, so one smoothness
+    weight and one step size serve them all."""
     torch.manual_seed(plan.seed)
     model = Reconstructor()
     smooth = Smoothness(model.spheres().detach(), model.faces)
-    losses = Losses(metric, train_set, model.faces, plan.seed)
+    losses.reseed(plan.seed)
     parts = terms(loss, plan.weight, losses)
-    points = torch.stack([s.points for s in train_set])
+    weights = torch.tensor([w for w, _ in parts])
     rng = np.random.default_rng(plan.seed)
     optimizer = torch.optim.Adam(model.parameters(), lr=plan.learning_rate)
     scales, history = None, []
     start = time.perf_counter()
     for step in range(plan.steps):
-        batch = rng.choice(len(train_set), size=plan.batch, replace=False)
+        batch = rng.choice(len(points), size=plan.batch, replace=False)
         predicted = model(points[batch])
         values = torch.stack(
             [
@@ -227,7 +235,6 @@ def train(plan: NetworkPlan, loss: str, train_set: list[Shape], metric: DRKFS, p
         ).mean(0)  # (terms,)
         if scales is None:
             scales = values.detach().clamp_min(1e-12)
-        weights = torch.tensor([w for w, _ in parts])
         objective = (weights * values / scales).sum()
         regulariser = torch.stack([smooth(v) for v in predicted]).mean()
         optimizer.zero_grad()
@@ -249,11 +256,11 @@ def unseen_cameras(config: PipelineConfig, count: int) -> Cameras:
     directions = directions @ np.array([[c, 0.0, -s], [0.0, 1.0, 0.0], [s, 0.0, c]])
     directions[1::2, 1] *= -1.0
     eyes = directions * config.camera_distance
-    return Cameras(rotations=look_at(eyes), eyes=eyes, focal=Renderer(config).cameras.focal)
+    return Cameras(rotations=look_at(eyes), eyes=eyes, focal=make_cameras(config).focal)
 
 
 class SilhouetteJudge:
-    """Silhouette IoU of two meshes seen from ``unseen_cameras``."""
+    """Silhouette masks of meshes seen from ``unseen_cameras`` (compare them with ``iou``)."""
 
     def __init__(self, config: PipelineConfig, count: int):
         self.renderer = Renderer(config, unseen_cameras(config, count))
@@ -263,10 +270,6 @@ class SilhouetteJudge:
         alpha = self.renderer.render(float_tensor(verts), torch.as_tensor(faces), "silhouette")
         return alpha.numpy() > SILHOUETTE
 
-    def iou(self, a: np.ndarray, b: np.ndarray) -> float:
-        union = np.logical_or(a, b).sum()
-        return float(np.logical_and(a, b).sum() / union) if union else 1.0
-
 
 def run_network_study(out: Path, quick: bool, threads: int = 2, progress=print) -> dict:
     start = time.perf_counter()
@@ -274,11 +277,14 @@ def run_network_study(out: Path, quick: bool, threads: int = 2, progress=print) 
     plan = QUICK if quick else FULL
     train_set = shapes(plan, TRAIN_SEED, plan.train_per_family)
     test_set = shapes(plan, TEST_SEED, plan.test_per_family)
-    metric = DRKFS.pretrained(plan.loss_config)
-    trained = {loss: train(plan, loss, train_set, metric, progress) for loss in LOSSES}
+    _, faces = primitives()
+    losses = Losses(DRKFS.pretrained(plan.loss_config), train_set, faces)
+    points = torch.stack([s.points for s in train_set])
+    trained = {loss: train(plan, loss, points, losses, progress) for loss in LOSSES}
 
     judge = Judge(plan.judge_config, threads)
     silhouettes = SilhouetteJudge(plan.judge_config, plan.unseen_views)
+    faces = faces.numpy()
     table, meshes, gallery = {}, {}, []
     for shape in test_set:
         folder = out / "meshes" / slug(shape.name)
@@ -290,11 +296,8 @@ def run_network_study(out: Path, quick: bool, threads: int = 2, progress=print) 
             model = result["model"]
             with torch.no_grad():
                 verts = model(shape.points[None])[0].double().numpy()
-            faces = model.faces.numpy()
             rows[loss] = judge.compare(judge.prepare(verts, faces), target)
-            rows[loss]["silhouette IoU"] = silhouettes.iou(
-                silhouettes.mask(verts, faces), target_mask
-            )
+            rows[loss]["silhouette IoU"] = iou(silhouettes.mask(verts, faces), target_mask)
             meshes[shape.name][loss] = save_mesh(folder / f"{slug(loss)}.ply", verts, faces)
             row_meshes.append((verts, faces))
         table[shape.name] = rows
@@ -334,14 +337,7 @@ def run_network_study(out: Path, quick: bool, threads: int = 2, progress=print) 
             for loss, r in trained.items()
         },
         "beats_chamfer": {loss: share(table, loss, JUDGED) for loss in LOSSES[1:]},
-        "chamfer_l1_over_chamfer_trained": {
-            loss: float(
-                np.mean(
-                    [r[loss]["Chamfer-L1"] / r["Chamfer"]["Chamfer-L1"] for r in table.values()]
-                )
-            )
-            for loss in LOSSES
-        },
+        "chamfer_l1_over_chamfer_trained": chamfer_ratios(table, LOSSES),
         "means": {
             loss: {
                 m: float(np.mean([r[loss][m] for r in table.values() if r[loss][m] is not None]))

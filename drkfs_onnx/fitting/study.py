@@ -140,6 +140,21 @@ def share(table: dict, challenger: str, metrics: tuple[str, ...]) -> dict:
     return {"wins": wins, "cells": len(cells), "share": wins / len(cells), "cell_wins": cells}
 
 
+def chamfer_ratios(table: dict, losses: tuple[str, ...]) -> dict[str, float]:
+    """Each loss's Chamfer-L1 over the Chamfer result's, averaged over the table's rows."""
+    return {
+        loss: float(
+            np.mean(
+                [
+                    rows[loss]["Chamfer-L1"] / rows["Chamfer"]["Chamfer-L1"]
+                    for rows in table.values()
+                ]
+            )
+        )
+        for loss in losses
+    }
+
+
 @dataclass(frozen=True)
 class Choice:
     settings: FitSettings
@@ -224,23 +239,15 @@ def landscapes(plan: StudyPlan, problems: list[Problem], choices: dict, progress
                     f"{rows[loss]['monotone_share']:.2f}"
                 )
             report[key]["problems"][problem.name] = rows
+        probes = report[key]["problems"].values()
         report[key]["summary"] = {
             loss: {
                 "median_relative_error": float(
-                    np.median(
-                        [
-                            rows[loss]["median_relative_error"]
-                            for rows in report[key]["problems"].values()
-                        ]
-                    )
+                    np.median([rows[loss]["median_relative_error"] for rows in probes])
                 ),
-                "monotone_share": float(
-                    np.mean(
-                        [rows[loss]["monotone_share"] for rows in report[key]["problems"].values()]
-                    )
-                ),
+                "monotone_share": float(np.mean([rows[loss]["monotone_share"] for rows in probes])),
                 "monotone_at_start_everywhere": all(
-                    rows[loss]["monotone_at_start"] for rows in report[key]["problems"].values()
+                    rows[loss]["monotone_at_start"] for rows in probes
                 ),
             }
             for loss in LANDSCAPE_LOSSES
@@ -331,17 +338,7 @@ def run_study(out: Path, quick: bool, threads: int = 2, progress=print) -> dict:
             "visual": share(table, LOSSES[3], VISUAL),
             "surface": share(table, LOSSES[3], SURFACE),
         },
-        "chamfer_l1_over_chamfer_fit": {
-            loss: float(
-                np.mean(
-                    [
-                        rows[loss]["Chamfer-L1"] / rows["Chamfer"]["Chamfer-L1"]
-                        for rows in table.values()
-                    ]
-                )
-            )
-            for loss in LOSSES
-        },
+        "chamfer_l1_over_chamfer_fit": chamfer_ratios(table, LOSSES),
         "seconds_per_step": {
             "config": plan.judge_config.to_dict(),
             "problem": first.description,

@@ -4,9 +4,11 @@ project's benchmark (``drkfs bench``'s sensitivity, bars and retrieval sets)."""
 
 from __future__ import annotations
 
+import argparse
 import copy
 import json
 import time
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -115,6 +117,33 @@ def benchmark_row(metric: DRKFS, bench: sets.BenchSet) -> dict:
     if bench.retrieval:
         row["retrieval"] = _retrieval(bench, scores.retrieval[name])["nearest_neighbour_accuracy"]
     return row
+
+
+def benchmark_rows_script(
+    doc: str, script: str, candidates: Callable[[], Iterable[tuple[str, DRKFS]]]
+) -> None:
+    """The command line of the evaluation-only bench scripts (``--out``, ``--quick``): each named
+    metric's ``benchmark_row``, printed as it comes and written to ``--out`` as {"command",
+    "config", "rows", "seconds"}. ``candidates()`` is consumed after the benchmark set is built."""
+    parser = argparse.ArgumentParser(description=doc.splitlines()[0])
+    parser.add_argument("--out", type=Path, required=True)
+    parser.add_argument("--quick", action="store_true", help="the benchmark's quick subset")
+    args = parser.parse_args()
+    torch.set_num_threads(2)
+    start = time.perf_counter()
+    bench = benchmark_set(args.quick)
+    rows = {}
+    for name, metric in candidates():
+        rows[name] = benchmark_row(metric, bench)
+        print(f"{name}: {rows[name]}", flush=True)
+    results = {
+        "command": f"python {script} --out {args.out}{' --quick' if args.quick else ''}",
+        "config": PipelineConfig().to_dict(),
+        "rows": rows,
+        "seconds": time.perf_counter() - start,
+    }
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps(results, indent=1) + "\n")
 
 
 def heldout_set(quick: bool) -> sets.BenchSet:
