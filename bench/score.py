@@ -12,8 +12,9 @@ step costs), the two paths' score difference, and the peak memory (max RSS) of t
 part, measured before torch is imported. Chamfer-L1 (the benchmark's 20k samples) is timed on the
 same pair. The paper preset's global search is also timed alone, by numpy's BLAS against the
 exported match graph in onnxruntime and against the bare float32 product of the two sets. Each
-case runs in its own process. A last case measures what decimation above the face budget
-changes.
+case runs in its own process. A last case scores a 500k-face mesh (the bunny, subdivided)
+against a jittered copy, written as OBJ files and loaded as a server would, and records the peak
+memory for both presets with 1 and 2 threads (goal: 2 GB).
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ import platform
 import resource
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -36,8 +38,10 @@ CASES = {
     "cow (5.8k faces)": MESHES / "cow.obj",
     "fandisk (12.9k faces)": MESHES / "fandisk.obj",
 }
-DECIMATION_MESHES = ("stanford-bunny.obj", "beast.obj")
 JITTER = 0.002
+LARGE_FACES = 500_000
+LARGE_THREADS = (1, 2)
+LARGE_GOAL_MB = 2048
 
 
 def _best(fn, repeats: int) -> tuple[float, object]:
@@ -175,39 +179,39 @@ def run_case(path: Path, preset: str, repeats: int) -> dict:
     }
 
 
-def run_decimation(name: str, repeats: int) -> dict:
+def write_large_meshes(folder: Path) -> tuple[Path, Path]:
+    """The bunny subdivided to LARGE_FACES faces and a copy jittered by JITTER, as OBJ files."""
+    import trimesh
+
     from drkfs_onnx import load_mesh
+
+    mesh = load_mesh(MESHES / "stanford-bunny.obj")
+    verts, faces = trimesh.remesh.subdivide(mesh.vertices, mesh.faces)
+    extra = (LARGE_FACES - len(faces) + 2) // 3  # each subdivided face adds three
+    verts, faces = trimesh.remesh.subdivide(verts, faces, face_index=np.arange(extra))
+    paths = folder / "large.obj", folder / "large-jittered.obj"
+    trimesh.Trimesh(verts, faces, process=False).export(paths[0])
+    other = _jittered(load_mesh(paths[0]))
+    trimesh.Trimesh(other.vertices, other.faces, process=False).export(paths[1])
+    return paths
+
+
+def run_large(mesh: Path, other: Path, preset: str, threads: int) -> dict:
+    from drkfs_onnx import PipelineConfig
     from drkfs_onnx.runtime import Scorer
-    from drkfs_onnx.runtime.decimate import decimate, face_budget
 
-    mesh = load_mesh(MESHES / name)
-    other = _jittered(mesh)
-    full = Scorer(threads=2)
-    budgeted = Scorer(threads=2, face_budget=face_budget(full.config))
-    rows = {}
-    for label, scorer in (("full", full), ("decimated", budgeted)):
-
-        def new_mesh(scorer=scorer):
-            scorer.cache.clear()
-            return scorer.features(mesh)
-
-        seconds, features = _best(new_mesh, repeats)
-        rows[label] = {"new_mesh_s": seconds, "jittered_pair_score": scorer.score(other, mesh)}
-        rows[label]["features"] = features
-    centre, scale = rows["full"]["features"].centre, rows["full"]["features"].scale
-    kept = decimate((mesh.vertices - centre) / scale, mesh.faces, full.config)[1]
-    change = budgeted.match(rows["decimated"].pop("features"), rows["full"].pop("features"))
-    full_score = rows["full"]["jittered_pair_score"]
+    scorer = Scorer(PipelineConfig.paper() if preset == "paper" else None, threads=threads)
+    before_mb = _rss_mb()
+    start = time.perf_counter()
+    score = scorer.score(other, mesh)
     return {
-        "mesh": name,
-        "faces": int(len(mesh.faces)),
-        "budget": face_budget(full.config),
-        "faces_after": int(len(kept)),
-        **rows,
-        "decimated_vs_full_score": change,
-        "jittered_pair_relative_change": abs(rows["decimated"]["jittered_pair_score"] - full_score)
-        / full_score,
-        "speedup": rows["full"]["new_mesh_s"] / rows["decimated"]["new_mesh_s"],
+        "preset": preset,
+        "threads": threads,
+        "pair_s": time.perf_counter() - start,
+        "score": score,
+        "scorer_rss_mb": before_mb,
+        "peak_rss_mb": _rss_mb(),
+        "goal_met": {"peak_le_2GB": _rss_mb() <= LARGE_GOAL_MB},
     }
 
 
@@ -225,13 +229,14 @@ def main() -> None:
     parser.add_argument("--out", type=Path, help="the JSON to write: bench/results/score.json")
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--case", nargs=2, help=argparse.SUPPRESS)
-    parser.add_argument("--decimation", help=argparse.SUPPRESS)
+    parser.add_argument("--large", nargs=4, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.case:
         print(json.dumps(run_case(Path(args.case[0]), args.case[1], args.repeats)))
         return
-    if args.decimation:
-        print(json.dumps(run_decimation(args.decimation, args.repeats)))
+    if args.large:
+        mesh, other, preset, threads = args.large
+        print(json.dumps(run_large(Path(mesh), Path(other), preset, int(threads))))
         return
     if args.out is None:
         parser.error("--out is required")
@@ -248,14 +253,17 @@ def main() -> None:
                 f"new {row['chamfer_l1']['new_mesh_s']:.3f} s match "
                 f"{1000 * row['chamfer_l1']['match_s']:.0f} ms"
             )
-    decimation = [
-        _child(["--decimation", name, "--repeats", str(args.repeats)]) for name in DECIMATION_MESHES
-    ]
-    for row in decimation:
+    with tempfile.TemporaryDirectory() as folder:
+        paths = [str(p) for p in write_large_meshes(Path(folder))]
+        large = [
+            _child(["--large", *paths, preset, str(threads)])
+            for preset in PRESETS
+            for threads in LARGE_THREADS
+        ]
+    for row in large:
         print(
-            f"{row['mesh']}: {row['faces']} -> {row['faces_after']} faces, "
-            f"{row['speedup']:.2f}x faster, pair score changes by "
-            f"{100 * row['jittered_pair_relative_change']:.2f}%"
+            f"{LARGE_FACES} faces {row['preset']:8} {row['threads']} threads: "
+            f"{row['pair_s']:.1f} s, peak {row['peak_rss_mb']:.0f} MB"
         )
     report = {
         "command": f"python bench/score.py --out {args.out} --repeats {args.repeats}",
@@ -264,7 +272,7 @@ def main() -> None:
         "threads": 2,
         "jitter": JITTER,
         "cases": cases,
-        "decimation": decimation,
+        "large_mesh": {"faces": LARGE_FACES, "goal_peak_mb": LARGE_GOAL_MB, "runs": large},
     }
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(report, indent=2) + "\n")

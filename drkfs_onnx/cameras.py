@@ -33,6 +33,10 @@ class Cameras:
     def __len__(self) -> int:
         return len(self.eyes)
 
+    def view(self, k: int) -> Cameras:
+        """Camera k alone."""
+        return Cameras(self.rotations[k : k + 1], self.eyes[k : k + 1], self.focal)
+
     def world_to_camera(self, points: np.ndarray) -> np.ndarray:
         """(N, 3) world points -> (K, N, 3) camera-frame points."""
         return np.einsum("kij,knj->kni", self.rotations, points[None] - self.eyes[:, None])

@@ -23,7 +23,6 @@ from drkfs_onnx.options import (
     pick_config,
 )
 
-from .decimate import face_budget
 from .features import MeshFeatures
 from .scorer import Scorer
 from .sessions import ModelMismatch
@@ -39,10 +38,6 @@ Threads = Annotated[
 Width = Annotated[
     float | None,
     typer.Option(help="HardNet width of a shipped model: 1, 0.5 or 0.25 (default: the preset's)."),
-]
-Decimate = Annotated[
-    bool,
-    typer.Option(help="Simplify meshes above the face budget (faster; changes scores)."),
 ]
 Model = Annotated[
     Path | None, typer.Option(help="A feature-graph ONNX file instead of the shipped one.")
@@ -63,18 +58,12 @@ def _exit_on(*errors: type[Exception]):
         raise typer.Exit(2) from exc
 
 
-def _scorer(threads, normalize, width, model, simplify=False, **match) -> Scorer:
+def _scorer(threads, normalize, width, model, **match) -> Scorer:
     """A scorer for the preset and overrides in ``match`` (``options.pick_config``'s)."""
     with _exit_on(ModelMismatch, FileNotFoundError, ValueError):
         widths = {} if width is None else {"descriptor_width": width}
         config = pick_config(**match, **widths)
-        return Scorer(
-            config,
-            model=model,
-            threads=threads,
-            normalization=normalize,
-            face_budget=face_budget(config) if simplify else None,
-        )
+        return Scorer(config, model=model, threads=threads, normalization=normalize)
 
 
 def _reference(path: Path):
@@ -99,11 +88,10 @@ def pair(
     symmetric: Symmetric = False,
     width: Width = None,
     model: Model = None,
-    decimate: Decimate = False,
 ) -> None:
     """Score MESH_A against the reference MESH_B (0 for identical meshes)."""
     scorer = _scorer(
-        threads, normalize, width, model, decimate, preset=preset, matching=matching,
+        threads, normalize, width, model, preset=preset, matching=matching,
         window=window, direction=direction, reduction=reduction, symmetric=symmetric,
     )  # fmt: skip
     start = time.perf_counter()
@@ -128,11 +116,10 @@ def features(
     preset: Preset = "default",
     width: Width = None,
     model: Model = None,
-    decimate: Decimate = False,
 ) -> None:
     """Describe a reference mesh once; pass the .npz as MESH_B to ``pair`` or in a batch CSV."""
     out = out if out.suffix == ".npz" else out.with_name(out.name + ".npz")  # numpy adds it
-    scorer = _scorer(threads, normalize, width, model, decimate, preset=preset)
+    scorer = _scorer(threads, normalize, width, model, preset=preset)
     with _exit_on(MeshError):
         result = scorer.features(mesh)
     with _exit_on(OSError):
@@ -205,7 +192,6 @@ def batch(
     symmetric: Symmetric = False,
     width: Width = None,
     model: Model = None,
-    decimate: Decimate = False,
 ) -> None:
     """Score every row of PAIRS; results are appended and flushed row by row.
 
@@ -219,7 +205,7 @@ def batch(
     with _exit_on(ValueError, OSError):
         todo = _pairs(pairs)
     scorer = _scorer(
-        threads, normalize, width, model, decimate, preset=preset, matching=matching,
+        threads, normalize, width, model, preset=preset, matching=matching,
         window=window, direction=direction, reduction=reduction, symmetric=symmetric,
     )  # fmt: skip
     with _exit_on(ValueError, OSError):

@@ -70,8 +70,9 @@ def screen_faces(
 class NumpyRenderer:
     """``render(verts (V, 3), faces (F, 3)) -> (K, S, S)`` float32 grey views.
 
-    threads: views are independent, so groups of cameras render in parallel (numpy releases the
-    GIL in its array loops).
+    Each view is rendered on its own, so memory grows with one view's pixel-face pairs, not K
+    of them (a 500k-face mesh under the paper preset: 6.6 GB peak when the views were rendered
+    together). threads: views render in parallel (numpy releases the GIL in its array loops).
     """
 
     def __init__(self, config: PipelineConfig, cameras: Cameras | None = None, threads: int = 1):
@@ -81,17 +82,12 @@ class NumpyRenderer:
 
     def render(self, verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
         verts = np.asarray(verts, dtype=np.float64)
-        groups = np.array_split(np.arange(len(self.cameras)), min(self.threads, len(self.cameras)))
-        cams = self.cameras
-        parts = [
-            Cameras(rotations=cams.rotations[g], eyes=cams.eyes[g], focal=cams.focal)
-            for g in groups
-        ]
-        if len(parts) == 1:
-            return self._render(verts, faces, parts[0])
-        with ThreadPoolExecutor(len(parts)) as pool:
-            images = list(pool.map(lambda c: self._render(verts, faces, c), parts))
-        return np.concatenate(images)
+        views = [self.cameras.view(k) for k in range(len(self.cameras))]
+        workers = min(self.threads, len(views))
+        if workers == 1:
+            return np.concatenate([self._render(verts, faces, view) for view in views])
+        with ThreadPoolExecutor(workers) as pool:
+            return np.concatenate(list(pool.map(lambda c: self._render(verts, faces, c), views)))
 
     def _render(self, verts: np.ndarray, faces: np.ndarray, cameras: Cameras) -> np.ndarray:
         cfg, size = self.config, self.config.image_size

@@ -1,7 +1,6 @@
 """Evaluation-only DR-KFS: mesh -> numpy views -> ONNX features (onnxruntime) -> numpy match.
 
-Scores equal the torch path's (``drkfs_onnx.DRKFS`` in evaluation mode) to float rounding, for
-meshes within the face budget.
+Scores equal the torch path's (``drkfs_onnx.DRKFS`` in evaluation mode) to float rounding.
 """
 
 from __future__ import annotations
@@ -18,7 +17,6 @@ from drkfs_onnx.config import PipelineConfig
 from drkfs_onnx.mesh import Mesh, MeshError, check_normalization, frame_of, load_mesh
 from drkfs_onnx.patch_grid import nonempty_patches
 
-from .decimate import decimate
 from .features import MeshFeatures
 from .match import check_features, match
 from .render import NumpyRenderer
@@ -37,10 +35,8 @@ class Scorer:
 
     threads: onnxruntime intra-op threads and renderer threads (None: all cores); the match's
     BLAS threads follow OPENBLAS_NUM_THREADS.
-    view_batch: views per feature-graph run (bounds memory; the score does not depend on it).
-    face_budget: meshes with more faces are simplified first (``decimate``; ``face_budget(config)``
-    is the budget tied to the image size). None (default) never simplifies: vertex clustering
-    changed the bench's scores by ~20% above the budget (bench/score.py), too much to be silent.
+    view_batch: views per feature-graph run (default 1). Memory grows with it (25 views of 256 px
+    at once: 1.8 GB more than one at a time) and speed does not; the score does not depend on it.
     """
 
     def __init__(
@@ -49,14 +45,12 @@ class Scorer:
         model: str | Path | None = None,
         threads: int | None = None,
         normalization: str = "joint",
-        view_batch: int | None = None,
-        face_budget: int | None = None,
+        view_batch: int = 1,
         cache_size: int = 32,
     ):
         self.config = config or PipelineConfig()
         self.normalization = check_normalization(normalization)
-        self.view_batch = view_batch or self.config.num_views
-        self.face_budget = face_budget
+        self.view_batch = view_batch
         self.features_graph = open_features(self.config, model, threads)
         self.renderer = NumpyRenderer(self.config, threads=threads or os.cpu_count() or 1)
         self.cache: OrderedDict[str, MeshFeatures] = OrderedDict()
@@ -73,12 +67,11 @@ class Scorer:
     @property
     def settings(self) -> str:
         """A digest of everything that shapes this scorer's scores: the config, the
-        normalisation, the feature graph and the face budget (batch resume keys on it)."""
+        normalisation and the feature graph (batch resume keys on it)."""
         shaping = {
             "config": self.config.to_dict(),
             "normalization": self.normalization,
             "model": self.features_graph.sha256,
-            "face_budget": self.face_budget,
         }
         return hashlib.sha256(json.dumps(shaping, sort_keys=True).encode()).hexdigest()[:16]
 
@@ -89,10 +82,7 @@ class Scorer:
         if frame is None:
             frame = self._own_frame(mesh.vertices)
         centre, scale = frame
-        vertices = (mesh.vertices - centre) / scale
-        faces = mesh.faces
-        if self.face_budget is not None:
-            vertices, faces = decimate(vertices, faces, self.config, self.face_budget)
+        vertices, faces = (mesh.vertices - centre) / scale, mesh.faces
         key = self._key(vertices, faces)
         if key in self.cache:
             self.cache.move_to_end(key)

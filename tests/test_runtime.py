@@ -6,12 +6,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
-from conftest import icosphere
 
-from drkfs_onnx import DRKFS, PipelineConfig, check_mesh, load_mesh
+from drkfs_onnx import DRKFS, PipelineConfig, load_mesh
 from drkfs_onnx.model_files import features_file
 from drkfs_onnx.runtime import MeshFeatures, ModelMismatch, Scorer
-from drkfs_onnx.runtime.decimate import decimate, face_budget, pixel_footprint
 from drkfs_onnx.weights import models_dir
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
@@ -94,19 +92,6 @@ def test_a_model_for_another_config_is_refused_with_the_difference():
         Scorer(PipelineConfig.paper(image_size=96), model=shipped)
     # the view count and the match are not in the graph: the paper's graph serves them
     Scorer(PipelineConfig.paper(num_views=12, matching="window"), model=shipped)
-
-
-def test_decimation_keeps_meshes_within_budget_and_near_the_surface():
-    config = PipelineConfig.paper()
-    verts, faces = icosphere(6)  # 81,920 faces, above the 32,768 budget at 256 px
-    assert len(faces) > face_budget(config)
-    small_verts, small_faces = decimate(verts, faces, config)
-    assert len(small_faces) <= face_budget(config)
-    radius = np.linalg.norm(small_verts, axis=1)
-    assert np.abs(radius - 0.8).max() < 4 * pixel_footprint(config)
-    check_mesh(small_verts, small_faces)
-    same = decimate(*icosphere(2), config)
-    assert len(same[1]) == len(icosphere(2)[1])
 
 
 def test_both_directions_are_order_free_and_joint_uses_the_reference_frame_for_both():
