@@ -33,9 +33,9 @@ class Cameras:
     def __len__(self) -> int:
         return len(self.eyes)
 
-    def view(self, k: int) -> Cameras:
-        """Camera k alone."""
-        return Cameras(self.rotations[k : k + 1], self.eyes[k : k + 1], self.focal)
+    def select(self, indices: np.ndarray) -> Cameras:
+        """The cameras at ``indices``, in their order."""
+        return Cameras(self.rotations[indices], self.eyes[indices], self.focal)
 
     def world_to_camera(self, points: np.ndarray) -> np.ndarray:
         """(N, 3) world points -> (K, N, 3) camera-frame points."""

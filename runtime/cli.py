@@ -23,7 +23,7 @@ from drkfs_onnx.options import (
     pick_config,
 )
 
-from .features import MeshFeatures
+from .batch import RowScorer, ScorerSpec, ray_results, reference_of, serial_results
 from .scorer import Scorer
 from .sessions import ModelMismatch
 
@@ -58,17 +58,17 @@ def _exit_on(*errors: type[Exception]):
         raise typer.Exit(2) from exc
 
 
-def _scorer(threads, normalize, width, model, **match) -> Scorer:
-    """A scorer for the preset and overrides in ``match`` (``options.pick_config``'s)."""
-    with _exit_on(ModelMismatch, FileNotFoundError, ValueError):
+def _spec(threads, normalize, width, model, **match) -> ScorerSpec:
+    """What builds a scorer for the preset and overrides in ``match`` (``pick_config``'s)."""
+    with _exit_on(ValueError):
         widths = {} if width is None else {"descriptor_width": width}
         config = pick_config(**match, **widths)
-        return Scorer(config, model=model, threads=threads, normalization=normalize)
+    return ScorerSpec(config, None if model is None else str(model), threads, normalize)
 
 
-def _reference(path: Path):
-    """A mesh path, or a features file written by ``drkfs-score features``."""
-    return MeshFeatures.load(path) if path.suffix == ".npz" else path
+def _scorer(spec: ScorerSpec) -> Scorer:
+    with _exit_on(ModelMismatch, FileNotFoundError, ValueError):
+        return spec.build()
 
 
 @app.command()
@@ -90,13 +90,13 @@ def pair(
     model: Model = None,
 ) -> None:
     """Score MESH_A against the reference MESH_B (0 for identical meshes)."""
-    scorer = _scorer(
+    scorer = _scorer(_spec(
         threads, normalize, width, model, preset=preset, matching=matching,
         window=window, direction=direction, reduction=reduction, symmetric=symmetric,
-    )  # fmt: skip
+    ))  # fmt: skip
     start = time.perf_counter()
     with _exit_on(MeshError, ValueError):
-        value = scorer.score(mesh_a, _reference(mesh_b))
+        value = scorer.score(mesh_a, reference_of(mesh_b))
     seconds = time.perf_counter() - start
     if as_json:
         report = {"score": value, "seconds": seconds, "model_version": scorer.model_version}
@@ -119,7 +119,7 @@ def features(
 ) -> None:
     """Describe a reference mesh once; pass the .npz as MESH_B to ``pair`` or in a batch CSV."""
     out = out if out.suffix == ".npz" else out.with_name(out.name + ".npz")  # numpy adds it
-    scorer = _scorer(threads, normalize, width, model, preset=preset)
+    scorer = _scorer(_spec(threads, normalize, width, model, preset=preset))
     with _exit_on(MeshError):
         result = scorer.features(mesh)
     with _exit_on(OSError):
@@ -178,11 +178,30 @@ def _finished(out: Path) -> list[dict]:
     return kept
 
 
+RayAddress = Annotated[
+    str | None,
+    typer.Option(
+        "--ray",
+        help="Score on Ray workers: local (a Ray instance on this machine), auto (the cluster this "
+        "machine joined) or a cluster address (ray://head:10001). Needs the ray extra.",
+    ),
+]
+Workers = Annotated[
+    int | None,
+    typer.Option(min=1, help="Ray workers, one scorer each (default: the cluster's CPUs/threads)."),
+]
+
+
 @app.command()
 def batch(
     pairs: Annotated[Path, typer.Argument(help="CSV with columns mesh_a, mesh_b (B: reference).")],
     out: Annotated[Path, typer.Option(help="CSV of results; rerunning resumes it.")],
-    threads: Threads = None,
+    threads: Annotated[
+        int | None,
+        typer.Option(
+            min=1, help="Threads per scorer (default: all cores; with --ray, 1 per worker)."
+        ),
+    ] = None,
     normalize: Normalize = "joint",
     preset: Preset = "default",
     matching: Matching = None,
@@ -192,8 +211,10 @@ def batch(
     symmetric: Symmetric = False,
     width: Width = None,
     model: Model = None,
+    ray: RayAddress = None,
+    workers: Workers = None,
 ) -> None:
-    """Score every row of PAIRS; results are appended and flushed row by row.
+    """Score every row of PAIRS; results are written and flushed row by row, in input order.
 
     A pair already scored in OUT with the same settings and model is skipped (wherever its row
     now is); failed rows are tried again and replace their old record; a row that fails records
@@ -202,40 +223,47 @@ def batch(
     if out.resolve() == pairs.resolve():
         typer.echo(f"error: --out {out} is the pairs file; results go to another file", err=True)
         raise typer.Exit(2)
+    if workers is not None and ray is None:
+        typer.echo("error: --workers needs --ray", err=True)
+        raise typer.Exit(2)
     with _exit_on(ValueError, OSError):
         todo = _pairs(pairs)
-    scorer = _scorer(
+    if ray is not None and threads is None:
+        threads = 1
+    spec = _spec(
         threads, normalize, width, model, preset=preset, matching=matching,
         window=window, direction=direction, reduction=reduction, symmetric=symmetric,
     )  # fmt: skip
+    scorer = _scorer(spec)  # checks the model and config here, before any worker starts
     with _exit_on(ValueError, OSError):
         done = {(r["mesh_a"], r["mesh_b"], r["settings"]) for r in _finished(out)}
     settings, version = scorer.settings, scorer.model_version
-    failed, scored, skipped = [], 0, 0
-    with _exit_on(OSError), open(out, "a", newline="") as handle:
+    rows = [(i, a, b) for i, (a, b) in enumerate(todo) if (a, b, settings) not in done]
+    if ray is None:
+        results = serial_results(rows, RowScorer(scorer))
+    else:
+        try:
+            import ray as _  # noqa: F401
+        except ImportError:
+            typer.echo('error: --ray needs the ray extra: pip install "drkfs-onnx[ray]"', err=True)
+            raise typer.Exit(2) from None
+        results = ray_results(rows, spec, ray, workers)
+    failed = []
+    with _exit_on(OSError, ValueError), open(out, "a", newline="") as handle:
         writer = csv.DictWriter(handle, BATCH_COLUMNS)
         if handle.tell() == 0:
             writer.writeheader()
-        with typer.progressbar(list(enumerate(todo)), label="scoring", file=None) as rows:
-            for index, (a, b) in rows:
-                if (a, b, settings) in done:  # scored before with these settings and model
-                    skipped += 1
-                    continue
-                record = {"row": index, "mesh_a": a, "mesh_b": b, "score": "", "error": ""}
+        with typer.progressbar(results, length=len(rows), label="scoring", file=None) as stream:
+            for index, result in stream:
+                record = {"row": index, "mesh_a": todo[index][0], "mesh_b": todo[index][1]}
+                record.update(score="" if result.score is None else repr(result.score))
+                record.update(error=result.error, seconds=f"{result.seconds:.4f}")
                 record.update(settings=settings, model_version=version)
-                start = time.perf_counter()
-                try:
-                    if not a or not b:
-                        raise ValueError("the row needs two meshes, mesh_a and mesh_b")
-                    record["score"] = repr(scorer.score(Path(a), _reference(Path(b))))
-                    scored += 1
-                    done.add((a, b, settings))
-                except (MeshError, ValueError, OSError) as exc:
-                    record["error"] = str(exc) or type(exc).__name__
-                    failed.append(index)
-                record["seconds"] = f"{time.perf_counter() - start:.4f}"
                 writer.writerow(record)
                 handle.flush()
+                if result.error:
+                    failed.append(index)
+    scored, skipped = len(rows) - len(failed), len(todo) - len(rows)
     typer.echo(
         f"{scored} scored, {len(failed)} failed, {skipped} already done; results in {out}",
         err=True,

@@ -16,10 +16,11 @@ from drkfs_onnx.examples import example_meshes
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def test_runtime_imports_where_torch_cannot_be_imported():
+def test_runtime_imports_where_torch_and_ray_cannot_be_imported():
     code = (
-        "import sys; sys.modules['torch'] = None\n"
+        "import sys; sys.modules['torch'] = sys.modules['ray'] = None\n"
         "import drkfs_onnx, drkfs_onnx.runtime, drkfs_onnx.runtime.cli, drkfs_onnx.mesh\n"
+        "import drkfs_onnx.runtime.batch\n"
         "from drkfs_onnx import PipelineConfig, load_mesh\n"
         "from drkfs_onnx.cameras import make_cameras\n"
         f"mesh = load_mesh({str(ROOT / 'examples' / 'chair.obj')!r})\n"

@@ -1,0 +1,171 @@
+"""A batch's rows scored one by one, in this process or on Ray workers, results in input order.
+
+Every per-row failure (a bad mesh, a broken features file, a worker that died) becomes that row's
+result, so one bad row never loses another's. Ray is imported only for ``ray_results``
+(``pip install "drkfs-onnx[ray]"``).
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from collections import Counter, deque
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+from drkfs_onnx.config import PipelineConfig
+from drkfs_onnx.mesh import MeshError
+
+from .features import MeshFeatures
+from .scorer import Scorer
+
+Row = tuple[int, str, str]  # (index in the pairs file, mesh_a, mesh_b)
+# How many rows each Ray worker holds at once: one running, one queued behind it.
+ROWS_PER_WORKER = 2
+
+
+@dataclass(frozen=True)
+class ScorerSpec:
+    """What builds a Scorer, as plain data a Ray worker can receive."""
+
+    config: PipelineConfig
+    model: str | None = None
+    threads: int | None = None
+    normalization: str = "joint"
+
+    def build(self) -> Scorer:
+        return Scorer(
+            self.config, model=self.model, threads=self.threads, normalization=self.normalization
+        )
+
+
+@dataclass(frozen=True)
+class Failure:
+    """Why a reference could not be described (every row that needs it fails with it)."""
+
+    message: str
+
+
+@dataclass(frozen=True)
+class RowResult:
+    score: float | None
+    error: str
+    seconds: float
+
+
+def reference_of(path: Path) -> Path | MeshFeatures:
+    """A mesh path, or the features file written by ``drkfs-score features``."""
+    return MeshFeatures.load(path) if path.suffix == ".npz" else path
+
+
+def _message(exc: Exception) -> str:
+    return str(exc) or type(exc).__name__
+
+
+class RowScorer:
+    """One Scorer that turns each row's failure into the row's result; the body of a Ray worker.
+
+    ``describe(b)`` -> B's MeshFeatures (or a Failure); ``score(a, b, reference)`` -> RowResult,
+    with B's features from ``describe`` or, without them, from B's path.
+    """
+
+    def __init__(self, scorer: Scorer | ScorerSpec):
+        self.scorer = scorer.build() if isinstance(scorer, ScorerSpec) else scorer
+
+    def describe(self, b: str) -> MeshFeatures | Failure:
+        try:
+            reference = reference_of(Path(b))
+            return reference if isinstance(reference, MeshFeatures) else self.scorer.features(b)
+        except (MeshError, ValueError, OSError) as exc:
+            return Failure(_message(exc))
+
+    def score(self, a: str, b: str, reference: MeshFeatures | Failure | None = None) -> RowResult:
+        start = time.perf_counter()
+        try:
+            if not a or not b:
+                raise ValueError("the row needs two meshes, mesh_a and mesh_b")
+            if isinstance(reference, Failure):
+                raise ValueError(reference.message)
+            if reference is None:
+                reference = reference_of(Path(b))
+            value = self.scorer.score(Path(a), reference)
+            return RowResult(value, "", time.perf_counter() - start)
+        except (MeshError, ValueError, OSError) as exc:
+            return RowResult(None, _message(exc), time.perf_counter() - start)
+
+
+def serial_results(rows: list[Row], scorer: RowScorer) -> Iterator[tuple[int, RowResult]]:
+    for index, a, b in rows:
+        yield index, scorer.score(a, b)
+
+
+def ray_results(
+    rows: list[Row], spec: ScorerSpec, address: str, workers: int | None
+) -> Iterator[tuple[int, RowResult]]:
+    """The rows scored by ``workers`` Ray actors (one Scorer with ``spec.threads`` threads
+    each; default: as many as the cluster's CPUs hold), yielded in input order as they finish.
+
+    address: ``local`` starts a Ray instance on this machine (``workers`` x threads CPUs, or
+    all cores); ``auto`` joins the cluster this machine belongs to; anything else is a cluster
+    address (``ray://head:10001``, ``head:6379``). Each reference is described once, by one
+    worker, and reaches the others through Ray's object store.
+    """
+    if not rows:
+        return
+    import ray
+
+    threads = spec.threads or 1
+    if address == "local":
+        cpus = workers * threads if workers else os.cpu_count()
+        ray.init(num_cpus=cpus, include_dashboard=False, logging_level="ERROR")
+    else:
+        try:
+            ray.init(address=address, logging_level="ERROR")
+        except ConnectionError as exc:
+            raise ConnectionError(f"--ray {address}: {exc}") from exc
+    try:
+        available = int(ray.cluster_resources().get("CPU", 0))
+        workers = workers or max(1, available // threads)
+        if workers * threads > available:
+            raise ValueError(
+                f"{workers} workers x {threads} threads need {workers * threads} CPUs; "
+                f"the Ray cluster has {available}"
+            )
+        yield from _schedule(ray, rows, spec, workers, threads)
+    finally:
+        ray.shutdown()
+
+
+def _schedule(ray, rows: list[Row], spec: ScorerSpec, workers: int, threads: int):
+    worker_class = ray.remote(RowScorer).options(
+        num_cpus=threads, max_restarts=-1, max_task_retries=0
+    )
+    actors = [worker_class.remote(spec) for _ in range(workers)]
+    load = [0] * workers  # rows each actor holds
+    rows_left = Counter(b for _, _, b in rows)  # per reference, rows not yet submitted
+    described: dict[str, object] = {}  # B -> ObjectRef of its features
+    running: dict[object, tuple[int, int]] = {}  # ObjectRef -> (index, actor)
+    finished: dict[int, RowResult] = {}
+    to_submit, to_yield = deque(rows), deque(index for index, _, _ in rows)
+    while to_yield:
+        while to_submit and len(running) < ROWS_PER_WORKER * workers:
+            index, a, b = to_submit.popleft()
+            actor = load.index(min(load))
+            if b and b not in described:
+                described[b] = actors[actor].describe.remote(b)
+            running[actors[actor].score.remote(a, b, described.get(b))] = (index, actor)
+            load[actor] += 1
+            rows_left[b] -= 1
+            if rows_left[b] == 0:
+                described.pop(b, None)  # the object store frees it once its rows are done
+        (ready,), _ = ray.wait(list(running), num_returns=1)
+        index, actor = running.pop(ready)
+        load[actor] -= 1
+        try:
+            finished[index] = ray.get(ready)
+        except ray.exceptions.RayError as exc:  # the worker died or raised the unexpected
+            last_line = [line for line in str(exc).splitlines() if line.strip()][-1]
+            finished[index] = RowResult(None, f"worker failed: {last_line.strip()}", 0.0)
+        while to_yield and to_yield[0] in finished:
+            yield to_yield[0], finished.pop(to_yield.popleft())
