@@ -32,7 +32,7 @@ from onnxruntime.quantization.shape_inference import quant_pre_process
 from score import CASES, ROOT, _best  # bench/score.py: the same meshes and timer
 
 from drkfs_onnx import PipelineConfig, check_mesh, load_mesh
-from drkfs_onnx.mesh import frame_of
+from drkfs_onnx.mesh import frame_of, place
 from drkfs_onnx.model_files import features_file
 from drkfs_onnx.runtime import Scorer
 from drkfs_onnx.runtime.render import NumpyRenderer
@@ -51,8 +51,8 @@ class Renders(CalibrationDataReader):
         self.inputs = []
         for i, family in enumerate(sorted(FAMILIES)[:6]):
             verts, faces = assemble(random_shape(family, CALIBRATION_SEED + i), 1)
-            centre, scale = frame_of(verts)
-            views = renderer.render((verts - centre) / scale, faces)[:, None].astype(np.float32)
+            views = renderer.render(place(verts, frame_of(verts)), faces)
+            views = views[:, None].astype(np.float32)
             for k in range(0, len(views), VIEW_BATCH):
                 batch = views[k : k + VIEW_BATCH]
                 index = np.arange(len(batch) * config.patches_per_view, dtype=np.int64)

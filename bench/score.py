@@ -106,6 +106,7 @@ def _chamfer(mesh, other, repeats: int) -> dict:
 
 def run_case(path: Path, preset: str, repeats: int) -> dict:
     from drkfs_onnx import PipelineConfig, load_mesh
+    from drkfs_onnx.mesh import place
     from drkfs_onnx.runtime import Scorer
 
     config = PipelineConfig.paper() if preset == "paper" else PipelineConfig()
@@ -118,10 +119,9 @@ def run_case(path: Path, preset: str, repeats: int) -> dict:
         return scorer.features(mesh)
 
     new_s, reference = _best(new_mesh, repeats)
-    centre, scale = reference.centre, reference.scale
-    placed = (mesh.vertices - centre) / scale
+    placed = place(mesh.vertices, reference.frame)
     render_s, _ = _best(lambda: scorer.renderer.render(placed, mesh.faces), repeats)
-    prediction = scorer.features(other, (centre, scale))
+    prediction = scorer.features(other, reference.frame)
     match_s, ort_score = _best(lambda: scorer.match(prediction, reference), 5 * repeats)
     runtime = {"new_mesh_s": new_s, "render_s": render_s, "features_s": new_s - render_s}
     runtime.update(match_s=match_s, peak_rss_mb=_rss_mb())
@@ -138,7 +138,7 @@ def run_case(path: Path, preset: str, repeats: int) -> dict:
     torch.set_num_threads(2)
     metric = DRKFS.pretrained(config)
     verts = torch.tensor(placed, dtype=torch.float32)
-    verts_other = torch.tensor((other.vertices - centre) / scale, dtype=torch.float32)
+    verts_other = torch.tensor(place(other.vertices, reference.frame), dtype=torch.float32)
     faces = torch.tensor(mesh.faces)
     with torch.no_grad():
         torch_new_s, target = _best(lambda: metric.target(verts, faces), repeats)

@@ -128,13 +128,18 @@ def reference_frame(vertices, mode: str):
     return None if check_normalization(mode) == "none" else frame_of(vertices)
 
 
-def place(vertices, mode: str, reference):
+def place(vertices, frame):
+    """Vertices moved into ``frame`` = (centre, scale): v' = (v - c) / s; numpy or torch."""
+    centre, scale = frame
+    return (vertices - centre) / scale
+
+
+def place_by(vertices, mode: str, reference):
     """Move a mesh into the metric's frame: by the reference's frame (joint), its own (each),
     or not at all (none). ``reference`` comes from ``reference_frame``."""
     if mode == "none":
         return vertices
-    centre, scale = reference if mode == "joint" else frame_of(vertices)
-    return (vertices - centre) / scale
+    return place(vertices, reference if mode == "joint" else frame_of(vertices))
 
 
 def normalize_pair(vertices_a, vertices_b, mode: str = "joint"):
@@ -144,4 +149,4 @@ def normalize_pair(vertices_a, vertices_b, mode: str = "joint"):
     each: each by its own bounding box; none: unchanged.
     """
     reference = reference_frame(vertices_b, mode)
-    return place(vertices_a, mode, reference), place(vertices_b, mode, reference)
+    return place_by(vertices_a, mode, reference), place_by(vertices_b, mode, reference)

@@ -12,7 +12,7 @@ from .config import PipelineConfig
 from .detector import PoIDetector
 from .hardnet import HardNet
 from .matching import match_score
-from .mesh import Mesh, check_normalization, normalize_pair, place, reference_frame
+from .mesh import Mesh, check_normalization, normalize_pair, place_by, reference_frame
 from .patches import nonempty_patches, select_patches
 from .render import Renderer
 from .weights import RANDOM_SEED, load_shipped_state
@@ -143,11 +143,11 @@ class DRKFS(nn.Module):
         """The reference mesh B, (V, 3), (F, 3), placed and described. Differentiable like
         ``forward``; call it under ``torch.no_grad()`` for a fixed ground truth."""
         frame = reference_frame(verts, self.normalization)
-        return Target(frame, self.features(place(verts, self.normalization, frame), faces))
+        return Target(frame, self.features(place_by(verts, self.normalization, frame), faces))
 
     def score_to(self, verts: torch.Tensor, faces: torch.Tensor, target: Target) -> torch.Tensor:
         """The score of mesh A, (V, 3), (F, 3), against a prepared reference -> ()."""
-        placed = place(verts, self.normalization, target.frame)
+        placed = place_by(verts, self.normalization, target.frame)
         return match_score(self.features(placed, faces), target.features, self.config)
 
     def forward(

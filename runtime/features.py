@@ -39,6 +39,11 @@ class MeshFeatures:
     source: str = "<features>"
 
     @property
+    def frame(self) -> tuple[np.ndarray, float]:
+        """(centre, scale): the frame the mesh was placed in (``mesh.place``)."""
+        return self.centre, self.scale
+
+    @property
     def patches(self) -> int:
         """K * P: every patch of every view."""
         return self.config.num_views * self.config.patches_per_view

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from drkfs_onnx.config import PipelineConfig
-from drkfs_onnx.mesh import Mesh, MeshError, check_normalization, frame_of, load_mesh
+from drkfs_onnx.mesh import Mesh, MeshError, check_normalization, frame_of, load_mesh, place
 from drkfs_onnx.patch_grid import nonempty_patches
 
 from .features import MeshFeatures
@@ -81,13 +81,12 @@ class Scorer:
         placement = "its own frame" if frame is None else "the reference's frame"
         if frame is None:
             frame = self._own_frame(mesh.vertices)
-        centre, scale = frame
-        vertices, faces = (mesh.vertices - centre) / scale, mesh.faces
+        vertices, faces = place(mesh.vertices, frame), mesh.faces
         key = self._key(vertices, faces)
         if key in self.cache:
             self.cache.move_to_end(key)
             return self.cache[key]
-        result = self.describe(self.renderer.render(vertices, faces), (centre, scale))
+        result = self.describe(self.renderer.render(vertices, faces), frame)
         if len(result.patch_index) == 0:
             # every patch would match every other as empty: a silent perfect score
             raise MeshError(
@@ -123,7 +122,7 @@ class Scorer:
         reference = b if isinstance(b, MeshFeatures) else self.features(b)
         # before A's work
         check_features(reference, self.config, self.features_graph.sha256, self.normalization)
-        frame = (reference.centre, reference.scale) if self.normalization == "joint" else None
+        frame = reference.frame if self.normalization == "joint" else None
         return self.match(self.features(a, frame), reference)
 
     def match(self, a: MeshFeatures, b: MeshFeatures) -> float:

@@ -14,14 +14,13 @@ from drkfs_onnx.benchmark import point_metrics as pm
 from drkfs_onnx.benchmark.chart import Canvas, pareto_front, write_chart
 from drkfs_onnx.benchmark.run import run_bench
 from drkfs_onnx.benchmark.sets import STABILITY, _box_with_cavity
-from drkfs_onnx.mesh import frame_of, load_mesh
+from drkfs_onnx.mesh import frame_of, load_mesh, place
 from drkfs_onnx.shapes import Part, assemble, random_shape, subdivide
 from drkfs_onnx.variants import MILD, STRUCTURAL, surface_variants
 
 
 def _placed(verts, faces):
-    centre, scale = frame_of(verts)
-    return (verts - centre) / scale, faces
+    return place(verts, frame_of(verts)), faces
 
 
 def test_nearest_neighbours_are_exact_for_near_and_far_queries():

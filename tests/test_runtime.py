@@ -8,6 +8,7 @@ import pytest
 import torch
 
 from drkfs_onnx import DRKFS, PipelineConfig, load_mesh
+from drkfs_onnx.mesh import place
 from drkfs_onnx.model_files import features_file
 from drkfs_onnx.runtime import MeshFeatures, ModelMismatch, Scorer
 from drkfs_onnx.weights import models_dir
@@ -29,8 +30,7 @@ def metric():
 def test_same_images_give_the_torch_descriptors(scorer, metric):
     chair = load_mesh(EXAMPLES / "chair.obj")
     features = scorer.features(chair)
-    centre, scale = features.centre, features.scale
-    verts = torch.tensor((chair.vertices - centre) / scale, dtype=torch.float32)
+    verts = torch.tensor(place(chair.vertices, features.frame), dtype=torch.float32)
     with torch.no_grad():
         expected = metric.features(verts, torch.tensor(chair.faces)).numpy()
     empty = (expected == expected[0]).all(1)  # the corner patch sees only background
@@ -104,7 +104,7 @@ def test_both_directions_are_order_free_and_joint_uses_the_reference_frame_for_b
     assert each.score(a, b) == each.score(b, a) > 0
     joint = Scorer(config, threads=2)
     reference = joint.features(b)
-    prediction = joint.features(a, (reference.centre, reference.scale))
+    prediction = joint.features(a, reference.frame)
     one_way = [
         Scorer(config.replace(direction=d), threads=2).match(prediction, reference)
         for d in ("forward", "backward")

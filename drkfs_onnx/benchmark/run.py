@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..mesh import frame_of
+from ..mesh import frame_of, place
 from ..variants import structural_wins
 from . import sets
 from .chart import pareto_front, write_chart
@@ -65,8 +65,7 @@ class Scores:
 
 
 def _place(verts: np.ndarray, faces: np.ndarray, key: str, frame) -> Placed:
-    centre, scale = frame
-    return Placed(key, (verts - centre) / scale, faces)
+    return Placed(key, place(verts, frame), faces)
 
 
 def _prepare_all(method: Method, placed: list[Placed], cost: Cost) -> dict[str, object]:

@@ -7,7 +7,7 @@ import numpy as np
 import torch
 
 from ..matching import match_score
-from ..mesh import frame_of
+from ..mesh import frame_of, place
 from ..metric import DRKFS
 from ..shapes import assemble, chair
 from ..variants import diagonal, shifted
@@ -40,15 +40,15 @@ def slide(metric: DRKFS, steps: int = SLIDE_STEPS) -> dict:
     parts = chair()
     size = diagonal(parts)
     ref_v, ref_f = assemble(parts, 1)
-    centre, scale = frame_of(ref_v)
-    ref = (torch.as_tensor((ref_v - centre) / scale, dtype=torch.float32), torch.as_tensor(ref_f))
+    frame = frame_of(ref_v)
+    ref = (torch.as_tensor(place(ref_v, frame), dtype=torch.float32), torch.as_tensor(ref_f))
     offsets = np.linspace(0.0, SLIDE_RANGE, steps)
     scores = []
     with torch.no_grad():
         ref_features = metric.features(*ref)
         for t in offsets:
             v, f = assemble(shifted(parts, "leg_3", (t * size, 0.0, 0.0)), 1)
-            v = torch.as_tensor((v - centre) / scale, dtype=torch.float32)
+            v = torch.as_tensor(place(v, frame), dtype=torch.float32)
             own = metric.features(v, torch.as_tensor(f))
             scores.append(float(match_score(own, ref_features, metric.config)))
     steps_ = np.abs(np.diff(scores))

@@ -25,7 +25,7 @@ from torch import nn
 from ..benchmark.point_metrics import iou, sample_surface
 from ..cameras import Cameras, hemisphere_directions, look_at, make_cameras
 from ..config import PipelineConfig
-from ..mesh import frame_of
+from ..mesh import frame_of, place
 from ..metric import DRKFS
 from ..render import Renderer
 from ..shapes import assemble, random_shape
@@ -103,8 +103,7 @@ class Shape(NamedTuple):
 
 def make_shape(family: str, seed: int) -> Shape:
     verts, faces = assemble(random_shape(family, seed))
-    centre, scale = frame_of(verts)
-    verts = (verts - centre) / scale
+    verts = place(verts, frame_of(verts))
     return Shape(
         f"{family} {seed}",
         verts,

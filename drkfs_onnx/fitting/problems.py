@@ -10,7 +10,7 @@ import numpy as np
 import trimesh
 
 from ..benchmark.sets import SHARED_MESHES
-from ..mesh import frame_of, load_mesh
+from ..mesh import frame_of, load_mesh, place
 from ..shapes import Part, assemble, random_shape
 
 TEMPLATE_SUBDIVISIONS = 1  # template parts get four times the faces: room to bend
@@ -33,8 +33,8 @@ class Problem:
 
 
 def _in_frame_of(target: np.ndarray, *meshes: np.ndarray) -> list[np.ndarray]:
-    centre, scale = frame_of(target)
-    return [(v - centre) / scale for v in (target, *meshes)]
+    frame = frame_of(target)
+    return [place(v, frame) for v in (target, *meshes)]
 
 
 def perturbed(parts: list[Part], rng: np.random.Generator) -> list[Part]:

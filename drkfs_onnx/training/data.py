@@ -17,7 +17,7 @@ import torch
 
 from ..cameras import Cameras, look_at, make_cameras
 from ..config import PipelineConfig
-from ..mesh import frame_of
+from ..mesh import frame_of, place
 from ..render import Renderer
 from ..shapes import assemble, random_shape
 
@@ -108,8 +108,7 @@ def render_pairs(
     for f_index, family in enumerate(families):
         for s in range(shapes_per_family):
             verts, faces = assemble(random_shape(family, rng))
-            centre, scale = frame_of(verts)
-            verts_t = torch.tensor((verts - centre) / scale, dtype=torch.float32)
+            verts_t = torch.tensor(place(verts, frame_of(verts)), dtype=torch.float32)
             faces_t = torch.tensor(faces)
             for _ in range(pairs_per_shape):
                 first = _random_direction(rng)

@@ -17,7 +17,7 @@ import torch
 import torch.nn.functional as F
 
 from ..config import PipelineConfig
-from ..mesh import frame_of
+from ..mesh import frame_of, place
 from ..render import Renderer
 from ..shapes import Part, assemble, random_shape
 from ..variants import (
@@ -134,11 +134,11 @@ def render_variant_views(
     for f_index, family in enumerate(families):
         for _ in range(shapes_per_family):
             (base_verts, base_faces), variants = _variants(random_shape(family, rng), rng)
-            centre, scale = frame_of(base_verts)
+            frame = frame_of(base_verts)
             meshes = [(base_verts, base_faces)] + [(v.verts, v.faces) for v in variants]
             views, depths = [], []
             for verts, faces in meshes:
-                placed = torch.tensor((verts - centre) / scale, dtype=torch.float32)
+                placed = torch.tensor(place(verts, frame), dtype=torch.float32)
                 faces_t = torch.as_tensor(faces)
                 views.append(renderer.render(placed, faces_t))
                 depths.append(hard_depth(renderer, placed, faces_t))
