@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .config import PipelineConfig
+from .render_math import NUMPY_OPS, to_camera
 
 GOLDEN_ANGLE = math.pi * (3.0 - math.sqrt(5.0))
 WORLD_UP = np.array([0.0, 1.0, 0.0])
@@ -39,7 +40,7 @@ class Cameras:
 
     def world_to_camera(self, points: np.ndarray) -> np.ndarray:
         """(N, 3) world points -> (K, N, 3) camera-frame points."""
-        return np.einsum("kij,knj->kni", self.rotations, points[None] - self.eyes[:, None])
+        return to_camera(points, self.rotations, self.eyes, NUMPY_OPS)
 
 
 def hemisphere_directions(count: int) -> np.ndarray:

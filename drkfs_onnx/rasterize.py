@@ -14,37 +14,49 @@ Cost grows with the covered pixel-face pairs, not pixels x faces:
 3. only the surviving pairs are recomputed with autograd.
 
 Output is a list of pixel-face pairs (``Fragments``); shading and blending live in ``shade.py``.
+The equations are ``render_math``'s, shared with the numpy renderer; this module holds what only
+autograd needs: the two passes.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from types import SimpleNamespace
 
 import torch
 
 from .cameras import Cameras
 from .config import PipelineConfig
-from .coverage import pair_terms
+from .render_math import (
+    DEPTH_CULL,
+    ScreenFaces,
+    background_logit,
+    pair_logit,
+    pair_terms,
+    pixel_centre,
+    pixel_span,
+    project_faces,
+    to_camera,
+)
 
-DEPTH_CULL = 30.0
 # Pairs per chunk of the candidate pass: small enough for elementwise work to stay in cache.
 PAIR_CHUNK = 1 << 17
 
 
-@dataclass
-class ScreenFaces:
-    """Faces projected into K views.
+def _scatter_sum(index: torch.Tensor, values: torch.Tensor, length: int) -> torch.Tensor:
+    return values.new_zeros(length).index_add(0, index, values)
 
-    params: (9, K*F) per face: x0, y0, x1, y1, x2, y2 in NDC, then the three vertices' normalised
-        inverse depths (1 at the near plane, 0 at the far plane). Coordinate-major, so that
-        gathering pairs gives nine contiguous rows for fast elementwise work.
-    visible: (K*F,) bool, False for faces with a vertex in front of the near plane.
-    """
 
-    params: torch.Tensor
-    visible: torch.Tensor
-    num_views: int
-    num_faces: int
+def _scatter_max(out: torch.Tensor, index: torch.Tensor, values: torch.Tensor) -> torch.Tensor:
+    return out.scatter_reduce_(0, index, values, reduce="amax")
+
+
+TORCH_OPS = SimpleNamespace(
+    where=torch.where, minimum=torch.minimum, maximum=torch.maximum, clip=torch.clip,
+    ceil=torch.ceil, floor=torch.floor, sqrt=torch.sqrt, exp=torch.exp, log=torch.log,
+    sigmoid=torch.sigmoid, stack=torch.stack, einsum=torch.einsum, scatter_sum=_scatter_sum,
+    scatter_max=_scatter_max,
+)  # fmt: skip
 
 
 @dataclass
@@ -53,7 +65,7 @@ class Fragments:
 
     pixel: (P,) flat index into (K, S, S); face: (P,) flat index into (K, F);
     coverage: (P,) D' in (0, 1]; depth: (P,) normalised inverse depth (larger is nearer);
-    logit_max: (K*S*S,) the softmax shift per pixel (max of log D' + depth / gamma, background
+    logit_max: (K*S*S,) the softmax shift per pixel (max of ``pair_logit``, background
     included), a constant for autograd.
     """
 
@@ -64,34 +76,15 @@ class Fragments:
     logit_max: torch.Tensor
 
 
-def camera_tensors(cameras: Cameras, like: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-    rot = torch.as_tensor(cameras.rotations, dtype=like.dtype, device=like.device)
-    eyes = torch.as_tensor(cameras.eyes, dtype=like.dtype, device=like.device)
-    return rot, eyes
-
-
-def to_camera(verts: torch.Tensor, cameras: Cameras) -> torch.Tensor:
-    """(V, 3) world vertices -> (K, V, 3) camera-frame vertices."""
-    rot, eyes = camera_tensors(cameras, verts)
-    return torch.einsum("kij,knj->kni", rot, verts[None] - eyes[:, None])
-
-
-def project_faces(
-    verts_cam: torch.Tensor, faces: torch.Tensor, focal: float, config: PipelineConfig
-) -> ScreenFaces:
-    """(K, V, 3) camera-frame vertices and (F, 3) faces -> ScreenFaces."""
-    k, f = verts_cam.shape[0], faces.shape[0]
-    z = verts_cam[..., 2]
-    visible_vert = z > config.near
-    z_safe = torch.where(visible_vert, z, torch.full_like(z, config.near))
-    xy = focal * verts_cam[..., :2] / z_safe[..., None]
-    inv_near, inv_far = 1.0 / config.near, 1.0 / config.far
-    inv_depth = (1.0 / z_safe - inv_far) / (inv_near - inv_far)
-    tri_xy = xy[:, faces].reshape(k * f, 6)
-    tri_w = inv_depth[:, faces].reshape(k * f, 3)
-    params = torch.cat([tri_xy, tri_w], dim=1).t().contiguous()
-    visible = visible_vert[:, faces].all(dim=2).reshape(k * f)
-    return ScreenFaces(params=params, visible=visible, num_views=k, num_faces=f)
+def screen_faces(
+    verts: torch.Tensor, faces: torch.Tensor, cameras: Cameras, config: PipelineConfig
+) -> tuple[torch.Tensor, ScreenFaces]:
+    """(V, 3) world vertices, (F, 3) faces -> (K, V, 3) camera-frame vertices and the faces
+    projected into the cameras' views."""
+    rotations = torch.as_tensor(cameras.rotations, dtype=verts.dtype, device=verts.device)
+    eyes = torch.as_tensor(cameras.eyes, dtype=verts.dtype, device=verts.device)
+    verts_cam = to_camera(verts, rotations, eyes, TORCH_OPS)
+    return verts_cam, project_faces(verts_cam, faces, cameras.focal, config, TORCH_OPS)
 
 
 class SoftRasterizer:
@@ -106,34 +99,23 @@ class SoftRasterizer:
         size = self.config.image_size
         tri = screen.params.index_select(1, face)
         px, py = self._pixel_ndc(pixel % size, pixel // size, tri.dtype)
-        coverage, depth = pair_terms(tri, px, py, self.config, torch)
+        coverage, depth = pair_terms(tri, px, py, self.config, TORCH_OPS)
         return Fragments(pixel, face, coverage, depth, logit_max)
 
     def _pixel_ndc(
         self, col: torch.Tensor, row: torch.Tensor, dtype: torch.dtype
     ) -> tuple[torch.Tensor, torch.Tensor]:
-        """Pixel centres in NDC: pixel i sits at (2i + 1) / size - 1; rows wrap across views."""
+        """Pixel centres in NDC; rows wrap across views."""
         size = self.config.image_size
-        return (
-            (2 * col + 1).to(dtype) / size - 1.0,
-            (2 * (row % size) + 1).to(dtype) / size - 1.0,
-        )
+        return pixel_centre(col.to(dtype), size), pixel_centre((row % size).to(dtype), size)
 
     def _pixel_boxes(self, params: torch.Tensor) -> tuple[torch.Tensor, ...]:
-        """Per face: first pixel (flat index), width and height of its bounding box grown by the
+        """Per face: first column and row, width and height of its bounding box grown by the
         cut-off radius, clipped to the image."""
-        size = self.config.image_size
-        radius = self.config.coverage_radius
         xs, ys = params[0:6:2], params[1:6:2]
-
-        def to_index(lo: torch.Tensor, hi: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-            first = torch.ceil((lo - radius + 1.0) * size / 2.0 - 0.5).clamp(0, size)
-            last = torch.floor((hi + radius + 1.0) * size / 2.0 - 0.5).clamp(-1, size - 1)
-            return first.long(), (last.long() - first.long() + 1).clamp_min(0)
-
-        i0, width = to_index(xs.amin(0), xs.amax(0))
-        j0, height = to_index(ys.amin(0), ys.amax(0))
-        return i0, j0, width, height
+        i0, width = pixel_span(xs.amin(0), xs.amax(0), self.config, TORCH_OPS)
+        j0, height = pixel_span(ys.amin(0), ys.amax(0), self.config, TORCH_OPS)
+        return i0.long(), j0.long(), width.long(), height.long()
 
     def _candidates(
         self, screen: ScreenFaces, depth_cull: bool
@@ -144,7 +126,7 @@ class SoftRasterizer:
         device = params.device
         logit_max = torch.full(
             (screen.num_views * size * size,),
-            cfg.background_eps / cfg.gamma,
+            background_logit(cfg),
             dtype=params.dtype,
             device=device,
         )
@@ -164,13 +146,13 @@ class SoftRasterizer:
             row = first_row.index_select(0, pair_face) + local // w
             col = i0.index_select(0, pair_face) + local % w
             px, py = self._pixel_ndc(col, row, params.dtype)
-            coverage, depth = pair_terms(params.index_select(1, pair_face), px, py, cfg, torch)
+            tri = params.index_select(1, pair_face)
+            coverage, depth = pair_terms(tri, px, py, cfg, TORCH_OPS)
             kept = torch.nonzero(coverage > 0).squeeze(1)
             pixel = (row * size + col).index_select(0, kept)
-            logit = (
-                torch.log(coverage.index_select(0, kept)) + depth.index_select(0, kept) / cfg.gamma
-            )
-            logit_max.scatter_reduce_(0, pixel, logit, reduce="amax")
+            coverage, depth = coverage.index_select(0, kept), depth.index_select(0, kept)
+            logit = pair_logit(coverage, depth, cfg, TORCH_OPS)
+            TORCH_OPS.scatter_max(logit_max, pixel, logit)
             pixels.append(pixel)
             faces.append(pair_face.index_select(0, kept))
             logits.append(logit)

@@ -8,7 +8,7 @@ import torch
 
 from .cameras import Cameras, make_cameras
 from .config import PipelineConfig
-from .rasterize import Fragments, SoftRasterizer, project_faces, to_camera
+from .rasterize import Fragments, SoftRasterizer, screen_faces
 from .shade import face_shading, silhouette, soft_blend
 
 RenderMode = Literal["shaded", "silhouette"]
@@ -43,6 +43,5 @@ class Renderer:
         self, verts: torch.Tensor, faces: torch.Tensor, depth_cull: bool
     ) -> tuple[torch.Tensor, Fragments]:
         """(V, 3), (F, 3) -> (K, V, 3) camera-frame vertices and the views' fragments."""
-        verts_cam = to_camera(verts, self.cameras)
-        screen = project_faces(verts_cam, faces, self.cameras.focal, self.config)
+        verts_cam, screen = screen_faces(verts, faces, self.cameras, self.config)
         return verts_cam, self.rasterizer(screen, depth_cull=depth_cull)

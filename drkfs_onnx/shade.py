@@ -1,11 +1,13 @@
-"""Shaders for rasterised fragments: grey Lambertian faces, SoftRas' soft blend, silhouettes."""
+"""Shaders for rasterised fragments (torch): grey Lambertian faces with SoftRas' soft blend, and
+silhouettes. The equations are ``render_math``'s, shared with the numpy renderer."""
 
 from __future__ import annotations
 
 import torch
 
+from . import render_math
 from .config import PipelineConfig
-from .rasterize import Fragments
+from .rasterize import TORCH_OPS, Fragments
 
 SATURATED = 1.0 - 1e-6
 
@@ -13,41 +15,20 @@ SATURATED = 1.0 - 1e-6
 def face_shading(
     verts_cam: torch.Tensor, faces: torch.Tensor, config: PipelineConfig
 ) -> torch.Tensor:
-    """(K, V, 3) camera-frame vertices, (F, 3) faces -> (K*F,) grey value per face.
-
-    Flat two-sided Lambertian shading: a face seen from behind is lit as if its normal faced the
-    camera, so open and non-watertight meshes show their inner side instead of a black hole.
-    """
-    v0, v1, v2 = (verts_cam[:, faces[:, i]] for i in range(3))
-    normal = torch.cross(v1 - v0, v2 - v0, dim=-1)
-    normal = normal / torch.sqrt((normal * normal).sum(-1, keepdim=True) + 1e-20)
-    centroid = (v0 + v1 + v2) / 3.0
-    towards_camera = torch.where((normal * centroid).sum(-1, keepdim=True) > 0, -1.0, 1.0)
-    light = torch.tensor(config.light_direction, dtype=verts_cam.dtype, device=verts_cam.device)
-    light = light / light.norm()
-    lambert = ((normal * towards_camera) @ light).clamp_min(0.0)
-    return (config.ambient + config.diffuse * lambert).reshape(-1)
+    """(K, V, 3) camera-frame vertices, (F, 3) faces -> (K*F,) grey value per face
+    (``render_math.face_shading``)."""
+    return render_math.face_shading(verts_cam, faces, config, TORCH_OPS)
 
 
 def soft_blend(
     fragments: Fragments, face_colors: torch.Tensor, num_views: int, config: PipelineConfig
 ) -> torch.Tensor:
-    """SoftRas aggregation -> (K, S, S) grey images.
-
-    I = (sum_j w_j C_j + w_b C_b) / (sum_j w_j + w_b), w_j = D_j exp(z_j / gamma),
-    w_b = exp(background_eps / gamma), computed with the per-pixel shift from the rasteriser.
-    """
+    """SoftRas aggregation -> (K, S, S) grey images (``render_math.soft_blend``)."""
     size = config.image_size
-    shift = fragments.logit_max
-    weight = torch.exp(
-        torch.log(fragments.coverage) + fragments.depth / config.gamma - shift[fragments.pixel]
+    logit = render_math.pair_logit(fragments.coverage, fragments.depth, config, TORCH_OPS)
+    image = render_math.soft_blend(
+        fragments.pixel, fragments.face, logit, fragments.logit_max, face_colors, config, TORCH_OPS
     )
-    numerator = shift.new_zeros(shift.shape).index_add(
-        0, fragments.pixel, weight * face_colors[fragments.face]
-    )
-    denominator = shift.new_zeros(shift.shape).index_add(0, fragments.pixel, weight)
-    background = torch.exp(config.background_eps / config.gamma - shift)
-    image = (numerator + background * config.background) / (denominator + background)
     return image.reshape(num_views, size, size)
 
 

@@ -22,8 +22,8 @@ from functools import cached_property
 import numpy as np
 
 from drkfs_onnx.config import PipelineConfig
+from drkfs_onnx.render_math import DEPTH_CULL, NUMPY_OPS, background_logit, pixel_span
 
-DEPTH_CULL = 30.0
 # float32 logits near 1 / gamma = 1e4 are good to ~1e-3; a wide margin costs a few pairs
 CULL_MARGIN = 2.0
 # A pair whose float32 logit lies this far under its pixel's bound is hidden.
@@ -110,15 +110,11 @@ class PixelBoxes:
 
 
 def pixel_boxes(params: np.ndarray, visible: np.ndarray, config: PipelineConfig) -> PixelBoxes:
-    size, radius = config.image_size, config.coverage_radius
-
-    def span(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        first = np.clip(np.ceil((lo - radius + 1.0) * size / 2.0 - 0.5), 0, size)
-        last = np.clip(np.floor((hi + radius + 1.0) * size / 2.0 - 0.5), -1, size - 1)
-        return first.astype(np.int32), np.maximum(last - first + 1, 0).astype(np.int32)
-
-    i0, width = span(params[0:6:2].min(0), params[0:6:2].max(0))
-    j0, height = span(params[1:6:2].min(0), params[1:6:2].max(0))
+    i0, width, j0, height = (
+        value.astype(np.int32)
+        for coords in (params[0:6:2], params[1:6:2])
+        for value in pixel_span(coords.min(0), coords.max(0), config, NUMPY_OPS)
+    )
     return PixelBoxes(i0, j0, width * visible.astype(np.int32), height)
 
 
@@ -162,7 +158,7 @@ def candidate_pairs(
     edge_log_coverage = np.float32(
         np.log((0.5 - config.coverage_eps) / (1.0 - config.coverage_eps))
     )
-    bound = np.full(views * size * size, config.background_eps / config.gamma, dtype=np.float32)
+    bound = np.full(views * size * size, background_logit(config), dtype=np.float32)
 
     def raise_bound(pairs: Pairs) -> None:
         pixel, logit = select(pairs.sure, pairs.pixel, pairs.logit)

@@ -9,17 +9,16 @@ from conftest import icosphere
 
 from drkfs_onnx import PipelineConfig
 from drkfs_onnx.cameras import make_cameras
-from drkfs_onnx.coverage import NUMPY_OPS, pair_terms
 from drkfs_onnx.render import Renderer
+from drkfs_onnx.render_math import DEPTH_CULL, NUMPY_OPS, pair_terms, project_faces
 from drkfs_onnx.runtime.candidates import (
-    DEPTH_CULL,
     LOOSE_RADIUS,
     _row_spans,
     candidate_pairs,
     face_tests,
     pixel_boxes,
 )
-from drkfs_onnx.runtime.render import VIEW_FACES_PER_CALL, NumpyRenderer, screen_faces
+from drkfs_onnx.runtime.render import VIEW_FACES_PER_CALL, NumpyRenderer
 from drkfs_onnx.shapes import assemble, chair
 
 CONFIG = PipelineConfig(num_views=5, image_size=64)
@@ -76,7 +75,8 @@ def test_candidates_hold_every_pair_the_exact_pass_keeps(mesh):
     config = CONFIG.replace(image_size=40)
     verts, faces = mesh()
     cameras = make_cameras(config)
-    params, visible = screen_faces(cameras.world_to_camera(verts), faces, cameras.focal, config)
+    screen = project_faces(cameras.world_to_camera(verts), faces, cameras.focal, config, NUMPY_OPS)
+    params, visible = screen.params, screen.visible
     k, pixels = config.num_views, config.image_size**2
     pixel = np.arange(k * pixels).repeat(len(faces))
     face = (pixel // pixels) * len(faces) + np.tile(np.arange(len(faces)), k * pixels)
