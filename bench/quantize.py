@@ -36,8 +36,8 @@ from drkfs_onnx.mesh import frame_of, place
 from drkfs_onnx.model_files import features_file
 from drkfs_onnx.runtime import Scorer
 from drkfs_onnx.runtime.render import NumpyRenderer
-from drkfs_onnx.shapes import FAMILIES, assemble, random_shape
-from drkfs_onnx.variants import make_variants
+from drkfs_onnx.synthetic.shapes import FAMILIES, assemble, random_shape
+from drkfs_onnx.synthetic.variants import make_variants
 
 CALIBRATION_SEED, EVALUATION_SEED = 100, 200
 VIEW_BATCH = 5

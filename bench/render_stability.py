@@ -16,9 +16,9 @@ from pathlib import Path
 import torch
 
 from drkfs_onnx import PipelineConfig
-from drkfs_onnx.examples import REFERENCE, example_meshes
 from drkfs_onnx.mesh import normalize_pair
 from drkfs_onnx.render import Renderer
+from drkfs_onnx.synthetic.examples import REFERENCE, example_meshes
 
 ROOT = Path(__file__).resolve().parents[1]
 

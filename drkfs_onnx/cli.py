@@ -10,7 +10,6 @@ from typing import Annotated
 import typer
 
 from .config import PipelineConfig
-from .examples import REFERENCE, example_meshes, write_examples
 from .mesh import MeshError, load_mesh
 from .options import (
     Direction,
@@ -22,6 +21,7 @@ from .options import (
     Window,
     pick_config,
 )
+from .synthetic.examples import REFERENCE, example_meshes, write_examples
 
 app = typer.Typer(help="DR-KFS visual similarity of 3D meshes (torch path).", no_args_is_help=True)
 # Where train, export, bench and fit write unless --out says otherwise: never the shipped models/

@@ -19,7 +19,7 @@ from drkfs_onnx.fitting.landscape import AGREEMENT, CHECKS, probe
 from drkfs_onnx.fitting.objective import ChamferLoss, FitSettings, Objective, fit, float_tensor
 from drkfs_onnx.fitting.problems import perturbed, real, synthetic
 from drkfs_onnx.fitting.study import LOSSES, QUICK, mean_ranks, share, slug
-from drkfs_onnx.shapes import Part, assemble, random_shape
+from drkfs_onnx.synthetic.shapes import Part, assemble, random_shape
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -13,8 +13,8 @@ import drkfs_onnx.weights as weights
 from drkfs_onnx import DRKFS, PipelineConfig
 from drkfs_onnx.config import NETS
 from drkfs_onnx.metric import MissingWeights
-from drkfs_onnx.shapes import assemble, chair
-from drkfs_onnx.variants import without
+from drkfs_onnx.synthetic.shapes import assemble, chair
+from drkfs_onnx.synthetic.variants import without
 
 FAST = PipelineConfig(num_views=4, image_size=128, descriptor_width=0.25)
 

@@ -11,7 +11,7 @@ import typer.main
 from typer.testing import CliRunner
 
 from drkfs_onnx.cli import RUNS, app
-from drkfs_onnx.examples import example_meshes
+from drkfs_onnx.synthetic.examples import example_meshes
 
 ROOT = Path(__file__).resolve().parents[1]
 

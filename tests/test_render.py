@@ -9,7 +9,7 @@ from dense_reference import dense_render
 from drkfs_onnx.cameras import make_cameras
 from drkfs_onnx.config import PipelineConfig
 from drkfs_onnx.render import Renderer
-from drkfs_onnx.shapes import assemble, chair
+from drkfs_onnx.synthetic.shapes import assemble, chair
 
 SMALL = PipelineConfig(num_views=3, image_size=40)
 
@@ -110,7 +110,7 @@ def test_back_faces_render_like_front_faces():
 def test_retessellation_barely_changes_the_image():
     """Splitting every triangle into four keeps the surface, so the render stays nearly equal,
     far closer than moving one leg by 2%."""
-    from drkfs_onnx.variants import shifted
+    from drkfs_onnx.synthetic.variants import shifted
 
     base = chair()
     renderer = Renderer(PipelineConfig(num_views=6, image_size=128))

@@ -19,7 +19,7 @@ from drkfs_onnx.runtime.candidates import (
     pixel_boxes,
 )
 from drkfs_onnx.runtime.render import VIEW_FACES_PER_CALL, NumpyRenderer
-from drkfs_onnx.shapes import assemble, chair
+from drkfs_onnx.synthetic.shapes import assemble, chair
 
 CONFIG = PipelineConfig(num_views=5, image_size=64)
 

@@ -2,7 +2,7 @@
 
 Meshes arrive in the reference's normalised frame (unit sphere), so thresholds are fixed numbers
 there. Surface metrics follow OccNet's definitions on area-weighted samples; nearest neighbours
-are exact (pivot clusters: no KD-tree among the project's dependencies).
+are exact (scipy's KD-tree).
 """
 
 from __future__ import annotations
@@ -10,12 +10,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 # 1% of the bounding-box diagonal; the reference's diagonal is 2 in its normalised frame
 FSCORE_THRESHOLD = 0.02
 VOXELS = 64
 VOXEL_EXTENT = 1.25  # the grid spans [-1.25, 1.25]^3: room for parts added outside the sphere
-PIVOTS = 256
 
 
 @dataclass(frozen=True)
@@ -39,39 +39,9 @@ def sample_surface(verts: np.ndarray, faces: np.ndarray, count: int, seed: int =
     return SurfaceSamples(points, cross[face] / area[face, None])
 
 
-def _squared(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    return np.maximum((a * a).sum(1)[:, None] + (b * b).sum(1)[None] - 2.0 * a @ b.T, 0.0)
-
-
 def _nearest(queries: np.ndarray, targets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Each query's nearest target, exactly: (N,) distances and indices.
-
-    Targets are clustered around PIVOTS of themselves (samples are random, so the first ones
-    will do). A query's nearest pivot bounds its answer by u; a cluster of radius R whose pivot
-    is further than u + R cannot hold anything closer, so only the others are searched.
-    """
-    pivots = targets[:PIVOTS]
-    cluster = np.concatenate(
-        [_squared(chunk, pivots).argmin(1) for chunk in np.array_split(targets, 16)]
-    )
-    members = np.argsort(cluster, kind="stable")
-    starts = np.searchsorted(cluster[members], np.arange(len(pivots) + 1))
-    spread = ((targets - pivots[cluster]) ** 2).sum(1)[members]
-    radius = np.sqrt(np.maximum.reduceat(spread, np.minimum(starts[:-1], len(spread) - 1)))
-    radius[starts[1:] == starts[:-1]] = -np.inf  # empty (a repeated pivot): never searched
-    to_pivot = np.sqrt(_squared(queries, pivots))
-    best = to_pivot.min(1)
-    index = to_pivot.argmin(1)  # pivot k is target k
-    needed = to_pivot - radius[None] < best[:, None]
-    for k in np.nonzero(needed.any(0))[0]:
-        rows = np.nonzero(needed[:, k])[0]
-        ids = members[starts[k] : starts[k + 1]]
-        d2 = _squared(queries[rows], targets[ids])
-        d = np.sqrt(d2.min(1))
-        closer = d < best[rows]
-        best[rows[closer]] = d[closer]
-        index[rows[closer]] = ids[d2.argmin(1)[closer]]
-    return best, index
+    """Each query's nearest target, exactly: (N,) distances and indices."""
+    return cKDTree(targets).query(queries, workers=-1)
 
 
 def surface_distances(a: SurfaceSamples, b: SurfaceSamples) -> dict[str, float]:

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from ..mesh import frame_of, place
-from ..variants import structural_wins
+from ..synthetic.variants import structural_wins
 from . import sets
 from .chart import pareto_front, write_chart
 from .methods import (
@@ -244,7 +244,8 @@ def run_bench(out: Path, quick: bool, threads: int = 2, progress=print) -> dict:
     }
     results["seconds_total"] = time.perf_counter() - start
     (out / "results.json").write_text(json.dumps(results, indent=1))
-    write_chart(out / "speed_accuracy.png", points, front)
+    presets = {DEFAULT_NAME: "default", PAPER_NAME: "paper preset", STRUCTURE_NAME: "structure"}
+    write_chart(out / "speed_accuracy.png", points, front, presets)
     return results
 
 
@@ -258,8 +259,8 @@ DEFINITIONS = {
     "retrieval shapes each in their own; all methods see the same placed meshes",
     "distances": "lower is closer: F-score, normal consistency and IoU enter as 1 - value",
     "chamfer_fscore_nc": f"OccNet's definitions on {SURFACE_SAMPLES:,} area-weighted surface "
-    "samples per mesh (OccNet uses 100k), exact nearest neighbours; F-score threshold 1% of "
-    "the reference's bounding-box diagonal",
+    "samples per mesh, as OccNet; exact nearest neighbours (scipy's KD-tree); F-score "
+    "threshold 1% of the reference's bounding-box diagonal",
     "volumetric_iou": "64^3 voxel centres over [-1.25, 1.25]^3, inside by the parity of +x ray "
     "crossings per connected component (outward components united, inward ones, cavities, "
     "removed); only when both meshes are watertight (every edge shared by exactly two faces), "

@@ -12,8 +12,8 @@ import numpy as np
 import trimesh
 
 from ..mesh import check_mesh, load_mesh
-from ..shapes import FAMILIES, Part, assemble, chair, random_shape, subdivide
-from ..variants import make_variants, surface_variants
+from ..synthetic.shapes import FAMILIES, Part, assemble, chair, random_shape, subdivide
+from ..synthetic.variants import make_variants, surface_variants
 
 SHARED_MESHES = Path(__file__).resolve().parents[2].parent / "shared" / "meshes"
 REAL_MESHES = (

@@ -9,8 +9,8 @@ import torch
 from ..matching import match_score
 from ..mesh import frame_of, place
 from ..metric import DRKFS
-from ..shapes import assemble, chair
-from ..variants import diagonal, shifted
+from ..synthetic.shapes import assemble, chair
+from ..synthetic.variants import diagonal, shifted
 
 SLIDE_STEPS = 11
 SLIDE_RANGE = 0.05  # of the chair's bounding-box diagonal

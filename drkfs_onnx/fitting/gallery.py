@@ -1,35 +1,37 @@
-"""The gallery PNG: one row per problem, one column per mesh (target, template, each loss's
-result), every cell the same views from the same cameras."""
+"""The gallery PNG (matplotlib): one row per problem, one column per mesh (target, template,
+each loss's result), every cell the same views from the same cameras."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
+from matplotlib.figure import Figure
 
-from ..benchmark.chart import Canvas
 from ..config import PipelineConfig
 from ..runtime.render import NumpyRenderer
 
 VIEWS = PipelineConfig(num_views=2, image_size=128)  # a side view and one from above
-MARGIN = 6
-LABEL = 14  # pixels of text above each row
+CELL_INCHES = 1.3  # per view
 
 
 def write_gallery(path: Path, columns: list[str], rows: list[tuple[str, list[tuple]]]) -> None:
     """rows: (problem name, [(verts, faces) per column]); cells stack the VIEWS vertically."""
     renderer = NumpyRenderer(VIEWS)
     size = VIEWS.image_size
-    cell_w, cell_h = size + MARGIN, VIEWS.num_views * size + LABEL + MARGIN
-    canvas = Canvas(MARGIN + cell_w * len(columns), LABEL + cell_h * len(rows))
-    for c, name in enumerate(columns):
-        canvas.text(MARGIN + c * cell_w, 3, name, (0, 0, 0))
+    figure = Figure(
+        figsize=(CELL_INCHES * len(columns), CELL_INCHES * VIEWS.num_views * len(rows)),
+        layout="constrained",
+    )
+    grid = figure.subplots(len(rows), len(columns), squeeze=False)
     for r, (name, meshes) in enumerate(rows):
-        top = LABEL + r * cell_h
-        canvas.text(MARGIN, top + 3, name, (90, 90, 90))
         for c, (verts, faces) in enumerate(meshes):
+            axes = grid[r, c]
             images = renderer.render(verts, faces).reshape(-1, size)  # views stacked
-            grey = np.clip(images * 255.0, 0, 255).astype(np.uint8)
-            x, y = MARGIN + c * cell_w, top + LABEL
-            canvas.pixels[y : y + len(grey), x : x + size] = grey[:, :, None]
-    path.write_bytes(canvas.png())
+            axes.imshow(images, cmap="gray", vmin=0.0, vmax=1.0)
+            axes.set_xticks([])
+            axes.set_yticks([])
+            if r == 0:
+                axes.set_title(columns[c], fontsize=8)
+            if c == 0:
+                axes.set_ylabel(name, fontsize=7)
+    figure.savefig(path, dpi=100)

@@ -28,7 +28,7 @@ from ..config import PipelineConfig
 from ..mesh import frame_of, place
 from ..metric import DRKFS
 from ..render import Renderer
-from ..shapes import assemble, random_shape
+from ..synthetic.shapes import assemble, random_shape
 from .evaluate import HIGHER_IS_BETTER, Judge
 from .gallery import write_gallery
 from .geometry import Smoothness, chamfer, surface_points

@@ -11,7 +11,7 @@ import trimesh
 
 from ..benchmark.sets import SHARED_MESHES
 from ..mesh import frame_of, load_mesh, place
-from ..shapes import Part, assemble, random_shape
+from ..synthetic.shapes import Part, assemble, random_shape
 
 TEMPLATE_SUBDIVISIONS = 1  # template parts get four times the faces: room to bend
 SIZE_JITTER = 0.2  # a template part's size is the target's times U(1 - j, 1 + j) per axis

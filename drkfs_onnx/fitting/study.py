@@ -21,7 +21,7 @@ import trimesh
 
 from ..config import PipelineConfig
 from ..metric import DRKFS
-from ..shapes import FAMILIES
+from ..synthetic.shapes import FAMILIES
 from .evaluate import HIGHER_IS_BETTER, METRICS, SURFACE, VISUAL, Judge, better
 from .gallery import write_gallery
 from .landscape import probe

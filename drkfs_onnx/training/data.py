@@ -19,7 +19,7 @@ from ..cameras import Cameras, look_at, make_cameras
 from ..config import PipelineConfig
 from ..mesh import frame_of, place
 from ..render import Renderer
-from ..shapes import assemble, random_shape
+from ..synthetic.shapes import assemble, random_shape
 
 DEPTH_TOLERANCE = 0.01  # relative camera-depth difference still counted as the same surface
 

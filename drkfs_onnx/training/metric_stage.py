@@ -23,8 +23,8 @@ from ..benchmark.run import _accuracy, _bars, _retrieval, score_everything
 from ..config import PipelineConfig
 from ..matching import match_score
 from ..metric import DRKFS
-from ..shapes import FAMILIES
-from ..variants import structural_wins
+from ..synthetic.shapes import FAMILIES
+from ..synthetic.variants import structural_wins
 from .metric_objectives import LossFn, metric_ranking, patch_contrast
 from .objectives import correspondence_triplet
 from .variant_views import VariantViews, render_variant_views

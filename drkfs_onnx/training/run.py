@@ -21,7 +21,7 @@ from ..config import PipelineConfig
 from ..detector import PoIDetector
 from ..hardnet import HardNet
 from ..metric import DRKFS
-from ..shapes import FAMILIES
+from ..synthetic.shapes import FAMILIES
 from ..weights import MANIFEST
 from .data import ViewPairs, render_pairs, sample_matches
 from .evaluate import (

@@ -19,8 +19,8 @@ import torch.nn.functional as F
 from ..config import PipelineConfig
 from ..mesh import frame_of, place
 from ..render import Renderer
-from ..shapes import Part, assemble, random_shape
-from ..variants import (
+from ..synthetic.shapes import Part, assemble, random_shape
+from ..synthetic.variants import (
     MILD,
     STRUCTURAL,
     Variant,
