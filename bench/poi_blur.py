@@ -13,8 +13,8 @@ from torch import nn
 
 from drkfs_onnx.config import NETS, PipelineConfig
 from drkfs_onnx.metric import DRKFS
-from drkfs_onnx.training.evaluate import gaussian_blur
 from drkfs_onnx.training.metric_stage import benchmark_rows_script
+from drkfs_onnx.training.net_metrics import gaussian_blur
 
 SIGMAS = (0.0, 1.0, 2.0)  # pixels
 

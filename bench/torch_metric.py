@@ -111,8 +111,8 @@ def run_training_step(repeats: int) -> dict:
     import torch
 
     from drkfs_onnx import DRKFS, PipelineConfig
+    from drkfs_onnx.fitting.mesh_fit import float_tensor
     from drkfs_onnx.fitting.network import Reconstructor, make_shape
-    from drkfs_onnx.fitting.objective import float_tensor
 
     torch.manual_seed(0)
     metric = DRKFS.pretrained(PipelineConfig.training())

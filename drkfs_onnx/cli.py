@@ -95,10 +95,10 @@ def train(
     """
     from dataclasses import replace
 
-    from .training.run import QUICK, TrainPlan
+    from .training.run import QUICK_TRAIN, TrainPlan
     from .training.run import train as run_training
 
-    plan = replace(QUICK if quick else TrainPlan(), seed=seed)
+    plan = replace(QUICK_TRAIN if quick else TrainPlan(), seed=seed)
     command = f"drkfs train --out {out} --seed {seed}" + (" --quick" if quick else "")
     manifest = run_training(plan, out, work, command)
     for row in manifest["detectors"]:

@@ -18,9 +18,9 @@ MATCHINGS = ("global", "window")
 DIRECTIONS = ("forward", "backward", "both")
 REDUCTIONS = ("sum", "mean", "tail", "power", "softmax")
 # what the detector and HardNet were trained for: 'correspondence' (the paper's way: the same
-# surface point in views 5-30 degrees apart, ``training.objectives``; the default's and the paper
+# surface point in views 5-30 degrees apart, ``training.net_losses``; the default's and the paper
 # preset's) or 'metric' (then fine-tuned to rank the metric's own structural edits above its
-# mild ones, ``training.metric_objectives``; ``PipelineConfig.structure()``)
+# mild ones, ``training.metric_losses``; ``PipelineConfig.structure()``)
 NETS = ("metric", "correspondence")
 # The settings that shape only the match of two descriptor sets, not the descriptors: a feature
 # graph or features file serves every value of these.

@@ -76,7 +76,7 @@ class Fragments:
     logit_max: torch.Tensor
 
 
-def screen_faces(
+def to_screen(
     verts: torch.Tensor, faces: torch.Tensor, cameras: Cameras, config: PipelineConfig
 ) -> tuple[torch.Tensor, ScreenFaces]:
     """(V, 3) world vertices, (F, 3) faces -> (K, V, 3) camera-frame vertices and the faces

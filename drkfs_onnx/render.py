@@ -8,7 +8,7 @@ import torch
 
 from .cameras import Cameras, make_cameras
 from .config import PipelineConfig
-from .rasterize import Fragments, SoftRasterizer, screen_faces
+from .rasterize import Fragments, SoftRasterizer, to_screen
 from .shade import face_shading, silhouette, soft_blend
 
 RenderMode = Literal["shaded", "silhouette"]
@@ -43,5 +43,5 @@ class Renderer:
         self, verts: torch.Tensor, faces: torch.Tensor, depth_cull: bool
     ) -> tuple[torch.Tensor, Fragments]:
         """(V, 3), (F, 3) -> (K, V, 3) camera-frame vertices and the views' fragments."""
-        verts_cam, screen = screen_faces(verts, faces, self.cameras, self.config)
+        verts_cam, screen = to_screen(verts, faces, self.cameras, self.config)
         return verts_cam, self.rasterizer(screen, depth_cull=depth_cull)

@@ -9,7 +9,7 @@ SHARED_MESHES = Path(__file__).resolve().parents[2] / "shared" / "meshes"
 
 @pytest.fixture(scope="session")
 def shared_meshes() -> Path:
-    """The real test meshes in ../shared/meshes (read in place, never copied)."""
+    """The shared test meshes in ../shared/meshes (read in place, never copied)."""
     if not (SHARED_MESHES / "cow.obj").is_file():
         pytest.fail(f"shared test meshes not found at {SHARED_MESHES}; they sit beside the repo")
     return SHARED_MESHES

@@ -66,10 +66,9 @@ def test_match_graph_finds_each_rows_nearest(exported):
     assert np.array_equal(got, distances.argmin(1))
 
 
-def test_shipped_graphs_are_current_exports_of_the_shipped_weights(tmp_path):
+def test_shipped_graphs_carry_their_weights_hash_and_config():
     """Every weights file in the manifest has its feature graph at the paper's image size and
-    the default's, tagged with its sha256, and re-exporting the default one gives the shipped
-    graph's outputs."""
+    the default's, tagged with its sha256 and its config."""
     for entry in shipped_weights():
         trained = PipelineConfig.from_dict(entry["config"])
         for size in {trained.image_size, PipelineConfig().image_size}:
@@ -79,12 +78,35 @@ def test_shipped_graphs_are_current_exports_of_the_shipped_weights(tmp_path):
             assert meta[WEIGHTS_KEY] == entry["sha256"]
             built = PipelineConfig.from_json(meta[CONFIG_KEY])
             assert built.features_part() == config.features_part()
-    config = PipelineConfig()
-    fresh = export_features(DRKFS.pretrained(config), tmp_path / "f.onnx", "sha")
-    size = config.image_size
-    views = np.random.default_rng(1).random((2, 1, size, size), dtype=np.float32)
-    inputs = {"views": views, "patch_index": np.arange(0, 2 * config.patches_per_view, 7)}
-    got = ort.InferenceSession(fresh).run(None, inputs)[0]
-    shipped = ort.InferenceSession((models_dir() / features_file(config)).read_bytes())
-    assert np.abs(got - shipped.run(None, inputs)[0]).max() <= 1e-6
     assert (models_dir() / MATCH_FILE).is_file()
+
+
+def _hard_views(size: int) -> np.ndarray:
+    """Views whose PoI maps are near-flat (where the patch normalisation's eps decides, the case
+    that once broke parity), a shallow ramp, and uniform noise: (4, 1, S, S) float32."""
+    rng = np.random.default_rng(1)
+    flat = 0.5 + 1e-4 * rng.standard_normal((2, 1, size, size))
+    ramp = np.broadcast_to(np.linspace(0.3, 0.3002, size), (1, 1, size, size))
+    noise = rng.random((1, 1, size, size))
+    return np.concatenate([flat, ramp, noise]).astype(np.float32)
+
+
+@pytest.mark.parametrize("entry", shipped_weights(), ids=lambda entry: entry["file"])
+def test_each_shipped_graph_is_a_current_export_and_matches_torch_on_near_flat_views(
+    entry, tmp_path
+):
+    config = PipelineConfig.from_dict(entry["config"]).replace(
+        image_size=PipelineConfig().image_size
+    )
+    metric = DRKFS.pretrained(config)
+    fresh = ort.InferenceSession(export_features(metric, tmp_path / "f.onnx", entry["sha256"]))
+    shipped = ort.InferenceSession((models_dir() / features_file(config)).read_bytes())
+    views = _hard_views(config.image_size)
+    index = np.arange(len(views) * config.patches_per_view)
+    inputs = {"views": views, "patch_index": index}
+    got = shipped.run(None, inputs)[0]
+    assert np.abs(got - fresh.run(None, inputs)[0]).max() <= 1e-6
+    with torch.no_grad():
+        maps = metric.detector(torch.from_numpy(views))
+        expected = metric.descriptor(select_patches(maps, torch.from_numpy(index), config))
+    assert np.abs(got - expected.numpy()).max() <= 1e-4

@@ -13,11 +13,10 @@ from drkfs_onnx.patches import nonempty_patches, select_patches
 CONFIG = PipelineConfig.paper()
 
 
-def test_detector_maps_images_to_probabilities_of_the_same_size():
+def test_detector_maps_images_to_maps_of_the_same_size():
     torch.manual_seed(0)
     maps = PoIDetector(CONFIG)(torch.rand(3, 1, 256, 256))
     assert maps.shape == (3, 1, 256, 256)
-    assert ((maps > 0) & (maps < 1)).all()
 
 
 def test_detector_is_piecewise_linear_maxout():

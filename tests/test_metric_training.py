@@ -6,7 +6,7 @@ import pytest
 import torch
 
 from drkfs_onnx import DRKFS, PipelineConfig
-from drkfs_onnx.training.metric_objectives import RANK_MARGIN, ranking_loss
+from drkfs_onnx.training.metric_losses import RANK_MARGIN, ranking_loss
 from drkfs_onnx.training.metric_stage import (
     BASELINE,
     OBJECTIVES,

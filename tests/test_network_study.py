@@ -16,7 +16,7 @@ from drkfs_onnx.fitting.network import (
     JUDGED,
     LOSSES,
     PRIMITIVES,
-    QUICK,
+    QUICK_NETWORK,
     TEST_SEED,
     TRAIN_SEED,
     Reconstructor,
@@ -48,13 +48,13 @@ def test_training_and_test_shapes_differ_and_are_normalised():
 
 
 def test_silhouette_cameras_are_none_of_the_losses_and_half_look_from_below():
-    cameras = unseen_cameras(QUICK.loss_config, 8)
+    cameras = unseen_cameras(QUICK_NETWORK.loss_config, 8)
     assert (cameras.eyes[:, 1] < 0).sum() == 4
     for views in (2, 6, 25):  # the quick loss, the training config, the paper's
-        trained = make_cameras(QUICK.loss_config.replace(num_views=views)).eyes
+        trained = make_cameras(QUICK_NETWORK.loss_config.replace(num_views=views)).eyes
         distances = np.linalg.norm(cameras.eyes[:, None] - trained[None], axis=-1)
         assert distances.min() > 0.2  # camera distance 2.5: at least ~5 degrees apart
-    judge = SilhouetteJudge(QUICK.judge_config, 8)
+    judge = SilhouetteJudge(QUICK_NETWORK.judge_config, 8)
     box = trimesh.creation.box((0.8, 0.8, 0.8))
     mask = judge.mask(box.vertices, box.faces)
     assert iou(mask, mask) == 1.0 and 0 < mask.mean() < 1
@@ -73,7 +73,7 @@ def quick_network_study(tmp_path_factory):
 def test_quick_network_study_judges_every_test_shape_and_saves_its_meshes(quick_network_study):
     out, output = quick_network_study
     results = json.loads((out / "results.json").read_text())
-    names = {f"{family} {TEST_SEED}" for family in QUICK.families}
+    names = {f"{family} {TEST_SEED}" for family in QUICK_NETWORK.families}
     assert set(results["table"]) == names
     for name, rows in results["table"].items():
         assert set(rows) == set(LOSSES)

@@ -127,13 +127,13 @@ def test_retessellation_barely_changes_the_image():
 
 def test_cost_follows_covered_pairs_not_pixels_times_faces():
     """A mesh far outside every view produces no pixel-face pair at all."""
-    from drkfs_onnx.rasterize import SoftRasterizer, screen_faces
+    from drkfs_onnx.rasterize import SoftRasterizer, to_screen
 
     verts, faces = _tensors(*icosphere(1))
     renderer = Renderer(SMALL)
     for offset, expect_pairs in ((0.0, True), (50.0, False)):
         moved = verts + torch.tensor([offset, 0.0, 0.0])
-        _, screen = screen_faces(moved, faces, renderer.cameras, SMALL)
+        _, screen = to_screen(moved, faces, renderer.cameras, SMALL)
         fragments = SoftRasterizer(SMALL)(screen)
         assert (len(fragments.pixel) > 0) == expect_pairs
         if expect_pairs:

@@ -17,8 +17,8 @@ from drkfs_onnx.synthetic.shapes import FAMILIES, assemble, random_shape
 from drkfs_onnx.synthetic.variants import MILD, STRUCTURAL, make_variants
 from drkfs_onnx.training.data import correspond, render_pairs, sample_matches
 from drkfs_onnx.training.metric_stage import BASELINE
-from drkfs_onnx.training.objectives import detector_loss, hardest_triplet_loss
-from drkfs_onnx.training.run import QUICK, fit
+from drkfs_onnx.training.net_losses import detector_loss, hardest_triplet_loss
+from drkfs_onnx.training.run import QUICK_TRAIN, train_steps
 from drkfs_onnx.weights import MANIFEST, models_dir, shipped_entry
 
 
@@ -94,7 +94,7 @@ def test_an_interrupted_fit_resumes_to_the_same_weights(tmp_path):
         return torch.nn.Linear(3, 2)
 
     straight = fresh()
-    fit(straight, loss_fn, 6, 0.1, tmp_path / "straight.pt", every=2)
+    train_steps(straight, loss_fn, 6, 0.1, tmp_path / "straight.pt", every=2)
 
     def killed_at_step_3(model, step):
         if step == 3:
@@ -103,10 +103,10 @@ def test_an_interrupted_fit_resumes_to_the_same_weights(tmp_path):
 
     resumed = fresh()
     with pytest.raises(KeyboardInterrupt):
-        fit(resumed, killed_at_step_3, 6, 0.1, tmp_path / "resumed.pt", every=2)
+        train_steps(resumed, killed_at_step_3, 6, 0.1, tmp_path / "resumed.pt", every=2)
     assert torch.load(tmp_path / "resumed.pt")["step"] == 2
     resumed = fresh()
-    fit(resumed, loss_fn, 6, 0.1, tmp_path / "resumed.pt", every=2)
+    train_steps(resumed, loss_fn, 6, 0.1, tmp_path / "resumed.pt", every=2)
     for a, b in zip(straight.parameters(), resumed.parameters(), strict=True):
         assert torch.equal(a, b)
 
@@ -136,8 +136,8 @@ def test_quick_training_writes_weights_that_match_their_manifest(tmp_path):
     assert {row["detector"] for row in manifest["detectors"]} >= {"harris", "dog"}
     stage = manifest["metric"]
     # every objective and the paper-style baseline judged on the benchmark, the choice among them
-    assert set(stage["objectives"]) == {BASELINE, *QUICK.metric.objectives}
-    assert stage["objective"] in QUICK.metric.objectives
+    assert set(stage["objectives"]) == {BASELINE, *QUICK_TRAIN.metric.objectives}
+    assert stage["objective"] in QUICK_TRAIN.metric.objectives
     nets = {PipelineConfig.from_dict(e["config"]).nets for e in manifest["weights"]}
     assert nets == {"metric", "correspondence"}
 

@@ -131,7 +131,7 @@ def _accuracy(bench: sets.BenchSet, values: dict[int, float | None]) -> dict:
     for base, kinds in groups.items():
         w, n = structural_wins(kinds["structural"], kinds["mild"])
         wins, pairs = wins + w, pairs + n
-        if base in sets.REAL_MESHES:
+        if base in sets.SHARED_MESHES:
             real_wins, real_pairs = real_wins + w, real_pairs + n
     mild = [v for kinds in groups.values() for v in kinds["mild"]]
     structural = [v for kinds in groups.values() for v in kinds["structural"]]

@@ -15,15 +15,15 @@ from ..mesh import check_mesh, load_mesh
 from ..synthetic.shapes import FAMILIES, Part, assemble, chair, random_shape, subdivide
 from ..synthetic.variants import make_variants, surface_variants
 
-SHARED_MESHES = Path(__file__).resolve().parents[2].parent / "shared" / "meshes"
-REAL_MESHES = (
+SHARED_FOLDER = Path(__file__).resolve().parents[2].parent / "shared" / "meshes"
+SHARED_MESHES = (
     "alligator", "beast", "beetle", "cheburashka", "cow",
     "fandisk", "homer", "rocker-arm", "stanford-bunny", "woody",
 )  # fmt: skip
 # the two ~65k-face scans would double the full run (8 meshes each, every method); they stay in
-# the set of real meshes through the 200k-face stability case
+# the set of shared meshes through the 200k-face stability case
 LARGE_SCANS = ("beast", "stanford-bunny")
-SWEPT_MESHES = [name for name in REAL_MESHES if name not in LARGE_SCANS]
+SWEPT_MESHES = [name for name in SHARED_MESHES if name not in LARGE_SCANS]
 SEED = 2026
 # synthetic bases for held-out checks: other seeds than the benchmark's (2026-2028) and the
 # training's (0-2)
@@ -87,7 +87,7 @@ def _variants_of(bench: BenchSet, base: str, verts, faces, variants) -> None:
 
 
 def sensitivity(
-    bench: BenchSet, families: list[str], real: list[str], seed: int = SEED, prefix: str = ""
+    bench: BenchSet, families: list[str], shared: list[str], seed: int = SEED, prefix: str = ""
 ) -> None:
     """A base shape of each family and each named shared mesh, with their variants; ``seed``
     and ``prefix`` (of the base keys) make other sets of the same kind (a held-out check)."""
@@ -96,8 +96,8 @@ def sensitivity(
         parts = random_shape(family, rng)
         verts, faces = assemble(parts, 1)  # the variants' own tessellation
         _variants_of(bench, prefix + family, verts, faces, make_variants(parts, rng))
-    for name in real:
-        mesh = load_mesh(SHARED_MESHES / f"{name}.obj")
+    for name in shared:
+        mesh = load_mesh(SHARED_FOLDER / f"{name}.obj")
         variants = surface_variants(mesh.vertices, mesh.faces, rng)
         _variants_of(bench, name, mesh.vertices, mesh.faces, variants)
 
@@ -182,7 +182,7 @@ def stability(bench: BenchSet, surface: str, large: str | None) -> None:
     """The stability cases; ``surface`` names a shared mesh for the surface edits, ``large`` one
     to subdivide past 200k faces (None: skip that case)."""
     rng = np.random.default_rng(SEED + 2)
-    mesh = load_mesh(SHARED_MESHES / f"{surface}.obj")
+    mesh = load_mesh(SHARED_FOLDER / f"{surface}.obj")
     v, f = mesh.vertices, mesh.faces
     size = float(np.linalg.norm(np.ptp(v, axis=0)))
     offset = np.array([0.01 * size, 0.0, 0.0])
@@ -207,7 +207,7 @@ def stability(bench: BenchSet, surface: str, large: str | None) -> None:
         "degenerate_faces": (_with_degenerate(v, f, rng), (v, f)),
     }
     if large is not None:
-        big = load_mesh(SHARED_MESHES / f"{large}.obj")
+        big = load_mesh(SHARED_FOLDER / f"{large}.obj")
         cases["over_200k_faces"] = (subdivide(big.vertices, big.faces), (big.vertices, big.faces))
     for case, ((av, af), (bv, bf)) in cases.items():
         a = bench.add(f"stability/{case}", av, af)

@@ -19,7 +19,7 @@ from dataclasses import replace
 import numpy as np
 import torch
 
-from .objective import FitSettings, Objective, fit
+from .mesh_fit import FitSettings, Objective, fit_mesh
 
 EVERY = 5  # optimiser steps between checks
 CHECKS = 4  # checks per probe: at steps 0, 5, 10, 15
@@ -61,7 +61,7 @@ def probe(
             }
         )
 
-    fit(objective, template, faces, replace(settings, steps=CHECKS * EVERY), check)
+    fit_mesh(objective, template, faces, replace(settings, steps=CHECKS * EVERY), check)
     return {
         "checks": checks,
         "median_relative_error": float(np.median([c["relative_error"] for c in checks])),

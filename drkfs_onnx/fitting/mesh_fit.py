@@ -94,7 +94,7 @@ class FitResult:
 Watch = Callable[[int, torch.Tensor, torch.Tensor], None]
 
 
-def fit(
+def fit_mesh(
     objective: Objective,
     template: torch.Tensor,
     faces: torch.Tensor,

@@ -29,10 +29,10 @@ from ..mesh import frame_of, place
 from ..metric import DRKFS
 from ..render import Renderer
 from ..synthetic.shapes import assemble, random_shape
-from .evaluate import HIGHER_IS_BETTER, Judge
 from .gallery import write_gallery
 from .geometry import Smoothness, chamfer, surface_points
-from .objective import CHAMFER_SAMPLES, TARGET_SAMPLES, DrkfsLoss, float_tensor
+from .judges import HIGHER_IS_BETTER, Judge
+from .mesh_fit import CHAMFER_SAMPLES, TARGET_SAMPLES, DrkfsLoss, float_tensor
 from .study import chamfer_ratios, save_mesh, share, slug
 
 # seeds of the shapes the network trains and is tested on: disjoint from the benchmark's
@@ -78,7 +78,7 @@ FULL = NetworkPlan(
     judge_config=PipelineConfig.paper(),
     unseen_views=8,
 )
-QUICK = NetworkPlan(
+QUICK_NETWORK = NetworkPlan(
     families=("chair", "table"),
     train_per_family=2,
     test_per_family=1,
@@ -273,7 +273,7 @@ class SilhouetteJudge:
 def run_network_study(out: Path, quick: bool, threads: int = 2, progress=print) -> dict:
     start = time.perf_counter()
     out.mkdir(parents=True, exist_ok=True)
-    plan = QUICK if quick else FULL
+    plan = QUICK_NETWORK if quick else FULL
     train_set = shapes(plan, TRAIN_SEED, plan.train_per_family)
     test_set = shapes(plan, TEST_SEED, plan.test_per_family)
     _, faces = primitives()

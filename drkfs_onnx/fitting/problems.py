@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from ..benchmark.sets import SHARED_MESHES
+from ..benchmark.sets import SHARED_FOLDER
 from ..mesh import frame_of, load_mesh, place
 from ..synthetic.shapes import Part, assemble, random_shape
 
@@ -28,7 +28,7 @@ class Problem:
     target_faces: np.ndarray  # (F, 3) int64
     template_verts: np.ndarray
     template_faces: np.ndarray
-    # the shared mesh a real target was read from (not copied: ``mesh.frame_of`` normalises it)
+    # the shared mesh the target was read from (not copied: ``mesh.frame_of`` normalises it)
     source: Path | None = None
 
 
@@ -68,10 +68,10 @@ def synthetic(family: str, seed: int) -> Problem:
     )
 
 
-def real(name: str) -> Problem:
+def shared(name: str) -> Problem:
     """A shared mesh (read in place); the template is an icosphere stretched to the ellipsoid
     inscribed in ELLIPSOID_FILL times its bounding box (for genus-0 targets)."""
-    source = SHARED_MESHES / f"{name}.obj"
+    source = SHARED_FOLDER / f"{name}.obj"
     mesh = load_mesh(source)
     sphere = trimesh.creation.icosphere(ICOSPHERE_LEVEL)
     lower, upper = mesh.vertices.min(0), mesh.vertices.max(0)

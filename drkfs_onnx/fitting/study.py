@@ -22,19 +22,19 @@ import trimesh
 from ..config import PipelineConfig
 from ..metric import DRKFS
 from ..synthetic.shapes import FAMILIES
-from .evaluate import HIGHER_IS_BETTER, METRICS, SURFACE, VISUAL, Judge, better
 from .gallery import write_gallery
+from .judges import HIGHER_IS_BETTER, METRICS, SURFACE, VISUAL, Judge, better
 from .landscape import probe
-from .objective import (
+from .mesh_fit import (
     ChamferLoss,
     DrkfsLoss,
     FitSettings,
     Objective,
     PixelLoss,
-    fit,
+    fit_mesh,
     float_tensor,
 )
-from .problems import Problem, real, synthetic
+from .problems import Problem, shared, synthetic
 
 LOSSES = ("Chamfer", "pixel MSE", "DR-KFS", "DR-KFS + lambda*Chamfer")
 TIMING_STEPS = 2  # steps timed at the paper's config (the second pays no warm-up)
@@ -52,7 +52,7 @@ class StudyPlan:
     learning_rates: tuple[float, ...]  # candidates for each single loss
     smoothness: tuple[float, ...]  # candidate regulariser weights for each single loss
     weights: tuple[float, ...]  # candidate lambdas, at the settings chosen for DR-KFS
-    # the first study's config and settings (issue 20's fit), probed beside the new ones
+    # the first study's settings (before the training renderer), probed beside the new ones
     old_config: PipelineConfig
     old_settings: dict[str, FitSettings]
 
@@ -73,7 +73,7 @@ FULL = StudyPlan(
     old_config=PipelineConfig.paper(num_views=8, image_size=128),
     old_settings=OLD_SETTINGS,
 )
-QUICK = StudyPlan(
+QUICK_STUDY = StudyPlan(
     fit_config=PipelineConfig.training(num_views=2, image_size=64),
     judge_config=PipelineConfig.paper(num_views=4, image_size=128),
     settings=FitSettings(steps=3),
@@ -89,7 +89,7 @@ QUICK = StudyPlan(
 
 def load_problem(spec: str) -> Problem:
     family, _, seed = spec.partition(":")
-    return synthetic(family, int(seed)) if family in FAMILIES else real(spec)
+    return synthetic(family, int(seed)) if family in FAMILIES else shared(spec)
 
 
 def objective(loss: str, weight: float, metric: DRKFS, problem: Problem, template, faces):
@@ -111,7 +111,9 @@ def objective(loss: str, weight: float, metric: DRKFS, problem: Problem, templat
 def run_fit(problem: Problem, loss: str, weight: float, metric: DRKFS, settings: FitSettings):
     template = float_tensor(problem.template_verts)
     faces = torch.as_tensor(problem.template_faces)
-    return fit(objective(loss, weight, metric, problem, template, faces), template, faces, settings)
+    return fit_mesh(
+        objective(loss, weight, metric, problem, template, faces), template, faces, settings
+    )
 
 
 def mean_ranks(rows: dict[str, dict[str, float | None]]) -> dict[str, float]:
@@ -258,7 +260,7 @@ def landscapes(plan: StudyPlan, problems: list[Problem], choices: dict, progress
 def run_study(out: Path, quick: bool, threads: int = 2, progress=print) -> dict:
     start = time.perf_counter()
     out.mkdir(parents=True, exist_ok=True)
-    plan = QUICK if quick else FULL
+    plan = QUICK_STUDY if quick else FULL
     metric = DRKFS.pretrained(plan.fit_config)
     judge = Judge(plan.judge_config, threads)
     choices, tuning = tune(plan, metric, judge, progress)

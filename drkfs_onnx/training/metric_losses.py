@@ -17,7 +17,7 @@ from ..matching import match_score
 from ..metric import DRKFS
 from ..patch_grid import nonempty_patches
 from ..patches import select_patches
-from .objectives import descriptor_distances, hardest_triplet_loss
+from .net_losses import descriptor_distances, hardest_triplet_loss
 from .variant_views import VariantViews
 
 RANK_MARGIN = 0.5  # log-ratio: a structural variant should score >= e^0.5 = 1.65x a mild one

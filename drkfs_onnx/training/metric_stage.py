@@ -25,8 +25,8 @@ from ..matching import match_score
 from ..metric import DRKFS
 from ..synthetic.shapes import FAMILIES
 from ..synthetic.variants import structural_wins
-from .metric_objectives import LossFn, metric_ranking, patch_contrast
-from .objectives import correspondence_triplet
+from .metric_losses import LossFn, metric_ranking, patch_contrast
+from .net_losses import correspondence_triplet
 from .variant_views import VariantViews, render_variant_views
 
 RETRIEVAL = 0.83  # the retrieval the correspondence nets reach on the benchmark: not to be lost
@@ -219,10 +219,12 @@ class MetricStage:
     """One run of a MetricPlan in a work folder; ``fit`` is ``training.run.fit``, ``timed``
     records a stage's seconds."""
 
-    def __init__(self, plan: MetricPlan, work: Path, seed: int, pairs: Correspondences, fit, timed):
+    def __init__(
+        self, plan: MetricPlan, work: Path, seed: int, pairs: Correspondences, train_steps, timed
+    ):
         self.plan, self.work, self.seed, self.pairs = plan, work, seed, pairs
         self.config = plan.pipeline
-        self.fit, self.timed = fit, timed
+        self.train_steps, self.timed = train_steps, timed
         work.mkdir(parents=True, exist_ok=True)
         self.bench = benchmark_set(plan.quick_benchmark)
         self.heldout = heldout_set(plan.quick_benchmark)
@@ -266,6 +268,6 @@ class MetricStage:
         loss_fn = OBJECTIVES[objective](self.data, self.seed, self.pairs)
         began = time.perf_counter()
         checkpoint = self.work / f"metric_{name.replace(' ', '_')}.pt"
-        self.fit(metric, loss_fn, self.plan.steps, self.plan.lr, checkpoint, 20)
+        self.train_steps(metric, loss_fn, self.plan.steps, self.plan.lr, checkpoint, 20)
         self.timed(checkpoint.stem, began)
         return metric.requires_grad_(False)

@@ -11,7 +11,7 @@ from torch import nn
 
 from ..config import PipelineConfig
 from .data import ViewPairs, correspond, crops
-from .objectives import descriptor_distances
+from .net_losses import descriptor_distances
 
 KEYPOINTS = 100  # per view, after 5 x 5 non-maximum suppression
 NMS_WINDOW = 5

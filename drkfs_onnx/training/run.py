@@ -24,13 +24,6 @@ from ..metric import DRKFS
 from ..synthetic.shapes import FAMILIES
 from ..weights import MANIFEST
 from .data import ViewPairs, render_pairs, sample_matches
-from .evaluate import (
-    conv_flops,
-    descriptor_fpr95,
-    difference_of_gaussians,
-    harris,
-    repeatability,
-)
 from .metric_stage import (
     ACCURACY_TOLERANCE,
     BASELINE,
@@ -44,7 +37,14 @@ from .metric_stage import (
     choose_smallest,
     with_nets,
 )
-from .objectives import correspondence_triplet, detector_loss
+from .net_losses import correspondence_triplet, detector_loss
+from .net_metrics import (
+    conv_flops,
+    descriptor_fpr95,
+    difference_of_gaussians,
+    harris,
+    repeatability,
+)
 
 BORDER = 20  # matches stay this far inside the image: 16 for a 32-pixel patch, plus JITTER
 FPR95_TOLERANCE = 1.0  # ship the smallest net within this many FPR95 points of the best
@@ -82,7 +82,7 @@ class TrainPlan:
         return PipelineConfig.from_dict(self.config)
 
 
-QUICK = TrainPlan(
+QUICK_TRAIN = TrainPlan(
     shapes_per_family=1,
     pairs_per_shape=2,
     heldout_shapes_per_family=1,
@@ -133,7 +133,9 @@ def _git_commit() -> str:
     return head.stdout.strip() + ("-dirty" if dirty.stdout.strip() else "")
 
 
-def fit(model: nn.Module, loss_fn, steps: int, lr: float, checkpoint: Path, every: int) -> None:
+def train_steps(
+    model: nn.Module, loss_fn, steps: int, lr: float, checkpoint: Path, every: int
+) -> None:
     """Adam with a cosine learning rate, resumable: the optimiser, the step and the model are
     saved every ``every`` steps; batches and dropout are seeded by the step, so a resumed run
     takes the same steps as an uninterrupted one."""
@@ -259,7 +261,9 @@ class Training:
 
         start = time.perf_counter()
         checkpoint = self.work / f"detector_{_size_name(size)}.pt"
-        fit(detector, loss_fn, p.detector_steps, p.detector_lr, checkpoint, p.checkpoint_every)
+        train_steps(
+            detector, loss_fn, p.detector_steps, p.detector_lr, checkpoint, p.checkpoint_every
+        )
         self._timed(checkpoint.stem, start)
         return detector
 
@@ -275,7 +279,7 @@ class Training:
 
         start = time.perf_counter()
         checkpoint = self.work / f"hardnet_w{width:g}.pt"
-        fit(net, loss_fn, p.hardnet_steps, p.hardnet_lr, checkpoint, p.checkpoint_every)
+        train_steps(net, loss_fn, p.hardnet_steps, p.hardnet_lr, checkpoint, p.checkpoint_every)
         self._timed(checkpoint.stem, start)
         return net
 
@@ -305,7 +309,7 @@ def metric_stage(
     -> (the manifest's "metric" section, the tuned metric per width)."""
     p = plan.metric
     work = run.work / f"metric-{plan_key(p)}"
-    stage = MetricStage(p, work, plan.seed + 2, pairs, fit, run._timed)
+    stage = MetricStage(p, work, plan.seed + 2, pairs, train_steps, run._timed)
     data = stage.data
     config = _detector_config(p.pipeline, size)
     begin = {w: with_nets(config.replace(descriptor_width=w), m.detector, m.descriptor)
@@ -362,38 +366,25 @@ def metric_stage(
     return section, nets
 
 
-def train(plan: TrainPlan, out: Path, work: Path, command: str) -> dict:
-    """Run the plan; write ``out/drkfs_{correspondence,metric}_w*.pt`` and
-    ``out/manifest.json``; return the manifest."""
-    commit = _git_commit()  # the code that runs, before anyone edits the tree during the run
-    run = Training(plan, work / plan_key(plan))
-    config = run.config
-    data = run.data()
-    heldout, heldout_matches = data["heldout_pairs"], data["heldout_matches"]
+def sweep_detectors(
+    plan: TrainPlan, run: Training, data: dict
+) -> tuple[list[dict], dict[tuple[int, int, int], PoIDetector]]:
+    """Train a detector of each size; rows of repeatability on held-out pairs against the
+    classical detectors (Harris, DoG) and the untrained nets."""
+    config, heldout = run.config, data["heldout_pairs"]
     s = config.image_size
+    images, shape = heldout.images.view(-1, 1, s, s), heldout.images.shape
     view = torch.zeros(1, 1, s, s)
-
-    # Detector sweep: repeatability on held-out pairs against classical detectors.
-    images = heldout.images.view(-1, 1, s, s)
-    shape = heldout.images.shape
-    detector_rows = [
-        {
-            "detector": "harris",
-            "repeatability": repeatability(harris(images).view(shape), heldout, config),
-        },
-        {
-            "detector": "dog",
-            "repeatability": repeatability(
-                difference_of_gaussians(images).view(shape), heldout, config
-            ),
-        },
+    rows = [
+        {"detector": name, "repeatability": repeatability(response.view(shape), heldout, config)}
+        for name, response in (("harris", harris(images)), ("dog", difference_of_gaussians(images)))
     ]
     detectors = {}
     for size in plan.detector_sizes:
         torch.manual_seed(plan.seed)
         untrained = PoIDetector(_detector_config(config, size))
         detectors[size] = run.detector(size, data)
-        detector_rows.append(
+        rows.append(
             {
                 "detector": _size_name(size),
                 "params": _params(detectors[size]),
@@ -404,26 +395,36 @@ def train(plan: TrainPlan, out: Path, work: Path, command: str) -> dict:
                 ),
             }
         )
-    best = max(r["repeatability"] for r in detector_rows if "params" in r)
-    size = min(
+    return rows, detectors
+
+
+def select_detector(plan: TrainPlan, rows: list[dict], detectors: dict) -> tuple[int, int, int]:
+    """The smallest detector within REPEAT_TOLERANCE of the best trained repeatability."""
+    trained = [r for r in rows if "params" in r]
+    best = max(r["repeatability"] for r in trained)
+    return min(
         (
-            s_
-            for s_, r in zip(plan.detector_sizes, detector_rows[2:], strict=True)
+            size
+            for size, r in zip(plan.detector_sizes, trained, strict=True)
             if r["repeatability"] >= best - REPEAT_TOLERANCE
         ),
-        key=lambda s_: _params(detectors[s_]),
+        key=lambda size: _params(detectors[size]),
     )
-    detector = detectors[size]
-    train_maps, heldout_maps = _maps(detector, data["train_pairs"]), _maps(detector, heldout)
 
-    # HardNet width sweep on the chosen detector's maps.
-    nets, descriptor_rows = {}, []
+
+def sweep_widths(
+    plan: TrainPlan, run: Training, data: dict, train_maps: torch.Tensor, heldout_maps: torch.Tensor
+) -> tuple[dict[float, HardNet], list[dict]]:
+    """Train HardNet at each width on the chosen detector's maps; rows of held-out FPR95
+    against the untrained nets."""
+    config, heldout_matches = run.config, data["heldout_matches"]
+    nets, rows = {}, []
     patch = torch.zeros(1, 1, config.patch_size, config.patch_size)
     for width in plan.widths:
         nets[width] = run.hardnet(width, train_maps, data["train_matches"])
         torch.manual_seed(plan.seed)
         untrained = HardNet(config.replace(descriptor_width=width)).eval()
-        descriptor_rows.append(
+        rows.append(
             {
                 "width": width,
                 "params": _params(nets[width]),
@@ -436,8 +437,50 @@ def train(plan: TrainPlan, out: Path, work: Path, command: str) -> dict:
                 ),
             }
         )
-    best_fpr = min(r["fpr95"] for r in descriptor_rows)
-    width = min(r["width"] for r in descriptor_rows if r["fpr95"] <= best_fpr + FPR95_TOLERANCE)
+    return nets, rows
+
+
+def select_width(rows: list[dict]) -> float:
+    """The smallest width within FPR95_TOLERANCE of the best FPR95."""
+    best = min(r["fpr95"] for r in rows)
+    return min(r["width"] for r in rows if r["fpr95"] <= best + FPR95_TOLERANCE)
+
+
+def ship(
+    plan: TrainPlan, out: Path, correspondence: dict, tuned: dict, metric_rows: dict
+) -> list[dict]:
+    """Write every width's correspondence and metric weights into ``out``; the default config's
+    are the chosen metric nets, or the correspondence nets at the width the objectives were
+    compared at. Returns their manifest entries."""
+    out.mkdir(parents=True, exist_ok=True)
+    default = (
+        ("metric", metric_rows["width"])
+        if metric_rows["default_nets"] == "metric"
+        else ("correspondence", plan.metric.objective_width)
+    )
+    return [
+        _ship(m, out / f"drkfs_{nets}_w{w:g}.pt", (nets, w) == default)
+        for nets, trained in (("correspondence", correspondence), ("metric", tuned))
+        for w, m in trained.items()
+    ]
+
+
+def train(plan: TrainPlan, out: Path, work: Path, command: str) -> dict:
+    """Run the plan: sweep and select the detector, then HardNet's width, fine-tune both in the
+    metric's terms, ship the weights. Writes ``out/drkfs_{correspondence,metric}_w*.pt`` and
+    ``out/manifest.json``; returns the manifest."""
+    commit = _git_commit()  # the code that runs, before anyone edits the tree during the run
+    run = Training(plan, work / plan_key(plan))
+    config = run.config
+    data = run.data()
+    heldout, heldout_matches = data["heldout_pairs"], data["heldout_matches"]
+
+    detector_rows, detectors = sweep_detectors(plan, run, data)
+    size = select_detector(plan, detector_rows, detectors)
+    detector = detectors[size]
+    train_maps, heldout_maps = _maps(detector, data["train_pairs"]), _maps(detector, heldout)
+    nets, descriptor_rows = sweep_widths(plan, run, data, train_maps, heldout_maps)
+    width = select_width(descriptor_rows)
 
     correspondence = {
         w: with_nets(_detector_config(config, size).replace(descriptor_width=w), detector, net)
@@ -445,20 +488,7 @@ def train(plan: TrainPlan, out: Path, work: Path, command: str) -> dict:
     }
     pairs = Correspondences(train_maps, data["train_matches"])
     metric_rows, tuned = metric_stage(plan, run, size, correspondence, detectors, pairs)
-
-    out.mkdir(parents=True, exist_ok=True)
-    # the default config's weights: the chosen metric nets, or the correspondence nets at the
-    # width the objectives were compared at
-    default = (
-        ("metric", metric_rows["width"])
-        if metric_rows["default_nets"] == "metric"
-        else ("correspondence", plan.metric.objective_width)
-    )
-    entries = [
-        _ship(m, out / f"drkfs_{nets}_w{w:g}.pt", (nets, w) == default)
-        for nets, trained in (("correspondence", correspondence), ("metric", tuned))
-        for w, m in trained.items()
-    ]
+    entries = ship(plan, out, correspondence, tuned, metric_rows)
 
     manifest = {
         "command": command,
