@@ -181,3 +181,30 @@ def test_retessellating_a_mesh_keeps_its_occupancy():
     verts, faces = _placed(*Part("c", (0, 0, 0), (1, 1, 1), "cylinder").mesh(1))
     fine = subdivide(verts, faces)
     assert pm.iou(pm.occupancy(verts, faces), pm.occupancy(*fine)) == 1.0
+
+
+def test_missing_graphs_are_exported_once_before_the_bench_scores(tmp_path, monkeypatch):
+    """With no shipped graphs (weights retrained, not exported), ``drkfs export``'s function runs
+    once and every DR-KFS method reads its graph from the run's folder."""
+    import shutil
+
+    from drkfs_onnx.benchmark import methods
+    from drkfs_onnx.export import onnx_files
+    from drkfs_onnx.weights import models_dir
+
+    shipped, calls = models_dir(), []
+
+    def export_shipped(folder):  # copies stand in for fresh exports of the same weights
+        calls.append(folder)
+        folder.mkdir(parents=True, exist_ok=True)
+        for graph in shipped.glob("*.onnx"):
+            shutil.copy(graph, folder / graph.name)
+
+    monkeypatch.setattr(onnx_files, "export_shipped", export_shipped)
+    monkeypatch.setattr(methods, "models_dir", lambda: tmp_path / "empty")
+    built = methods.build_methods(tmp_path / "run", threads=1, views=2)
+    assert calls == [tmp_path / "run"]
+    onnx = [m for m in built if isinstance(m, methods.DrkfsOnnx)]
+    assert onnx and all(
+        m.scorer.features_graph.source.startswith(str(tmp_path / "run")) for m in onnx
+    )

@@ -20,7 +20,7 @@ from ..metric import DRKFS
 from ..model_files import features_file
 from ..runtime.render import NumpyRenderer
 from ..runtime.scorer import Scorer
-from ..weights import models_dir, shipped_entry
+from ..weights import models_dir
 from .point_metrics import iou, is_watertight, occupancy, sample_surface, surface_distances
 
 SURFACE_SAMPLES = 100_000  # per mesh, as OccNet
@@ -186,21 +186,25 @@ def drkfs_configs(views: int | None = None) -> dict[str, PipelineConfig]:
 
 
 def build_methods(models: Path, threads: int, views: int | None = None) -> list[Method]:
-    """Every method; DR-KFS in the configs of ``drkfs_configs(views)``. A config whose feature
-    graph is not shipped gets one exported into ``models`` (``drkfs export``'s function)."""
-    from ..export.onnx_files import export_features
-
-    def onnx(name: str, config: PipelineConfig) -> DrkfsOnnx:
-        if (models_dir() / features_file(config)).is_file():
-            return DrkfsOnnx(name, config, None, threads)
-        path = models / features_file(config)
-        weights = shipped_entry(config, any_rendering=True)  # what DRKFS.pretrained loads
-        if not path.is_file():
-            export_features(DRKFS.pretrained(config), path, weights["sha256"])
-        return DrkfsOnnx(name, config, path, threads)
+    """Every method; DR-KFS in the configs of ``drkfs_configs(views)``. When a config's feature
+    graph is not shipped (weights retrained but not exported), ``drkfs export``'s function runs
+    once, before any scoring, and writes every graph of the current weights into ``models``."""
+    from ..export.onnx_files import export_shipped
 
     configs = drkfs_configs(views)
-    methods: list[Method] = [onnx(name, config) for name, config in configs.items()]
+    graphs = models_dir()
+    if any(not (graphs / features_file(config)).is_file() for config in configs.values()):
+        export_shipped(models)
+        graphs = models
+    methods: list[Method] = [
+        DrkfsOnnx(
+            name,
+            config,
+            None if graphs == models_dir() else graphs / features_file(config),
+            threads,
+        )
+        for name, config in configs.items()
+    ]
     default = configs[DEFAULT_NAME]
     renderer = NumpyRenderer(PipelineConfig.paper(num_views=configs[PAPER_NAME].num_views), threads)
     metric = DRKFS.pretrained(default)
