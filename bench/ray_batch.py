@@ -27,8 +27,11 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 MESHES = ROOT.parent / "shared" / "meshes"
 JITTER = 0.002
-RUNS = {"serial": [], "ray, 1 worker": ["--ray", "local", "--workers", "1"]}
-RUNS["ray, 2 workers"] = ["--ray", "local", "--workers", "2"]
+RUNS = {
+    "serial": [],
+    "ray, 1 worker": ["--ray", "local", "--workers", "1"],
+    "ray, 2 workers": ["--ray", "local", "--workers", "2"],
+}
 # one thread per scorer, BLAS included
 SINGLE_THREADED = {**os.environ, "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
 

@@ -86,8 +86,8 @@ def _label(axes, valid, front: list[str], presets: dict[str, str]) -> None:
         (0, -18, "center"),
     )
     for name, (t, a) in sorted(valid.items(), key=lambda item: item[1]):
-        mark = presets.get(name, "")
-        text = name if mark.split()[0:1] == [] or mark.split()[0] in name else f"{name} ({mark})"
+        mark = presets.get(name)
+        text = f"{name} ({mark})" if mark and mark.split()[0] not in name else name
         x, y = axes.transData.transform((t, a))
         width, height = 0.55 * size * len(text) * pixel, size * pixel
         for dx, dy, align in offsets:

@@ -192,17 +192,12 @@ def build_methods(models: Path, threads: int, views: int | None = None) -> list[
     from ..export.onnx_files import export_shipped
 
     configs = drkfs_configs(views)
-    graphs = models_dir()
-    if any(not (graphs / features_file(config)).is_file() for config in configs.values()):
+    shipped = models_dir()
+    exported = any(not (shipped / features_file(c)).is_file() for c in configs.values())
+    if exported:
         export_shipped(models)
-        graphs = models
     methods: list[Method] = [
-        DrkfsOnnx(
-            name,
-            config,
-            None if graphs == models_dir() else graphs / features_file(config),
-            threads,
-        )
+        DrkfsOnnx(name, config, models / features_file(config) if exported else None, threads)
         for name, config in configs.items()
     ]
     default = configs[DEFAULT_NAME]

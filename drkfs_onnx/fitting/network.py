@@ -13,7 +13,7 @@ import json
 import os
 import platform
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import NamedTuple
 
@@ -78,15 +78,12 @@ FULL = NetworkPlan(
     judge_config=PipelineConfig.paper(),
     unseen_views=8,
 )
-QUICK_NETWORK = NetworkPlan(
+QUICK_NETWORK = replace(
+    FULL,
     families=("chair", "table"),
     train_per_family=2,
     test_per_family=1,
     steps=2,
-    batch=2,
-    learning_rate=1e-3,
-    smoothness=10.0,
-    weight=10.0,
     loss_config=PipelineConfig.training(num_views=2, image_size=64),
     judge_config=PipelineConfig.paper(num_views=4, image_size=128),
     unseen_views=2,
