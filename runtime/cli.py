@@ -24,6 +24,7 @@ from drkfs_onnx.options import (
 )
 
 from .batch import RowScorer, ScorerSpec, ray_results, reference_of, serial_results
+from .output_lock import OutputLocked, output_lock
 from .scorer import Scorer
 from .sessions import ModelMismatch
 
@@ -105,6 +106,52 @@ def pair(
         typer.echo(json.dumps(report))
     else:
         typer.echo(f"{value:.6g}")
+
+
+@app.command()
+def explain(
+    mesh_a: Path,
+    mesh_b: Annotated[Path, typer.Argument(help="The reference (ground truth) mesh.")],
+    out: Annotated[Path, typer.Option(help="The picture to write (PNG).")],
+    as_json: Annotated[
+        bool, typer.Option("--json", help="Print the score and the top patches as JSON.")
+    ] = False,
+    top: Annotated[int, typer.Option(min=1, help="How many patches to outline and list.")] = 5,
+    threads: Threads = None,
+    normalize: Normalize = "joint",
+    preset: Preset = "default",
+    matching: Matching = None,
+    window: Window = None,
+    direction: Direction = None,
+    reduction: Reduction = None,
+    symmetric: Symmetric = False,
+    width: Width = None,
+    model: Model = None,
+) -> None:
+    """Show where the score of MESH_A against MESH_B comes from: each view of both, every
+    patch's best-match distance as a heat overlay, the patches carrying most of it outlined."""
+    try:
+        from .explain_plot import write_explanation
+    except ImportError:
+        typer.echo('error: explain draws with matplotlib: pip install "drkfs-onnx[plot]"', err=True)
+        raise typer.Exit(2) from None
+    from .explain import explain as explain_pair
+
+    scorer = _scorer(_spec(
+        threads, normalize, width, model, preset=preset, matching=matching,
+        window=window, direction=direction, reduction=reduction, symmetric=symmetric,
+    ))  # fmt: skip
+    with _exit_on(MeshError, ValueError):
+        explanation = explain_pair(scorer, mesh_a, mesh_b)
+    with _exit_on(OSError, ValueError):
+        write_explanation(out, explanation, top)
+    if as_json:
+        report = {"score": explanation.score, "mesh_a": str(mesh_a), "mesh_b": str(mesh_b)}
+        report.update(picture=str(out), top_patches=explanation.top_patches(top))
+        report.update(normalize=normalize, config=scorer.config.to_dict())
+        typer.echo(json.dumps(report))
+    else:
+        typer.echo(f"{explanation.score:.6g} ({out})")
 
 
 @app.command()
@@ -235,6 +282,19 @@ def batch(
         window=window, direction=direction, reduction=reduction, symmetric=symmetric,
     )  # fmt: skip
     scorer = _scorer(spec)  # checks the model and config here, before any worker starts
+    with _exit_on(OutputLocked, OSError), output_lock(out):  # before _finished rewrites OUT
+        _score_rows(out, todo, scorer, spec, ray, workers)
+
+
+def _score_rows(
+    out: Path,
+    todo: list[tuple[str, str]],
+    scorer: Scorer,
+    spec: ScorerSpec,
+    ray: str | None,
+    workers: int | None,
+) -> None:
+    """Score the rows of ``todo`` not yet in OUT and append their records (OUT is locked)."""
     with _exit_on(ValueError, OSError):
         done = {(r["mesh_a"], r["mesh_b"], r["settings"]) for r in _finished(out)}
     settings, version = scorer.settings, scorer.model_version

@@ -12,9 +12,10 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from drkfs_onnx import PipelineConfig
+from drkfs_onnx import PipelineConfig, load_mesh
 from drkfs_onnx.model_files import features_file
 from drkfs_onnx.runtime.cli import app
+from drkfs_onnx.runtime.output_lock import lock_path
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 CHAIR = EXAMPLES / "chair.obj"
@@ -27,20 +28,25 @@ def _run(*args: str):
     return CliRunner().invoke(app, [*map(str, args)])
 
 
-def _without_torch(tmp_path: Path, command: str, *args: str) -> subprocess.CompletedProcess:
-    """Run an installed command where ``import torch`` fails, as on a base install."""
-    blocker = tmp_path / "torch"
-    blocker.mkdir()
-    (blocker / "__init__.py").write_text("raise ModuleNotFoundError('no torch', name='torch')\n")
+def _without(
+    tmp_path: Path, modules: tuple[str, ...], command: str, *args: str
+) -> subprocess.CompletedProcess:
+    """Run an installed command where importing ``modules`` fails, as on a base install."""
+    for module in modules:
+        blocker = tmp_path / module
+        blocker.mkdir()
+        (blocker / "__init__.py").write_text(
+            f"raise ModuleNotFoundError('no {module}', name='{module}')\n"
+        )
     script = shutil.which(command)
     assert script, f"{command} is not installed (pip install -e .)"
     env = {**os.environ, "PYTHONPATH": str(tmp_path)}
     return subprocess.run([script, *args], capture_output=True, text=True, env=env)
 
 
-def test_drkfs_score_runs_where_torch_cannot_be_imported(tmp_path):
+def test_drkfs_score_runs_where_torch_and_matplotlib_cannot_be_imported(tmp_path):
     pair = ("pair", str(NO_LEG), str(CHAIR), "--json", *FAST)
-    result = _without_torch(tmp_path, "drkfs-score", *pair)
+    result = _without(tmp_path, ("torch", "matplotlib"), "drkfs-score", *pair)
     assert result.returncode == 0, result.stderr
     report = json.loads(result.stdout)
     assert report["score"] > 0
@@ -195,6 +201,82 @@ def test_a_batch_without_failures_exits_zero(tmp_path):
     assert float(_records(tmp_path / "scores.csv")[0]["score"]) == 0.0
 
 
+def test_two_batches_on_one_out_at_once_score_each_pair_once(tmp_path):
+    meshes = []
+    for i in range(24):  # 48 distinct pairs
+        meshes.append(tmp_path / f"leg_{i}.obj")
+        shutil.copy(NO_LEG, meshes[-1])
+    pairs, out = tmp_path / "pairs.csv", tmp_path / "scores.csv"
+    rows = [f"{m},{reference}" for m in meshes for reference in (CHAIR, NO_BACK)]
+    pairs.write_text("mesh_a,mesh_b\n" + "\n".join(rows) + "\n")
+    script = shutil.which("drkfs-score")
+    command = [script, "batch", str(pairs), "--out", str(out), "--threads", "1", *FAST]
+    runs = [subprocess.Popen(command, stderr=subprocess.PIPE, text=True) for _ in range(2)]
+    errors = [run.communicate()[1] for run in runs]
+    records = list(csv.DictReader(out.open()))
+    assert len(records) == 48 and all(r["error"] == "" for r in records)
+    assert len({(r["mesh_a"], r["mesh_b"]) for r in records}) == 48
+    # the later run either found the file locked or every pair already done
+    assert any("is being written by pid" in e or "0 scored, 0 failed, 48 already done" in e
+               for e in errors), errors  # fmt: skip
+    assert not lock_path(out).exists()
+
+
+def test_a_batch_refuses_a_locked_out_naming_the_holder_and_takes_it_after_a_crash(tmp_path):
+    pairs, out = tmp_path / "pairs.csv", tmp_path / "scores.csv"
+    pairs.write_text(f"mesh_a,mesh_b\n{NO_LEG},{CHAIR}\n")
+    holder = subprocess.Popen(
+        ["python", "-c", "import sys, time; from drkfs_onnx.runtime.output_lock import "
+         "output_lock; from pathlib import Path\nwith output_lock(Path(sys.argv[1])):\n"
+         "    print('held', flush=True); time.sleep(60)", str(out)],
+        stdout=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        refused = _run("batch", pairs, "--out", out, *FAST)
+        assert refused.exit_code == 2
+        assert f"{out} is being written by pid {holder.pid} on" in refused.output
+        assert len(refused.output.strip().splitlines()) == 1 and not out.exists()
+    finally:
+        holder.kill()  # a crash: the kernel releases the lock, the lock file stays
+        holder.wait()
+    assert lock_path(out).exists()
+    taken = _run("batch", pairs, "--out", out, *FAST)
+    assert taken.exit_code == 0, taken.output
+    assert len(_records(out)) == 1 and not lock_path(out).exists()
+
+
+def _write_obj(path: Path, vertices: np.ndarray, faces: np.ndarray) -> Path:
+    """An OBJ with every float64 digit (trimesh's exporter keeps 8 decimals, which rounds a
+    chair of size 1e-8 to a point)."""
+    lines = [f"v {x!r} {y!r} {z!r}" for x, y, z in vertices.tolist()]
+    lines += [f"f {a} {b} {c}" for a, b, c in (faces + 1).tolist()]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+@pytest.mark.parametrize("scale", [1e-6, 1e-8, 1e-300, 1e300])
+def test_a_mesh_in_other_units_scores_zero_against_itself_under_each(tmp_path, scale):
+    chair = load_mesh(CHAIR)
+    scaled = _write_obj(tmp_path / "scaled.obj", chair.vertices * scale, chair.faces)
+    result = _run("pair", scaled, CHAIR, "--normalize", "each", *FAST)
+    assert result.exit_code == 0, result.output
+    assert float(result.stdout) == 0.0
+
+
+def test_symmetric_is_order_free_under_each_but_not_under_joint():
+    def swapped(normalize: str) -> tuple[float, float]:
+        args = ("--symmetric", "--normalize", normalize, *FAST)
+        return float(_run("pair", NO_BACK, CHAIR, *args).stdout), float(
+            _run("pair", CHAIR, NO_BACK, *args).stdout
+        )
+
+    forward, backward = swapped("each")
+    assert forward == pytest.approx(backward, rel=1e-6)
+    forward, backward = swapped("joint")  # the frame is the second mesh's
+    assert forward != pytest.approx(backward, rel=1e-3)
+
+
 @pytest.mark.parametrize(
     "option",
     ["--symmetric", "--threads=1", "--normalize=each", "--preset=paper", "--reduction=mean",
@@ -280,7 +362,30 @@ def test_features_out_names_the_file_it_wrote(tmp_path):
 
 
 def test_the_torch_command_without_torch_names_the_extra_to_install(tmp_path):
-    result = _without_torch(tmp_path, "drkfs", "score", str(NO_LEG), str(CHAIR))
+    result = _without(tmp_path, ("torch",), "drkfs", "score", str(NO_LEG), str(CHAIR))
     assert result.returncode == 2
     assert "pip install 'drkfs-onnx[torch]'" in result.stderr
     assert "Traceback" not in result.stderr
+
+
+def test_explain_draws_the_picture_and_lists_the_top_patches(tmp_path):
+    picture = tmp_path / "d.png"
+    result = _run("explain", NO_LEG, CHAIR, "--out", picture, "--json", "--top", "3")
+    assert result.exit_code == 0, result.output
+    report = json.loads(result.stdout)
+    assert report["score"] == pytest.approx(float(_run("pair", NO_LEG, CHAIR).stdout), rel=1e-5)
+    top = report["top_patches"]
+    assert len(top) == 3 and [p["share"] for p in top] == sorted(
+        (p["share"] for p in top), reverse=True
+    )
+    assert {"mesh", "view", "row", "column", "distance", "share"} <= set(top[0])
+    assert picture.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_explain_without_matplotlib_names_the_extra(tmp_path):
+    args = ("explain", str(NO_LEG), str(CHAIR), "--out", str(tmp_path / "d.png"))
+    result = _without(tmp_path, ("torch", "matplotlib"), "drkfs-score", *args)
+    assert result.returncode == 2
+    assert result.stderr.strip() == (
+        'error: explain draws with matplotlib: pip install "drkfs-onnx[plot]"'
+    )
