@@ -91,10 +91,12 @@ def check_mesh(vertices: np.ndarray, faces: np.ndarray, source: str = "<array>")
     bad = ~np.isfinite(vertices).all(axis=1)
     if bad.any():
         raise MeshError(source, f"{int(bad.sum())} vertices are NaN or infinite")
-    corners = vertices[faces]
+    # areas relative to the mesh's own size, in units of its box: a mesh in other units (1e-100
+    # or 1e100) is the same shape, and its squared coordinates would under- or overflow
+    lower, extent = vertices.min(0), float(np.ptp(vertices, axis=0).max())
+    corners = (vertices[faces] - lower) / (extent if extent > 0 else 1.0)
     cross = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
-    scale = max(float(np.ptp(vertices, axis=0).max()), 1e-300)
-    area_ok = np.linalg.norm(cross, axis=1) > AREA_EPS * scale * scale
+    area_ok = np.linalg.norm(cross, axis=1) > AREA_EPS
     if not area_ok.any():
         raise MeshError(source, "no non-degenerate triangle left (all faces have zero area)")
     return Mesh(vertices=vertices, faces=faces[area_ok], source=source)
@@ -105,9 +107,12 @@ def bounding_frame(lower, upper):
 
     Pure arithmetic, so numpy arrays and torch tensors (keeping gradients) both work.
     """
-    centre = (lower + upper) / 2.0
-    scale = (((upper - lower) ** 2).sum() ** 0.5) / 2.0
-    return centre, scale
+    centre = lower / 2.0 + upper / 2.0  # halves first: the sum of two huge values overflows
+    extent = upper / 2.0 - lower / 2.0
+    # the half-diagonal as |extent|_max * |extent / |extent|_max|: squares of very small or very
+    # large coordinates would under- or overflow
+    largest = abs(extent).max()
+    return centre, largest * (((extent / largest) ** 2).sum() ** 0.5)
 
 
 def check_normalization(mode: str) -> str:
