@@ -36,7 +36,12 @@ Reduction = Annotated[
     str | None, typer.Option(help=f"Override the reduction: {', '.join(REDUCTIONS)}.")
 ]
 Symmetric = Annotated[
-    bool, typer.Option(help="Search both directions (same as --direction both; order-free).")
+    bool,
+    typer.Option(
+        help="Search both directions (same as --direction both). The score is then order-free "
+        "under --normalize each or none; under joint both meshes are placed in the second "
+        "mesh's frame, so swapping them can change it."
+    ),
 ]
 
 
