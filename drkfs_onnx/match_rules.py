@@ -41,10 +41,16 @@ def window_table(config: PipelineConfig) -> np.ndarray:
     return table
 
 
+def query_sides(config: PipelineConfig) -> tuple[str, ...]:
+    """Whose patches search the other mesh: 'a' (forward, the paper), 'b' (backward) or both."""
+    return {"forward": ("a",), "backward": ("b",), "both": ("a", "b")}[config.direction]
+
+
 def directions(a: T, b: T, config: PipelineConfig) -> list[tuple[T, T]]:
-    """(queries, targets) pairs searched for the score of A against B: 'forward' A -> B (the
-    paper), 'backward' B -> A, 'both' the two (their reductions are averaged)."""
-    return {"forward": [(a, b)], "backward": [(b, a)], "both": [(a, b), (b, a)]}[config.direction]
+    """(queries, targets) pairs searched for the score of A against B, one per side of
+    ``query_sides``: A -> B, B -> A, or the two (their reductions are averaged)."""
+    pairs = {"a": (a, b), "b": (b, a)}
+    return [pairs[side] for side in query_sides(config)]
 
 
 def reduce(distances, weights, config: PipelineConfig, ops=np):
@@ -76,3 +82,32 @@ def reduce(distances, weights, config: PipelineConfig, ops=np):
     top = ops.amax(distances)  # log-mean-exp shifted by the maximum, so exp never overflows
     t = config.temperature
     return top + t * ops.log((weights * ops.exp((distances - top) / t)).sum() / total)
+
+
+def shares(distances: np.ndarray, weights: np.ndarray, config: PipelineConfig) -> np.ndarray:
+    """(R,) best-match squared distances, (R,) patch counts -> (R,) each row's share of the
+    reduced score (numpy; they sum to 1, or are all 0 for a score of 0).
+
+    A row's share is its distance times the score's slope in it, d_i * dS/dd_i, over the sum of
+    these: for the sum, the mean and the tail it is the row's part of the (weighted) sum, for
+    the power mean w * d^p, for softmax w * d * e^(d / t). A row of weight w holds w patches.
+    """
+    distances = np.asarray(distances, dtype=np.float64)
+    weights = np.asarray(weights, dtype=np.float64)
+    if config.reduction in ("sum", "mean"):
+        part = weights * distances
+    elif config.reduction == "tail":
+        k = min(weights.sum(), max(config.tail_fraction * weights.sum(), 1.0))
+        order = np.argsort(-distances, kind="stable")
+        before = np.cumsum(weights[order]) - weights[order]
+        part = np.empty_like(distances)
+        part[order] = np.minimum(np.clip(k - before, 0.0, None), weights[order])
+        part *= distances
+    elif config.reduction == "power":
+        top = distances.max(initial=0.0)  # d^p relative to the largest, so p = 8 cannot overflow
+        part = weights * (distances / top) ** config.power if top > 0 else 0.0 * distances
+    else:
+        top = distances.max(initial=0.0)
+        part = weights * distances * np.exp((distances - top) / config.temperature)
+    total = part.sum()
+    return part / total if total > 0 else np.zeros_like(part)

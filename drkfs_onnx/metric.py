@@ -8,10 +8,11 @@ from typing import NamedTuple
 import torch
 from torch import nn
 
+from . import match_rules
 from .config import PipelineConfig
 from .detector import PoIDetector
 from .hardnet import HardNet
-from .matching import match_score
+from .matching import best_match_distances, match_score
 from .mesh import Mesh, check_normalization, normalize_pair, place_by, reference_frame
 from .patches import nonempty_patches, select_patches
 from .render import Renderer
@@ -147,8 +148,30 @@ class DRKFS(nn.Module):
 
     def score_to(self, verts: torch.Tensor, faces: torch.Tensor, target: Target) -> torch.Tensor:
         """The score of mesh A, (V, 3), (F, 3), against a prepared reference -> ()."""
-        placed = place_by(verts, self.normalization, target.frame)
-        return match_score(self.features(placed, faces), target.features, self.config)
+        return match_score(self._features_to(verts, faces, target), target.features, self.config)
+
+    def patch_distances(
+        self, verts: torch.Tensor, faces: torch.Tensor, target: Target
+    ) -> dict[str, torch.Tensor]:
+        """Where mesh A, (V, 3), (F, 3), differs from a prepared reference: {side: (K, n, n)}
+        best-match squared distance of each patch of A ('a', searching the reference) and of
+        the reference ('b', searching A), for the sides the config's direction searches
+        (``match_rules.query_sides``); n patches per image side. Differentiable like
+        ``score_to``; log them (or ``drkfs-score explain``'s picture) to see where a
+        prediction is wrong."""
+        config = self.config
+        grid = (config.num_views, config.patches_per_side, config.patches_per_side)
+        pairs = match_rules.directions(
+            self._features_to(verts, faces, target), target.features, config
+        )
+        return {
+            side: best_match_distances(queries, targets, config).reshape(grid)
+            for side, (queries, targets) in zip(match_rules.query_sides(config), pairs, strict=True)
+        }
+
+    def _features_to(self, verts: torch.Tensor, faces: torch.Tensor, target: Target):
+        """(K * P, D) descriptors of mesh A placed as the reference ``target`` asks."""
+        return self.features(place_by(verts, self.normalization, target.frame), faces)
 
     def forward(
         self,

@@ -78,6 +78,13 @@ class MeshFeatures:
         """(R,) uint64 hashes of the rows, to find exact copies."""
         return row_hashes(self.rows)
 
+    def per_patch(self, values: np.ndarray) -> np.ndarray:
+        """(R,) one value per row of ``rows`` -> (K * P,) the value of every patch (the empty
+        patches all take the background row's)."""
+        dense = np.full(self.patches, values[-1] if self.empty else 0.0, dtype=np.float64)
+        dense[self.patch_index] = values[: len(self.descriptors)]
+        return dense
+
     @cached_property
     def lifted(self) -> np.ndarray:
         """(R, D + 1) the rows as search targets (``nearest.lift``)."""

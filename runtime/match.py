@@ -60,6 +60,19 @@ def best_matches(
     return distances, np.ones(len(distances))
 
 
+def patch_distances(
+    queries: MeshFeatures, targets: MeshFeatures, config: PipelineConfig
+) -> tuple[np.ndarray, np.ndarray]:
+    """(K * P,) each query patch's best-match squared distance and (K * P,) its share of this
+    direction's reduced score (``match_rules.shares``; the background row's share is split
+    evenly over the empty patches it stands for)."""
+    distances, weights = best_matches(queries, targets, config)
+    share = match_rules.shares(distances, weights, config) / weights
+    if config.matching == "window":
+        return distances, share
+    return queries.per_patch(distances), queries.per_patch(share)
+
+
 def check_features(
     features: MeshFeatures, config: PipelineConfig, model: str, normalization: str
 ) -> None:

@@ -81,12 +81,11 @@ class Scorer:
         placement = "its own frame" if frame is None else "the reference's frame"
         if frame is None:
             frame = self._own_frame(mesh.vertices)
-        vertices, faces = place(mesh.vertices, frame), mesh.faces
-        key = self._key(vertices, faces)
+        key = self._key(place(mesh.vertices, frame), mesh.faces)
         if key in self.cache:
             self.cache.move_to_end(key)
             return self.cache[key]
-        result = self.describe(self.renderer.render(vertices, faces), frame)
+        result = self.describe(self.views(mesh, frame), frame)
         if len(result.patch_index) == 0:
             # every patch would match every other as empty: a silent perfect score
             raise MeshError(
@@ -98,6 +97,10 @@ class Scorer:
         if len(self.cache) > self.cache_size:
             self.cache.popitem(last=False)
         return result
+
+    def views(self, mesh: Mesh, frame: tuple[np.ndarray, float]) -> np.ndarray:
+        """(K, S, S) grey views of ``mesh`` placed in ``frame`` (as ``features`` sees it)."""
+        return self.renderer.render(place(mesh.vertices, frame), mesh.faces)
 
     def describe(
         self, images: np.ndarray, frame: tuple[np.ndarray, float] = (np.zeros(3), 1.0)

@@ -1,0 +1,86 @@
+"""Where a score comes from: every patch's best-match distance and its share of the score.
+
+Torch- and matplotlib-free; ``explain_plot`` draws the picture (the ``plot`` extra).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from drkfs_onnx import match_rules
+from drkfs_onnx.config import PipelineConfig
+from drkfs_onnx.mesh import Mesh, load_mesh
+
+from .match import check_features, match, patch_distances
+from .scorer import Scorer
+
+SIDES = ("a", "b")
+
+
+@dataclass(frozen=True)
+class Explanation:
+    """A scored pair, patch by patch. views: side -> (K, S, S) the views it was described from;
+    distances, shares: side -> (K, n, n) best-match squared distance of each of that mesh's
+    patches and its share of the whole score (sums to 1 over both sides), for the sides whose
+    patches search the other mesh (``match_rules.query_sides``)."""
+
+    score: float
+    config: PipelineConfig
+    names: dict[str, str]
+    views: dict[str, np.ndarray]
+    distances: dict[str, np.ndarray]
+    shares: dict[str, np.ndarray]
+
+    def top_patches(self, count: int = 5) -> list[dict]:
+        """The ``count`` patches with the largest shares: mesh, view, grid row and column (the
+        patch covers pixels [stride * row, stride * row + size) of the view), distance, share."""
+        cells = [
+            (float(share), side, index)
+            for side, grid in self.shares.items()
+            for index, share in np.ndenumerate(grid)
+        ]
+        cells.sort(key=lambda cell: -cell[0])
+        return [
+            {
+                "mesh": side,
+                "view": int(view),
+                "row": int(row),
+                "column": int(column),
+                "distance": float(self.distances[side][view, row, column]),
+                "share": share,
+            }
+            for share, side, (view, row, column) in cells[:count]
+        ]
+
+
+def explain(scorer: Scorer, mesh_a: Mesh | str | Path, mesh_b: Mesh | str | Path) -> Explanation:
+    """A against the reference B, placed and described as ``Scorer.score`` does."""
+    a = mesh_a if isinstance(mesh_a, Mesh) else load_mesh(mesh_a)
+    b = mesh_b if isinstance(mesh_b, Mesh) else load_mesh(mesh_b)
+    reference = scorer.features(b)
+    check_features(reference, scorer.config, scorer.features_graph.sha256, scorer.normalization)
+    meshes = {"a": a, "b": b}
+    features = {
+        "a": scorer.features(a, reference.frame if scorer.normalization == "joint" else None),
+        "b": reference,
+    }
+    config = scorer.config
+    grid = (config.num_views, config.patches_per_side, config.patches_per_side)
+    found = {}  # side -> its patches' distances, their shares of its direction, its score
+    pairs = match_rules.directions(features["a"], features["b"], config)
+    for side, (queries, targets) in zip(match_rules.query_sides(config), pairs, strict=True):
+        distances, shares = patch_distances(queries, targets, config)
+        score = float(match_rules.reduce(distances, np.ones_like(distances), config))
+        found[side] = (distances.reshape(grid), shares.reshape(grid), score)
+    total = sum(score for _, _, score in found.values())  # each direction's part of the mean
+    return Explanation(
+        score=match(features["a"], features["b"], config),
+        config=config,
+        names={"a": a.source, "b": b.source},
+        views={side: scorer.views(meshes[side], features[side].frame) for side in SIDES},
+        distances={side: d for side, (d, _, _) in found.items()},
+        shares={side: s * score / total if total else s for side, (_, s, score) in found.items()},
+    )

@@ -1,0 +1,73 @@
+"""Where a score comes from: per-patch distances, their shares of the score, and the torch
+method a training loop logs them with."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from drkfs_onnx import PipelineConfig, load_mesh, match_rules
+from drkfs_onnx.metric import DRKFS
+from drkfs_onnx.runtime.explain import explain
+from drkfs_onnx.runtime.scorer import Scorer
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+CHANGED = 0.05  # a pixel the removed leg changes by more than this is where the leg was
+
+
+@pytest.fixture(scope="module")
+def no_leg():
+    return explain(Scorer(threads=2), EXAMPLES / "chair_no_leg.obj", EXAMPLES / "chair.obj")
+
+
+def test_the_top_patch_of_each_view_that_sees_the_missing_leg_lies_where_the_leg_was(no_leg):
+    config = no_leg.config
+    leg = np.abs(no_leg.views["b"] - no_leg.views["a"]) > CHANGED  # (K, S, S), B's frame
+    seeing = [view for view in range(config.num_views) if leg[view].sum() >= 20]
+    assert len(seeing) >= 3
+    for view in seeing:
+        # the reference's patches search the chair without the leg: the leg's patch finds none
+        row, column = np.unravel_index(no_leg.shares["b"][view].argmax(), (7, 7))
+        window = leg[view, 16 * row : 16 * row + 32, 16 * column : 16 * column + 32]
+        assert window.sum() >= 0.5 * leg[view].sum(), (view, row, column)
+    best = no_leg.top_patches(1)[0]
+    assert best["mesh"] == "b" and best["view"] in seeing
+
+
+def test_shares_sum_to_one_over_both_meshes_and_zero_is_clear(no_leg):
+    total = sum(float(s.sum()) for s in no_leg.shares.values())
+    assert total == pytest.approx(1.0)
+    same = explain(Scorer(threads=2), EXAMPLES / "chair.obj", EXAMPLES / "chair.obj")
+    assert same.score == 0.0 and all(not s.any() for s in same.shares.values())
+
+
+@pytest.mark.parametrize(
+    "reduction", [{"reduction": r} for r in ("sum", "mean", "power", "softmax")]
+    + [{"reduction": "tail", "tail_fraction": 0.3}],
+)  # fmt: skip
+def test_a_rows_share_is_its_distance_times_the_scores_slope(reduction):
+    config = PipelineConfig(**reduction)
+    rng = np.random.default_rng(0)
+    distances = torch.tensor(rng.uniform(0.0, 1.0, 12), requires_grad=True)
+    weights = torch.tensor(rng.integers(1, 4, 12).astype(np.float64))
+    (slope,) = torch.autograd.grad(match_rules.reduce(distances, weights, config, torch), distances)
+    expected = (slope * distances).detach().numpy()
+    shares = match_rules.shares(distances.detach().numpy(), weights.numpy(), config)
+    assert np.allclose(shares, expected / expected.sum())
+
+
+def test_torch_patch_distances_are_the_runtimes(no_leg):
+    metric = DRKFS.pretrained()
+    pred, truth = (load_mesh(EXAMPLES / n) for n in ("chair_no_leg.obj", "chair.obj"))
+
+    def tensors(mesh):
+        return torch.tensor(mesh.vertices, dtype=torch.float32), torch.tensor(mesh.faces)
+
+    with torch.no_grad():
+        target = metric.target(*tensors(truth))
+        found = metric.patch_distances(*tensors(pred), target)
+    assert set(found) == {"a", "b"}
+    for side, grid in found.items():
+        assert grid.shape == (6, 7, 7)
+        assert np.allclose(grid.numpy(), no_leg.distances[side], atol=2e-3)
