@@ -139,17 +139,32 @@ def bench(
     / "bench",
     quick: Annotated[bool, typer.Option(help="The small subset the tests run.")] = False,
     threads: Annotated[int, typer.Option(help="Threads for onnxruntime and the renderer.")] = 2,
+    human: Annotated[
+        Path | None,
+        typer.Option(
+            help="A Geo-metric clone with its simplification stimuli checked out "
+            "(docs/benchmark.md): adds the human-judgment check."
+        ),
+    ] = None,
 ) -> None:
     """Speed against accuracy: every method on the same variant sets, the chart, stability."""
     from .benchmark.run import run_bench
 
-    results = run_bench(out, quick, threads, lambda line: typer.echo(line, err=True))
-    typer.echo(f"{'method':30} {'accuracy':>8} {'s/pair':>8} {'retrieval':>9} {'bars':>6}")
+    try:
+        results = run_bench(out, quick, threads, lambda line: typer.echo(line, err=True), human)
+    except ValueError as exc:  # a --human folder without the stimuli
+        typer.echo(f"error: {exc}", err=True)
+        raise typer.Exit(2) from exc
+    header = ("method", "inv<str", "sur<str", "inv<sur", "human", "retrieval", "bars", "s/pair")
+    typer.echo(f"{header[0]:36}" + "".join(f"{h:>10}" for h in header[1:]))
     for name, row in results["methods"].items():
-        acc, ratio = row["sensitivity"]["accuracy"], row["bars"]["deletion_over_max_shift"]
-        knn = row["retrieval"]["nearest_neighbour_accuracy"]
-        seconds = row["seconds_per_pair"]
-        typer.echo(f"{name:30} {_fmt(acc):>8} {seconds:8.3f} {_fmt(knn):>9} {_fmt(ratio):>6}")
+        tiers, people = row["tiers"], row["human"]
+        cells = [tiers[key] for key in ("invisible_vs_structural", "surface_vs_structural",
+                                        "invisible_vs_surface")]  # fmt: skip
+        cells += [None if people is None else people["close_normal"]]
+        cells += [row["retrieval"]["nearest_neighbour_accuracy"]]
+        cells += [row["bars"]["deletion_over_max_shift"], row["seconds_per_pair"]]
+        typer.echo(f"{name:36}" + "".join(f"{_fmt(c):>10}" for c in cells))
     seconds = results["seconds_total"]
     typer.echo(f"{out / 'results.json'}, {out / 'speed_accuracy.png'} in {seconds:.0f} s")
 

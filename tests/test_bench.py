@@ -2,19 +2,38 @@
 chart, and the quick run end to end."""
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
 import torch
 import trimesh
 
+from drkfs_onnx.benchmark import human, peers, sets
 from drkfs_onnx.benchmark import point_metrics as pm
 from drkfs_onnx.benchmark.chart import pareto_front, write_chart
+from drkfs_onnx.benchmark.methods import Placed
 from drkfs_onnx.benchmark.run import run_bench
 from drkfs_onnx.benchmark.sets import STABILITY, _box_with_cavity
 from drkfs_onnx.mesh import frame_of, load_mesh, place
-from drkfs_onnx.synthetic.shapes import Part, assemble, random_shape, subdivide
-from drkfs_onnx.synthetic.variants import MILD, STRUCTURAL, surface_variants
+from drkfs_onnx.synthetic.shapes import (
+    ALL_FAMILIES,
+    FAMILIES,
+    Part,
+    assemble,
+    random_shape,
+    subdivide,
+)
+from drkfs_onnx.synthetic.tiers import (
+    INVISIBLE,
+    STRUCTURAL,
+    SURFACE,
+    mean_edge,
+    part_tiers,
+    scan_tiers,
+)
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 
 
 def _placed(verts, faces):
@@ -60,16 +79,42 @@ def test_overlapping_closed_parts_count_once():
     assert pm.iou(pm.occupancy(*one), pm.occupancy(*two)) == 1.0
 
 
-def test_surface_variants_of_a_shared_mesh(shared_meshes):
+def test_a_scans_tiers_change_it_by_their_measure(shared_meshes):
     mesh = load_mesh(shared_meshes / "cow.obj")
-    variants = surface_variants(mesh.vertices, mesh.faces, np.random.default_rng(0))
-    assert [v.name for v in variants] == [*STRUCTURAL, *MILD]
+    variants = scan_tiers(mesh.vertices, mesh.faces, np.random.default_rng(0))
+    assert [v.name for v in variants] == [*STRUCTURAL, *INVISIBLE, *SURFACE]
+    assert [v.kind for v in variants] == ["structural"] * 2 + ["invisible"] * 5 + ["surface"] * 3
     kinds = {v.name: v for v in variants}
     assert len(kinds["part_removed"].faces) < len(mesh.faces)
-    assert len(kinds["retessellated"].faces) == 4 * len(mesh.faces)
-    moved = np.linalg.norm(kinds["part_shifted"].verts - mesh.vertices, axis=1)
+    assert len(kinds["retessellated"].faces) == len(kinds["noise"].faces) == 4 * len(mesh.faces)
     size = np.linalg.norm(np.ptp(mesh.vertices, axis=0))
-    assert 0 < moved.max() <= 0.025 * size + 1e-9 and (moved == 0).mean() > 0.5
+    moved = np.linalg.norm(kinds["part_shifted"].verts - mesh.vertices, axis=1)
+    assert 0 < moved.max() <= 0.01 * size + 1e-9 and (moved == 0).mean() > 0.5
+    edge = mean_edge(mesh.vertices, mesh.faces)
+    jitter = np.linalg.norm(kinds["jittered"].verts - mesh.vertices, axis=1)
+    assert np.median(jitter) < 0.1 * edge  # below a tenth of the mean edge
+    assert len(kinds["simplified"].faces) == pytest.approx(0.15 * len(mesh.faces), rel=0.05)
+    fine = kinds["retessellated"]
+    noise = np.abs(kinds["noise"].verts - fine.verts).max(1)
+    assert np.median(noise) > 0.05 * mean_edge(fine.verts, fine.faces)  # visible, not tiny
+
+
+def test_a_part_shapes_tiers_keep_its_tessellation_but_where_the_tier_changes_it():
+    parts = random_shape("chair", 0)
+    verts, faces = assemble(parts, 1)
+    variants = {v.name: v for v in part_tiers(parts, np.random.default_rng(0))}
+    assert set(variants) == {*STRUCTURAL, *INVISIBLE, "noise", "smoothed"}
+    assert np.array_equal(variants["jittered"].faces, faces)
+    assert np.abs(variants["rotated"].verts - verts).max() < 0.05
+    assert len(variants["noise"].faces) == 16 * len(faces)  # the fine tessellation
+    assert len(variants["part_removed"].faces) < len(faces)
+
+
+def test_retrieval_spans_every_family_and_the_tiers_only_the_trained_ones():
+    bench = sets.BenchSet()
+    sets.retrieval(bench, list(ALL_FAMILIES), sets.RETRIEVAL_PER_FAMILY)
+    assert len(bench.retrieval) >= 100 and len(set(bench.retrieval.values())) >= 20
+    assert set(FAMILIES) < set(ALL_FAMILIES)
 
 
 def test_pareto_front_keeps_only_unbeaten_points_fastest_first():
@@ -115,10 +160,10 @@ def test_quick_bench_writes_results_chart_and_the_variant_set(quick):
     index = json.loads((out / "set" / "index.json").read_text())
     for key, name in index["files"].items():
         assert len(trimesh.load(out / "set" / name, process=False).faces) > 0, key
-    assert {c["group"] for c in index["comparisons"]} == {"sensitivity", "bars", "stability"}
+    assert {c["group"] for c in index["comparisons"]} == {"tiers", "bars", "stability"}
     # every method off the front is beaten on both axes by one on it
     point = {
-        n: (m["seconds_per_pair"], m["sensitivity"]["accuracy"])
+        n: (m["seconds_per_pair"], m["tiers"]["invisible_vs_structural"])
         for n, m in results["methods"].items()
     }
     front = results["pareto_front"]
@@ -137,15 +182,19 @@ def test_quick_bench_scores_every_method_on_the_same_rows(quick):
     rows = {name: set(values) for name, values in results["values"].items()}
     assert all(r == rows["Chamfer-L1"] for r in rows.values())
     methods = results["methods"]
-    judged = methods["DR-KFS"]["sensitivity"]["pairs"]
-    assert judged > 0 and methods["Chamfer-L1"]["sensitivity"]["pairs"] == judged
+    judged = methods["DR-KFS"]["tiers"]["pairs"]
+    assert min(judged.values()) > 0 and methods["Chamfer-L1"]["tiers"]["pairs"] == judged
     for name, row in methods.items():
-        wins = row["sensitivity"]["accuracy"] * row["sensitivity"]["pairs"]
-        assert wins == pytest.approx(round(wins)), name  # a share of whole pairs
+        for pair, count in row["tiers"]["pairs"].items():
+            wins = row["tiers"][pair] * count
+            assert wins == pytest.approx(round(wins)), (name, pair)  # a share of whole pairs
+            assert row["tiers"]["synthetic"][pair] == row["tiers"][pair]  # no shared mesh here
+        assert row["tiers"]["shared"]["invisible_vs_structural"] is None
         assert row["seconds_per_pair"] >= row["seconds_per_cached_pair"], name
         assert row["retrieval"]["queries"] > 0, name
-    default = methods["DR-KFS"]["sensitivity"]  # the metric's point, even on the quick set
-    assert default["median_structural"] > default["median_mild"]
+        assert row["human"] is None  # no --human folder
+    median = methods["DR-KFS"]["tiers"]["median"]  # the metric's point, even on the quick set
+    assert median["invisible"] < median["surface"] < median["structural"]
 
 
 def test_quick_bench_torch_and_onnx_agree(quick):
@@ -208,3 +257,68 @@ def test_missing_graphs_are_exported_once_before_the_bench_scores(tmp_path, monk
     assert onnx and all(
         m.scorer.features_graph.source.startswith(str(tmp_path / "run")) for m in onnx
     )
+
+
+def _geometric_folder(folder, faces: dict[str, dict[str, float]]):
+    """A Geo-metric-like folder: each face's stimuli (the example chair, shifted per level) and
+    a JODPerMesh.csv with the given JOD per level in every setting."""
+    chair = load_mesh(EXAMPLES / "chair.obj")
+    lines = ["basemesh,dst_type,setting,magnitude,JOD"]
+    for face, jods in faces.items():
+        for shift, (level, value) in enumerate(jods.items()):
+            path = human.stimulus(folder, face, level)
+            path.parent.mkdir(parents=True, exist_ok=True)
+            trimesh.Trimesh(chair.vertices + [0.01 * shift, 0, 0], chair.faces).export(path)
+            lines += [f"{face},Simp,{s},Simp_{level},{value}" for s in human.SETTINGS]
+    (folder / human.JOD_FILE).parent.mkdir(parents=True)
+    (folder / human.JOD_FILE).write_text("\n".join(lines) + "\n")
+    return folder
+
+
+def test_human_agreement_is_spearman_against_the_jod_difference_per_setting(tmp_path):
+    jods = {f"F{i}": {"p12.50": -0.5, "p06.25": -1.0 - i, "p03.12": -2.0 - 2 * i} for i in range(4)}
+    bench = sets.BenchSet()
+    differences = human.add_human(bench, _geometric_folder(tmp_path, jods))
+    assert len(bench.comparisons) == 8 and set(bench.sources) == set(bench.shapes)
+    worse = {
+        i: -differences[(c.base, c.kind, "far_normal")] for i, c in enumerate(bench.comparisons)
+    }
+    agreement = human.human_agreement(bench, worse, differences)
+    assert [agreement[s] for s in human.SETTINGS] == pytest.approx([-1.0] * 4)
+    assert agreement["within_level"]["p03.12"]["close_flipped"] == pytest.approx(-1.0)
+    assert human.human_agreement(bench, {}, differences) is None
+    index = json.loads(bench.write(tmp_path / "set").read_text())  # stimuli named, not copied
+    assert set(index["files"].values()) == {str(p) for p in bench.sources.values()}
+
+
+def test_a_folder_without_the_stimuli_is_named(tmp_path):
+    with pytest.raises(ValueError, match="JODPerMesh.csv"):
+        human.faces_in(tmp_path)
+    (tmp_path / human.JOD_FILE).parent.mkdir(parents=True)
+    (tmp_path / human.JOD_FILE).write_text("basemesh\n")
+    with pytest.raises(ValueError, match="b4f5cc9"):
+        human.faces_in(tmp_path)
+
+
+def test_lfd_is_skipped_with_its_reason_where_it_is_not_installed(tmp_path):
+    assert "not installed" in peers.find_lfd(tmp_path)
+
+
+@pytest.mark.skipif(isinstance(peers.find_lfd(), str), reason="LFD peer not installed here")
+def test_lfd_sees_the_missing_leg_and_not_the_retessellation():
+    lfd = peers.LightField(*peers.find_lfd())
+    try:
+        chair = load_mesh(EXAMPLES / "chair.obj")
+        frame = frame_of(chair.vertices)
+        prepared = {
+            name: lfd.prepare(Placed(name, place(mesh.vertices, frame), mesh.faces))[0]
+            for name, mesh in (("chair", chair),
+                               *((n, load_mesh(EXAMPLES / f"chair_{n}.obj"))
+                                 for n in ("no_leg", "retessellated")))
+        }  # fmt: skip
+        assert lfd.compare(prepared["chair"], prepared["chair"]) == (0.0,)
+        assert lfd.compare(prepared["chair"], prepared["retessellated"]) == (0.0,)
+        (missing,) = lfd.compare(prepared["chair"], prepared["no_leg"])
+        assert missing > 0 and lfd.compare(prepared["no_leg"], prepared["chair"]) == (missing,)
+    finally:
+        lfd.close()

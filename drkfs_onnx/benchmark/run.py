@@ -13,12 +13,15 @@ from pathlib import Path
 import numpy as np
 
 from ..mesh import frame_of, place
+from ..synthetic.tiers import TIERS
 from ..synthetic.variants import structural_wins
 from . import sets
 from .chart import pareto_front, write_chart
+from .human import add_human, human_agreement
 from .methods import (
     DEFAULT_NAME,
     PAPER_NAME,
+    RETRIEVAL_SAMPLES,
     STRUCTURE_NAME,
     SURFACE_SAMPLES,
     DrkfsOnnx,
@@ -27,9 +30,11 @@ from .methods import (
     Placed,
     build_methods,
 )
+from .peers import LightField, find_lfd
 from .torch_checks import gradient_check, self_score, slide
 
 QUICK_VIEWS = 6  # the quick run caps every DR-KFS config at this camera count
+CHARTED = "invisible_vs_structural"  # the accuracy on the chart's y axis
 
 
 @dataclass
@@ -86,6 +91,9 @@ def _compare(method: Method, a, b, cost: Cost) -> tuple:
 
 
 def score_everything(bench: sets.BenchSet, methods: list[Method], progress) -> tuple[Scores, dict]:
+    """Every method on every comparison (each mesh placed in its reference's frame) and on
+    every retrieval pair (each shape in its own frame, through ``Method.for_retrieval``). The
+    costs are the comparisons'."""
     scores, costs = Scores(), {id(m): Cost() for m in methods}
     by_reference = defaultdict(list)
     for i, c in enumerate(bench.comparisons):
@@ -107,54 +115,73 @@ def score_everything(bench: sets.BenchSet, methods: list[Method], progress) -> t
     keys = list(bench.retrieval)
     placed = [_place(*bench.shapes[k], k, frame_of(bench.shapes[k][0])) for k in keys]
     for method in methods:
-        prepared = _prepare_all(method, placed, costs[id(method)])
+        searcher = method.for_retrieval()
+        prepared = _prepare_all(searcher, placed, Cost())
         for q in keys:
             for r in keys:
-                if q == r or (method.symmetric and (r, q) in scores.retrieval[method.outputs[0]]):
+                if q == r or (searcher.symmetric and (r, q) in scores.retrieval[method.outputs[0]]):
                     continue
-                values = _compare(method, prepared[q], prepared[r], costs[id(method)])
+                values = searcher.compare(prepared[q], prepared[r])
                 for name, value in zip(method.outputs, values, strict=True):
                     scores.retrieval[name][q, r] = value
-                    if method.symmetric:
+                    if searcher.symmetric:
                         scores.retrieval[name][r, q] = value
         progress(f"retrieval: {method.outputs[0]}")
     return scores, {name: costs[id(m)].summary() for m in methods for name in m.outputs}
 
 
-def _accuracy(bench: sets.BenchSet, values: dict[int, float | None]) -> dict:
+TIER_PAIRS = {
+    "invisible_vs_structural": ("invisible", "structural"),
+    "surface_vs_structural": ("surface", "structural"),
+    "invisible_vs_surface": ("invisible", "surface"),
+}  # name -> (the tier that should score lower, the one that should score higher)
+
+
+def tier_accuracy(bench: sets.BenchSet, values: dict[int, float | None]) -> dict:
+    """For each pair of tiers, the share of (lower-tier, higher-tier) variant pairs of one base
+    where the higher tier's variant is further from the base: all bases pooled, and per half
+    (synthetic bases, shared meshes); with the pair counts and each tier's median value."""
     groups: dict[str, dict[str, list[float]]] = defaultdict(lambda: defaultdict(list))
     for i, c in enumerate(bench.comparisons):
-        if c.group == "sensitivity" and values.get(i) is not None:
+        if c.group == "tiers" and values.get(i) is not None:
             groups[c.base][c.kind].append(values[i])
-    wins = pairs = 0
-    real_wins = real_pairs = 0
-    for base, kinds in groups.items():
-        w, n = structural_wins(kinds["structural"], kinds["mild"])
-        wins, pairs = wins + w, pairs + n
-        if base in sets.SHARED_MESHES:
-            real_wins, real_pairs = real_wins + w, real_pairs + n
-    mild = [v for kinds in groups.values() for v in kinds["mild"]]
-    structural = [v for kinds in groups.values() for v in kinds["structural"]]
-    return {
-        "accuracy": wins / pairs if pairs else None,
-        "pairs": pairs,
-        "accuracy_synthetic": (wins - real_wins) / (pairs - real_pairs)
-        if pairs > real_pairs
-        else None,
-        "accuracy_real": real_wins / real_pairs if real_pairs else None,
-        "median_mild": float(np.median(mild)) if mild else None,
-        "median_structural": float(np.median(structural)) if structural else None,
+
+    def accuracy(bases: list[str], lower: str, higher: str) -> tuple[float | None, int]:
+        wins = pairs = 0
+        for base in bases:
+            w, n = structural_wins(groups[base][higher], groups[base][lower])
+            wins, pairs = wins + w, pairs + n
+        return (wins / pairs if pairs else None), pairs
+
+    halves = {
+        "synthetic": [b for b in groups if b not in sets.SHARED_MESHES],
+        "shared": [b for b in groups if b in sets.SHARED_MESHES],
     }
+    result: dict = {name: accuracy(list(groups), *tiers)[0] for name, tiers in TIER_PAIRS.items()}
+    for half, bases in halves.items():
+        result[half] = {name: accuracy(bases, *tiers)[0] for name, tiers in TIER_PAIRS.items()}
+    result["pairs"] = {
+        name: accuracy(list(groups), *tiers)[1] for name, tiers in TIER_PAIRS.items()
+    }
+    result["median"] = {
+        tier: (
+            float(np.median(found))
+            if (found := [v for g in groups.values() for v in g[tier]])
+            else None
+        )
+        for tier in TIERS
+    }
+    return result
 
 
-def _bars(bench: sets.BenchSet, values: dict[int, float | None]) -> dict:
+def bars_summary(bench: sets.BenchSet, values: dict[int, float | None]) -> dict:
     edits = {c.label: values.get(i) for i, c in enumerate(bench.comparisons) if c.group == "bars"}
     if None in edits.values():
         return {**edits, "deletion_over_max_shift": None}
     return {**edits, "deletion_over_max_shift": edits["deleted"] / max(edits["up"], edits["down"])}
 
 
-def _retrieval(bench: sets.BenchSet, values: dict[tuple[str, str], float | None]) -> dict:
+def retrieval_summary(bench: sets.BenchSet, values: dict[tuple[str, str], float | None]) -> dict:
     hits = total = 0
     for q in bench.retrieval:
         known = {r: v for (a, r), v in values.items() if a == q and v is not None}
@@ -165,8 +192,11 @@ def _retrieval(bench: sets.BenchSet, values: dict[tuple[str, str], float | None]
     return {"nearest_neighbour_accuracy": hits / total if total else None, "queries": total}
 
 
-def _verdict(expectation: str, value: float | None, mild: float | None, rows: dict) -> bool | None:
-    """Pass/fail of one stability value; None when the method does not apply."""
+def verdict(expectation: str, value: float | None, median: dict, rows: dict) -> bool | None:
+    """Pass/fail of one stability value; None when the method does not apply. ``median``: the
+    method's median value per tier. ignore: below the median surface defect (not mistaken for
+    a visible defect); detect: above the median invisible change (noticed); same:<case>: within
+    1% of that case's value."""
     if value is None:
         return None
     if not np.isfinite(value):
@@ -174,9 +204,10 @@ def _verdict(expectation: str, value: float | None, mild: float | None, rows: di
     if expectation.startswith("same:"):
         other = rows.get(expectation.split(":", 1)[1])
         return other is not None and abs(value - other) <= 0.01 * abs(other) + 1e-12
-    if mild is None:
+    threshold = median["surface" if expectation == "ignore" else "invisible"]
+    if threshold is None:
         return None
-    return value < mild if expectation == "ignore" else value > mild
+    return value < threshold if expectation == "ignore" else value > threshold
 
 
 def stability_table(bench: sets.BenchSet, scores: Scores, summary: dict) -> dict:
@@ -184,10 +215,10 @@ def stability_table(bench: sets.BenchSet, scores: Scores, summary: dict) -> dict
     table = {}
     for name, values in scores.comparisons.items():
         raw = {c.label: values.get(i) for i, c in cases}
-        mild = summary[name]["sensitivity"]["median_mild"]
+        median = summary[name]["tiers"]["median"]
         table[name] = {
             c.label: {"value": raw[c.label], "expect": c.kind,
-                      "passed": _verdict(c.kind, raw[c.label], mild, raw)}
+                      "passed": verdict(c.kind, raw[c.label], median, raw)}
             for _, c in cases
         }  # fmt: skip
     return table
@@ -202,14 +233,33 @@ def torch_stability(bench: sets.BenchSet, metric) -> dict:
     return {"cases": rows, "slide": slide(metric)}
 
 
-def run_bench(out: Path, quick: bool, threads: int = 2, progress=print) -> dict:
+def peer_methods() -> tuple[list[Method], dict[str, str]]:
+    """The outside metrics installed here, and a note for each one skipped."""
+    found = find_lfd()
+    if isinstance(found, str):
+        return [], {"LFD": f"skipped: {found}"}
+    return [LightField(*found)], {"LFD": f"light-field-distance 0.0.9 ({found[1].name})"}
+
+
+def run_bench(
+    out: Path, quick: bool, threads: int = 2, progress=print, human: Path | None = None
+) -> dict:
+    """Every method on the benchmark set (``sets.build``) and, with ``human`` (a Geo-metric
+    folder, ``benchmark.human``), on the human-judgment pairs; results.json and the chart in
+    ``out``."""
     start = time.perf_counter()
     out.mkdir(parents=True, exist_ok=True)
     bench = sets.build(quick)
+    jod = add_human(bench, human) if human is not None else None
     bench.write(out / "set")
     progress(f"{len(bench.shapes)} meshes, {len(bench.comparisons)} comparisons written")
     methods = build_methods(out / "models", threads, QUICK_VIEWS if quick else None)
-    scores, costs = score_everything(bench, methods, progress)
+    peers, peer_notes = peer_methods()
+    try:
+        scores, costs = score_everything(bench, [*methods, *peers], progress)
+    finally:
+        for peer in peers:
+            peer.close()
     summary = {}
     configs = {m.outputs[0]: m.scorer.config for m in methods if isinstance(m, DrkfsOnnx)}
     for name, values in scores.comparisons.items():
@@ -219,19 +269,22 @@ def run_bench(out: Path, quick: bool, threads: int = 2, progress=print) -> dict:
             **({"preset": "paper"} if name == PAPER_NAME else {}),
             **({"preset": "structure"} if name == STRUCTURE_NAME else {}),
             **costs[name],
-            "sensitivity": _accuracy(bench, values),
-            "bars": _bars(bench, values),
-            "retrieval": _retrieval(bench, scores.retrieval[name]),
+            "tiers": tier_accuracy(bench, values),
+            "human": human_agreement(bench, values, jod) if jod is not None else None,
+            "bars": bars_summary(bench, values),
+            "retrieval": retrieval_summary(bench, scores.retrieval[name]),
         }
     torch_method = next(m for m in methods if isinstance(m, DrkfsTorch))
-    points = {n: (s["seconds_per_pair"], s["sensitivity"]["accuracy"]) for n, s in summary.items()}
+    points = {n: (s["seconds_per_pair"], s["tiers"][CHARTED]) for n, s in summary.items()}
     front = pareto_front(points)
     results = {
-        "command": f"drkfs bench{' --quick' if quick else ''} --out {out}",
+        "command": f"drkfs bench{' --quick' if quick else ''} --out {out}"
+        + (f" --human {human}" if human is not None else ""),
         "quick": quick,
         "threads": threads,
         "cpu_count": os.cpu_count(),
         "platform": platform.platform(),
+        "peers": peer_notes,
         "methods": summary,
         "pareto_front": front,
         "stability": stability_table(bench, scores, summary),
@@ -250,25 +303,36 @@ def run_bench(out: Path, quick: bool, threads: int = 2, progress=print) -> dict:
 
 
 DEFINITIONS = {
-    "accuracy": "share of (structural, mild) variant pairs of one base where the structural "
-    "variant is further from the base; all bases pooled",
+    "tiers": "for two tiers of change (invisible < surface < structural, synthetic.tiers), the "
+    "share of (lower-tier, higher-tier) variant pairs of one base where the higher tier's variant "
+    "is further from the base; all bases pooled, and per half (synthetic bases, shared meshes)",
+    "human": "Geo-metric's simplification stimuli: each face's 3.125% and 6.25% simplifications "
+    "scored against its 12.5% one (a stand-in for the missing reference); Spearman of the scores "
+    "against JOD(prediction) - JOD(stand-in) per viewing setting (negative: agrees with people), "
+    "over all pairs and within each level",
     "seconds_per_pair": "2 x seconds per new mesh (render + features / samples / voxels) + "
-    "seconds per comparison of prepared meshes; renders shared between methods are charged to "
-    "each",
+    "seconds per comparison of prepared meshes, measured on the tier, bars, stability and human "
+    "comparisons; renders shared between methods are charged to each",
     "frames": "every comparison in the reference's bounding-box frame (centre, half-diagonal); "
     "retrieval shapes each in their own; all methods see the same placed meshes",
     "distances": "lower is closer: F-score, normal consistency and IoU enter as 1 - value",
     "chamfer_fscore_nc": f"OccNet's definitions on {SURFACE_SAMPLES:,} area-weighted surface "
-    "samples per mesh, as OccNet; exact nearest neighbours (scipy's KD-tree); F-score "
-    "threshold 1% of the reference's bounding-box diagonal",
+    f"samples per mesh ({RETRIEVAL_SAMPLES:,} for retrieval's all-pairs search), as OccNet; "
+    "exact nearest neighbours (scipy's KD-tree); F-score threshold 1% of the reference's "
+    "bounding-box diagonal",
     "volumetric_iou": "64^3 voxel centres over [-1.25, 1.25]^3, inside by the parity of +x ray "
     "crossings per connected component (outward components united, inward ones, cavities, "
     "removed); only when both meshes are watertight (every edge shared by exactly two faces), "
     "else not applicable",
     "image_mse": "mean squared difference of the 25 views at 256 px (pixel MSE), or of the PoI "
     "maps the shipped detector makes of them",
-    "stability": "ignore: passes when the value is below the method's median mild-variant value "
-    "on the sensitivity set; detect: above it; same:<case>: within 1% of that case's value",
-    "retrieval": "leave-one-out nearest neighbour over the retrieval shapes; correct when the "
-    "nearest shape is of the query's family",
+    "lfd": "the light-field distance (Chen et al. 2003) as light-field-distance 0.0.9 computes "
+    "it, with the second shape's eccentricity read (lfd_setup.sh's Distance_fixed); it "
+    "normalises pose and scale itself",
+    "stability": "ignore: passes when the value is below the method's median surface-tier value "
+    "(not mistaken for a visible defect); detect: above its median invisible-tier value "
+    "(noticed); same:<case>: within 1% of that case's value",
+    "retrieval": "leave-one-out nearest neighbour over the retrieval shapes (5 of each of 21 "
+    "families, 12 of which no net was trained on); correct when the nearest shape is of the "
+    "query's family",
 }

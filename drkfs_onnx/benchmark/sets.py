@@ -12,8 +12,16 @@ import numpy as np
 import trimesh
 
 from ..mesh import check_mesh, load_mesh
-from ..synthetic.shapes import FAMILIES, Part, assemble, chair, random_shape, subdivide
-from ..synthetic.variants import make_variants, surface_variants
+from ..synthetic.shapes import (
+    ALL_FAMILIES,
+    FAMILIES,
+    Part,
+    assemble,
+    chair,
+    random_shape,
+    subdivide,
+)
+from ..synthetic.tiers import part_tiers, scan_tiers
 
 SHARED_FOLDER = Path(__file__).resolve().parents[2].parent / "shared" / "meshes"
 SHARED_MESHES = (
@@ -29,16 +37,19 @@ SEED = 2026
 # training's (0-2)
 HOLDOUT_SEEDS = range(3000, 3003)
 BAR_SHIFT = 0.1  # the bars move by this much (a fifth of the chair's seat height)
+RETRIEVAL_PER_FAMILY = 5  # x 21 families: 105 queries
 
 
 @dataclass(frozen=True)
 class Comparison:
     """Score ``shape`` against ``reference`` (both placed in the reference's frame)."""
 
-    group: str  # "sensitivity", "bars" or "stability"
-    base: str  # what the row belongs to: a base shape or a stability case
+    group: str  # "tiers", "bars", "stability" or "human"
+    base: str  # what the row belongs to: a base shape, a stability case, a face of the human set
     label: str  # variant or case name
-    kind: str  # sensitivity: structural / mild; bars: the edit; stability: the expectation
+    # tiers: invisible / surface / structural; bars: the edit; stability: the expectation;
+    # human: the simplification level
+    kind: str
     shape: str
     reference: str
 
@@ -48,6 +59,9 @@ class BenchSet:
     shapes: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
     comparisons: list[Comparison] = field(default_factory=list)
     retrieval: dict[str, str] = field(default_factory=dict)  # shape key -> family
+    # shapes read from files outside the set (the human set's stimuli): key -> path, not
+    # written again by ``write``
+    sources: dict[str, Path] = field(default_factory=dict)
     _digests: dict[str, str] = field(default_factory=dict, repr=False)
 
     def add(self, key: str, verts: np.ndarray, faces: np.ndarray) -> str:
@@ -62,8 +76,10 @@ class BenchSet:
 
     def write(self, folder: Path) -> Path:
         folder.mkdir(parents=True, exist_ok=True)
-        files = {}
+        files = {key: str(path) for key, path in self.sources.items()}
         for key, (verts, faces) in self.shapes.items():
+            if key in self.sources:
+                continue
             name = key.replace("/", "__") + ".ply"
             trimesh.Trimesh(verts, faces, process=False).export(folder / name)
             files[key] = name
@@ -83,22 +99,23 @@ def _variants_of(bench: BenchSet, base: str, verts, faces, variants) -> None:
     bench.add(base, verts, faces)
     for v in variants:
         key = bench.add(f"{base}/{v.name}", v.verts, v.faces)
-        bench.comparisons.append(Comparison("sensitivity", base, v.name, v.kind, key, base))
+        bench.comparisons.append(Comparison("tiers", base, v.name, v.kind, key, base))
 
 
-def sensitivity(
+def tiers(
     bench: BenchSet, families: list[str], shared: list[str], seed: int = SEED, prefix: str = ""
 ) -> None:
-    """A base shape of each family and each named shared mesh, with their variants; ``seed``
-    and ``prefix`` (of the base keys) make other sets of the same kind (a held-out check)."""
+    """A base shape of each family and each named shared mesh, with their variants of every
+    tier (``synthetic.tiers``); ``seed`` and ``prefix`` (of the base keys) make other sets of
+    the same kind (a held-out check)."""
     rng = np.random.default_rng(seed)
     for family in families:
         parts = random_shape(family, rng)
         verts, faces = assemble(parts, 1)  # the variants' own tessellation
-        _variants_of(bench, prefix + family, verts, faces, make_variants(parts, rng))
+        _variants_of(bench, prefix + family, verts, faces, part_tiers(parts, rng))
     for name in shared:
         mesh = load_mesh(SHARED_FOLDER / f"{name}.obj")
-        variants = surface_variants(mesh.vertices, mesh.faces, rng)
+        variants = scan_tiers(mesh.vertices, mesh.faces, rng)
         _variants_of(bench, name, mesh.vertices, mesh.faces, variants)
 
 
@@ -125,6 +142,7 @@ def bars(bench: BenchSet) -> None:
 
 
 def retrieval(bench: BenchSet, families: list[str], per_family: int) -> None:
+    """``per_family`` shapes of each family, for leave-one-out nearest-neighbour retrieval."""
     rng = np.random.default_rng(SEED + 1)
     for family in families:
         for i in range(per_family):
@@ -220,12 +238,12 @@ def build(quick: bool) -> BenchSet:
     set, the stability cases on a small mesh and no 200k-face case)."""
     bench = BenchSet()
     if quick:
-        sensitivity(bench, ["chair"], [])
+        tiers(bench, ["chair"], [])
         retrieval(bench, ["chair", "table", "lamp"], 2)
         stability(bench, "woody", None)
     else:
-        sensitivity(bench, list(FAMILIES), SWEPT_MESHES)
-        retrieval(bench, list(FAMILIES), 2)
+        tiers(bench, list(FAMILIES), SWEPT_MESHES)
+        retrieval(bench, list(ALL_FAMILIES), RETRIEVAL_PER_FAMILY)
         stability(bench, "cow", "stanford-bunny")
     bars(bench)
     return bench

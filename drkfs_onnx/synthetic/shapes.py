@@ -293,6 +293,239 @@ FAMILIES: dict[str, Callable[[np.random.Generator], list[Part]]] = {
 }
 
 
+def bed(rng: np.random.Generator) -> list[Part]:
+    width, length = rng.uniform(0.9, 1.6), rng.uniform(1.8, 2.1)
+    frame_h, mattress = rng.uniform(0.2, 0.35), rng.uniform(0.15, 0.25)
+    head = rng.uniform(0.4, 0.8)
+    parts = [
+        Part("frame", (0.0, 0.05 + frame_h / 2, 0.0), (width, frame_h, length)),
+        Part(
+            "mattress",
+            (0.0, 0.05 + frame_h + mattress / 2, 0.02),
+            (width * 0.95, mattress, length * 0.95),
+        ),
+        Part(
+            "headboard",
+            (0.0, (0.05 + frame_h + head) / 2, -length / 2),
+            (width, 0.05 + frame_h + head, 0.06),
+        ),
+    ]
+    if rng.random() < 0.5:
+        height = 0.05 + frame_h + mattress
+        parts.append(Part("footboard", (0.0, height / 2, length / 2), (width, height, 0.05)))
+    return parts + _legs("leg", width / 2 - 0.04, length / 2 - 0.04, 0.05, 0.06)
+
+
+def bench(rng: np.random.Generator) -> list[Part]:
+    length, depth = rng.uniform(1.0, 1.8), rng.uniform(0.3, 0.45)
+    height, seat = rng.uniform(0.4, 0.5), 0.05
+    parts = [Part("seat", (0.0, height + seat / 2, 0.0), (length, seat, depth))]
+    if rng.random() < 0.5:  # two slab legs
+        for side in (-1, 1):
+            x = side * (length / 2 - 0.1)
+            parts.append(Part(f"slab_{side}", (x, height / 2, 0.0), (0.05, height, depth * 0.9)))
+    else:
+        parts += _legs("leg", length / 2 - 0.06, depth / 2 - 0.04, height, 0.05)
+    if rng.random() < 0.5:
+        back = rng.uniform(0.25, 0.4)
+        centre = (0.0, height + seat + back / 2 + 0.05, -depth / 2)
+        parts.append(Part("back", centre, (length, back, 0.04)))
+    return parts
+
+
+def stool(rng: np.random.Generator) -> list[Part]:
+    height, radius, leg = rng.uniform(0.45, 0.8), rng.uniform(0.15, 0.22), rng.uniform(0.025, 0.04)
+    legs = int(rng.integers(3, 5))
+    parts = [Part("seat", (0.0, height + 0.025, 0.0), (2 * radius, 0.05, 2 * radius), "cylinder")]
+    for i in range(legs):
+        angle = 2 * np.pi * i / legs
+        x, z = 0.8 * radius * np.cos(angle), 0.8 * radius * np.sin(angle)
+        parts.append(Part(f"leg_{i}", (x, height / 2, z), (leg, height, leg), "cylinder"))
+    if rng.random() < 0.6:
+        ring = 1.6 * radius
+        parts.append(Part("footrest", (0.0, height * 0.35, 0.0), (ring, 0.03, ring), "cylinder"))
+    return parts
+
+
+def desk(rng: np.random.Generator) -> list[Part]:
+    width, depth, height = rng.uniform(1.0, 1.6), rng.uniform(0.5, 0.75), rng.uniform(0.7, 0.78)
+    drawers = rng.uniform(0.3, 0.45)
+    top = Part("top", (0.0, height + 0.02, 0.0), (width, 0.04, depth))
+    block = Part(
+        "drawers", (width / 2 - drawers / 2, height / 2, 0.0), (drawers, height, depth * 0.95)
+    )
+    side = Part("side", (-width / 2 + 0.025, height / 2, 0.0), (0.05, height, depth * 0.95))
+    parts = [top, block, side]
+    if rng.random() < 0.5:
+        parts.append(
+            Part(
+                "modesty", (0.0, height * 0.6, -depth / 2 + 0.02), (width * 0.9, height * 0.5, 0.02)
+            )
+        )
+    return parts
+
+
+def cabinet(rng: np.random.Generator) -> list[Part]:
+    width, height, depth = rng.uniform(0.5, 1.0), rng.uniform(0.8, 1.8), rng.uniform(0.35, 0.6)
+    feet = rng.uniform(0.05, 0.15)
+    parts = [Part("body", (0.0, feet + height / 2, 0.0), (width, height, depth))]
+    parts += _legs("foot", width / 2 - 0.04, depth / 2 - 0.04, feet, 0.05)
+    doors = int(rng.integers(1, 3))
+    for i in range(doors):
+        x = (i - (doors - 1) / 2) * width / doors + 0.3 * width / doors
+        size = (0.03, height * 0.2, 0.04)
+        parts.append(Part(f"handle_{i}", (x, feet + height * 0.55, depth / 2 + 0.02), size))
+    return parts
+
+
+def bottle(rng: np.random.Generator) -> list[Part]:
+    radius, body = rng.uniform(0.12, 0.25), rng.uniform(0.5, 0.9)
+    neck_r, neck = radius * rng.uniform(0.3, 0.45), rng.uniform(0.15, 0.3)
+    shoulder = rng.uniform(0.05, 0.12)
+    return [
+        Part("body", (0.0, body / 2, 0.0), (2 * radius, body, 2 * radius), "cylinder"),
+        Part(
+            "shoulder",
+            (0.0, body + shoulder / 2, 0.0),
+            (1.4 * radius, shoulder, 1.4 * radius),
+            "cylinder",
+        ),
+        Part(
+            "neck",
+            (0.0, body + shoulder + neck / 2, 0.0),
+            (2 * neck_r, neck, 2 * neck_r),
+            "cylinder",
+        ),
+        Part(
+            "cap",
+            (0.0, body + shoulder + neck + 0.03, 0.0),
+            (2.3 * neck_r, 0.06, 2.3 * neck_r),
+            "cylinder",
+        ),
+    ]
+
+
+def rocket(rng: np.random.Generator) -> list[Part]:
+    radius, length = rng.uniform(0.1, 0.18), rng.uniform(1.0, 1.8)
+    nose, fin = rng.uniform(0.15, 0.3), rng.uniform(0.2, 0.35)
+    parts = [
+        Part("body", (0.0, length / 2, 0.0), (2 * radius, length, 2 * radius), "cylinder"),
+        Part("nose", (0.0, length + nose / 2, 0.0), (radius, nose, radius), "cylinder"),
+    ]
+    for i, (x, z) in enumerate([(1, 0), (-1, 0), (0, 1), (0, -1)][: int(rng.integers(3, 5))]):
+        size = (fin if x else 0.02, fin * 1.2, fin if z else 0.02)
+        centre = (x * (radius + fin / 2), fin * 0.6, z * (radius + fin / 2))
+        parts.append(Part(f"fin_{i}", centre, size))
+    return parts
+
+
+def bicycle(rng: np.random.Generator) -> list[Part]:
+    wheel, base = rng.uniform(0.55, 0.7), rng.uniform(0.9, 1.1)
+    tube = 0.04
+    height = wheel * rng.uniform(1.1, 1.3)
+    parts = [
+        Part(f"wheel_{i}", (x, wheel / 2, 0.0), (wheel, wheel, 0.04), "cylinder", axis=2)
+        for i, x in enumerate((-base / 2, base / 2))
+    ]
+    parts += [
+        Part("top_tube", (0.0, height, 0.0), (base * 0.6, tube, tube)),
+        Part("down_tube", (0.0, wheel / 2 + 0.05, 0.0), (base, tube, tube)),
+        Part(
+            "seat_post",
+            (-base * 0.25, (wheel / 2 + height) / 2 + 0.05, 0.0),
+            (tube, height - wheel / 2 + 0.1, tube),
+        ),
+        Part("seat", (-base * 0.25, height + 0.12, 0.0), (0.22, 0.05, 0.1)),
+        Part(
+            "fork",
+            (base * 0.3, (wheel / 2 + height) / 2 + 0.05, 0.0),
+            (tube, height - wheel / 2 + 0.15, tube),
+        ),
+        Part(
+            "handlebar",
+            (base * 0.3, height + 0.15, 0.0),
+            (tube, tube, rng.uniform(0.4, 0.6)),
+            "cylinder",
+            axis=2,
+        ),
+    ]
+    return parts
+
+
+def monitor(rng: np.random.Generator) -> list[Part]:
+    width, height = rng.uniform(0.5, 0.9), rng.uniform(0.3, 0.55)
+    neck, base = rng.uniform(0.1, 0.25), rng.uniform(0.2, 0.35)
+    parts = [
+        Part("base", (0.0, 0.015, 0.0), (base, 0.03, base * 0.7)),
+        Part("neck", (0.0, 0.03 + neck / 2, -0.02), (0.05, neck, 0.03)),
+        Part("screen", (0.0, 0.03 + neck + height / 2, 0.0), (width, height, 0.03)),
+    ]
+    if rng.random() < 0.4:  # a round base instead
+        parts[0] = Part("base", (0.0, 0.015, 0.0), (base, 0.03, base), "cylinder")
+    return parts
+
+
+def ladder(rng: np.random.Generator) -> list[Part]:
+    height, width = rng.uniform(1.2, 2.0), rng.uniform(0.35, 0.55)
+    rungs = int(rng.integers(4, 9))
+    rail = 0.05
+    parts = [
+        Part(f"rail_{side}", (side * width / 2, height / 2, 0.0), (rail, height, rail * 1.5))
+        for side in (-1, 1)
+    ]
+    for i in range(rungs):
+        y = (i + 1) * height / (rungs + 1)
+        parts.append(Part(f"rung_{i}", (0.0, y, 0.0), (width, 0.03, 0.03), "cylinder", axis=0))
+    return parts
+
+
+def dumbbell(rng: np.random.Generator) -> list[Part]:
+    bar, plate = rng.uniform(0.35, 0.6), rng.uniform(0.15, 0.3)
+    plates = int(rng.integers(1, 3))
+    parts = [Part("bar", (0.0, plate / 2, 0.0), (bar, 0.04, 0.04), "cylinder", axis=0)]
+    for side in (-1, 1):
+        for i in range(plates):
+            x = side * (bar / 2 - 0.03 - i * 0.06)
+            size = (0.05, plate * (1 - 0.2 * i), plate * (1 - 0.2 * i))
+            parts.append(Part(f"plate_{side}_{i}", (x, plate / 2, 0.0), size, "cylinder", axis=0))
+    return parts
+
+
+def tree(rng: np.random.Generator) -> list[Part]:
+    trunk, girth = rng.uniform(0.4, 0.8), rng.uniform(0.08, 0.15)
+    levels = int(rng.integers(2, 4))
+    width = rng.uniform(0.6, 1.0)
+    parts = [Part("trunk", (0.0, trunk / 2, 0.0), (girth, trunk, girth), "cylinder")]
+    y = trunk
+    for i in range(levels):
+        layer = width * (1 - 0.3 * i)
+        height = rng.uniform(0.2, 0.35)
+        parts.append(
+            Part(f"crown_{i}", (0.0, y + height / 2, 0.0), (layer, height, layer), "cylinder")
+        )
+        y += height * 0.8
+    return parts
+
+
+FAMILIES_NOT_TRAINED = {
+    "bed": bed,
+    "bench": bench,
+    "stool": stool,
+    "desk": desk,
+    "cabinet": cabinet,
+    "bottle": bottle,
+    "rocket": rocket,
+    "bicycle": bicycle,
+    "monitor": monitor,
+    "ladder": ladder,
+    "dumbbell": dumbbell,
+    "tree": tree,
+}
+# every family: the nets' training data and the benchmark's tiers use FAMILIES; retrieval adds
+# the ones no training ever saw
+ALL_FAMILIES = {**FAMILIES, **FAMILIES_NOT_TRAINED}
+
+
 def random_shape(family: str, seed: int | np.random.Generator) -> list[Part]:
-    """A shape of ``family`` with parameters drawn from ``seed``."""
-    return FAMILIES[family](np.random.default_rng(seed))
+    """A shape of ``family`` (any of ``ALL_FAMILIES``) with parameters drawn from ``seed``."""
+    return ALL_FAMILIES[family](np.random.default_rng(seed))

@@ -1,6 +1,6 @@
 """The metric stage of ``drkfs train``: fine-tune the correspondence-trained nets for what the
 metric must see, objective against objective and width against width, each judged on the
-project's benchmark (``drkfs bench``'s sensitivity, bars and retrieval sets)."""
+project's benchmark (``drkfs bench``'s tier, bars and retrieval sets)."""
 
 from __future__ import annotations
 
@@ -19,7 +19,7 @@ import torch
 
 from ..benchmark import sets
 from ..benchmark.methods import DrkfsTorch, Surface
-from ..benchmark.run import _accuracy, _bars, _retrieval, score_everything
+from ..benchmark.run import bars_summary, retrieval_summary, score_everything, tier_accuracy
 from ..config import PipelineConfig
 from ..matching import match_score
 from ..metric import DRKFS
@@ -93,17 +93,29 @@ class MetricPlan:
 
 
 def benchmark_set(quick: bool) -> sets.BenchSet:
-    """The benchmark's sensitivity, bars and retrieval sets (``sets.build`` without the
-    stability cases, which score no ranking)."""
+    """The benchmark's tier, bars and retrieval sets (``sets.build`` without the stability
+    cases, which score no ranking). Retrieval keeps the training families, two shapes each,
+    as the nets were chosen with."""
     bench = sets.BenchSet()
     if quick:
-        sets.sensitivity(bench, ["chair"], [])
+        sets.tiers(bench, ["chair"], [])
         sets.retrieval(bench, ["chair", "table", "lamp"], 2)
     else:
-        sets.sensitivity(bench, list(FAMILIES), sets.SWEPT_MESHES)
+        sets.tiers(bench, list(FAMILIES), sets.SWEPT_MESHES)
         sets.retrieval(bench, list(FAMILIES), 2)
     sets.bars(bench)
     return bench
+
+
+def structure_accuracy(tiers: dict) -> dict:
+    """The structural ranking the nets are judged by, from ``tier_accuracy``'s result:
+    structural above invisible, overall and per half."""
+    key = "invisible_vs_structural"
+    return {
+        "accuracy": tiers[key],
+        "accuracy_synthetic": tiers["synthetic"][key],
+        "accuracy_real": tiers["shared"][key],
+    }
 
 
 def benchmark_row(metric: DRKFS, bench: sets.BenchSet) -> dict:
@@ -111,11 +123,12 @@ def benchmark_row(metric: DRKFS, bench: sets.BenchSet) -> dict:
     bars ratio and retrieval when it has those sets, as ``drkfs bench`` computes them."""
     name = "candidate"
     scores, _ = score_everything(bench, [DrkfsTorch(name, metric)], lambda _: None)
-    row = _accuracy(bench, scores.comparisons[name])
+    row = structure_accuracy(tier_accuracy(bench, scores.comparisons[name]))
     if any(c.group == "bars" for c in bench.comparisons):
-        row["bars"] = _bars(bench, scores.comparisons[name])["deletion_over_max_shift"]
+        row["bars"] = bars_summary(bench, scores.comparisons[name])["deletion_over_max_shift"]
     if bench.retrieval:
-        row["retrieval"] = _retrieval(bench, scores.retrieval[name])["nearest_neighbour_accuracy"]
+        found = retrieval_summary(bench, scores.retrieval[name])
+        row["retrieval"] = found["nearest_neighbour_accuracy"]
     return row
 
 
@@ -152,7 +165,7 @@ def heldout_set(quick: bool) -> sets.BenchSet:
     bench = sets.BenchSet()
     for seed in sets.HOLDOUT_SEEDS[:1] if quick else sets.HOLDOUT_SEEDS:
         families = ["chair"] if quick else list(FAMILIES)
-        sets.sensitivity(bench, families, [], seed=seed, prefix=f"{seed}/")
+        sets.tiers(bench, families, [], seed=seed, prefix=f"{seed}/")
     return bench
 
 
@@ -172,12 +185,12 @@ def training_accuracy(metric: DRKFS, data: VariantViews) -> dict:
 
 
 def chamfer_row(bench: sets.BenchSet) -> dict:
-    """Chamfer-L1's accuracy on the same sensitivity set: the bar both halves must clear."""
-    sensitivity = sets.BenchSet(
-        shapes=bench.shapes, comparisons=[c for c in bench.comparisons if c.group == "sensitivity"]
+    """Chamfer-L1's accuracy on the same tier set: the bar both halves must clear."""
+    tiered = sets.BenchSet(
+        shapes=bench.shapes, comparisons=[c for c in bench.comparisons if c.group == "tiers"]
     )
-    scores, _ = score_everything(sensitivity, [Surface()], lambda _: None)
-    return _accuracy(sensitivity, scores.comparisons["Chamfer-L1"])
+    scores, _ = score_everything(tiered, [Surface()], lambda _: None)
+    return structure_accuracy(tier_accuracy(tiered, scores.comparisons["Chamfer-L1"]))
 
 
 def admissible(row: dict, chamfer: dict) -> bool:
