@@ -1,18 +1,19 @@
 """The benchmark's three tiers of change, as a viewer sees them.
 
 - invisible: what a viewer cannot tell from the original: the same surface retessellated, a 2°
-  turn, vertices jittered by a twentieth of the mean edge, a part shifted by 1% of the diagonal
-  or thickened by 10% (on a scan: a region pushed out by 0.5% of the diagonal or moved by 1%,
-  fading to its rim);
-- surface: a moderate, visible defect on an intact shape: noise of 0.3 mean edges along the
-  normals of a finely tessellated surface, quadric simplification to 15% of the faces, smoothing
-  that erases detail;
+  turn, vertices jittered by a twentieth of their local edge, a part shifted by 1% of the
+  diagonal or thickened by 10% (on a scan: a region pushed out by 0.5% of the diagonal or moved
+  by 1%, fading to its rim);
+- surface: a moderate, visible defect on an intact shape: noise of 0.3 local edges along the
+  normals of a finely tessellated surface (0.1 on a part-based shape's flat faces), quadric
+  simplification to 15% of the faces, smoothing that erases detail;
 - structural: a part removed or added (``variants``' structural edits).
 
 Part-based shapes are boxes and cylinders: quadric simplification removes their flat faces'
 extra triangles without any visible change, so their surface tier has noise and smoothing, and
-a scan's all three. Sizes are relative to the mesh (its diagonal, its mean edge), so a tier means
-the same thing on every shape.
+a scan's all three. Sizes are relative to the mesh (its diagonal, a vertex's local edge: the
+shortest edge at it, so a thin part of a coarse shape is not crumpled by a noise its large faces
+would hide), so a tier means the same thing on every shape.
 """
 
 from __future__ import annotations
@@ -38,29 +39,39 @@ INVISIBLE = ("retessellated", "jittered", "part_thickened", "part_shifted", "rot
 SURFACE = ("noise", "simplified", "smoothed")
 TIERS = ("invisible", "surface", "structural")
 
-JITTER_EDGES = 0.05  # jitter: normal with this many mean edges of standard deviation
+JITTER_EDGES = 0.05  # jitter: normal with this many local edges of standard deviation
 TINY_SHIFT = 0.01  # of the diagonal
 TINY_THICKENING = 1.1  # a part's two thin sides
 SCAN_PUSH = 0.005  # of the diagonal, a scan region pushed out along its normals
-NOISE_EDGES = 0.3  # noise along the normals: this many mean edges of standard deviation
-FINE_SUBDIVISIONS = 3  # a part-based shape's fine tessellation for noise and smoothing
+NOISE_EDGES = 0.3  # noise along the normals: this many local edges of standard deviation
+# on a part-based shape's flat faces noise shows far more than on a scan's curved surface: a
+# third of the amount looks as moderate there (0.3 crumples a chair's seat)
+PART_NOISE_EDGES = 0.1
+FINE_SUBDIVISIONS = 4  # a part-based shape's fine tessellation for noise and smoothing
 SIMPLIFIED_SHARE = 0.15  # the faces quadric simplification keeps
-SMOOTHING = 10  # Taubin iterations (lambda 0.5, mu -0.53: smooths without shrinking)
+SMOOTHING = 30  # Taubin iterations (lambda 0.5, mu -0.53: smooths without shrinking)
 ROTATION_DEGREES = 2.0
 
 
-def mean_edge(verts: np.ndarray, faces: np.ndarray) -> float:
-    edges = verts[faces[:, [1, 2, 0]]] - verts[faces]
-    return float(np.linalg.norm(edges, axis=2).mean())
+def local_edges(verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """(V,) the length of the shortest edge at each vertex."""
+    corners = faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+    length = np.linalg.norm(verts[corners[:, 0]] - verts[corners[:, 1]], axis=1)
+    shortest = np.full(len(verts), np.inf)
+    np.minimum.at(shortest, corners.reshape(-1), np.repeat(length, 2))
+    return np.where(np.isfinite(shortest), shortest, 0.0)
 
 
 def jittered(verts: np.ndarray, faces: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    return verts + rng.normal(size=verts.shape) * JITTER_EDGES * mean_edge(verts, faces)
+    scale = JITTER_EDGES * local_edges(verts, faces)[:, None]
+    return verts + rng.normal(size=verts.shape) * scale
 
 
-def noisy(verts: np.ndarray, faces: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    """Every vertex moved along its normal by N(0, NOISE_EDGES mean edges)."""
-    amount = rng.normal(size=len(verts)) * NOISE_EDGES * mean_edge(verts, faces)
+def noisy(
+    verts: np.ndarray, faces: np.ndarray, rng: np.random.Generator, edges: float = NOISE_EDGES
+) -> np.ndarray:
+    """Every vertex moved along its normal by N(0, ``edges`` local edges)."""
+    amount = rng.normal(size=len(verts)) * edges * local_edges(verts, faces)
     return verts + amount[:, None] * _vertex_normals(verts, faces)
 
 
@@ -96,7 +107,9 @@ def part_tiers(parts: list[Part], rng: np.random.Generator) -> list[Variant]:
         Variant("rotated", "invisible", verts @ _rotation_y(ROTATION_DEGREES).T, faces),
     ]  # fmt: skip
     surface = [
-        Variant("noise", "surface", noisy(fine_verts, fine_faces, rng), fine_faces),
+        Variant(
+            "noise", "surface", noisy(fine_verts, fine_faces, rng, PART_NOISE_EDGES), fine_faces
+        ),
         Variant("smoothed", "surface", smoothed(fine_verts, fine_faces), fine_faces),
     ]
     return [*structural, *invisible, *surface]
