@@ -190,37 +190,30 @@ def fit(
 
         out = out or RUNS / "fit-network"
         results = run_network_study(out, quick, threads, progress)
-        for loss, row in results["beats_chamfer"].items():
-            typer.echo(
-                f"{loss} beats Chamfer on {row['wins']}/{row['cells']} cells ({row['share']:.0%})"
-            )
-        for loss, ratio in results["chamfer_l1_over_chamfer_trained"].items():
-            typer.echo(f"{loss}: Chamfer-L1 {ratio:.2f} x the Chamfer-trained network's")
-        typer.echo(
-            f"{out / 'results.json'}, {out / 'gallery.png'} in {results['seconds_total']:.0f} s"
-        )
-        return
-    from .fitting.study import run_study
+    else:
+        from .fitting.study import run_study
 
-    out = out or RUNS / "fit"
-    results = run_study(out, quick, threads, progress)
-    for loss, choice in results["choices"].items():
+        out = out or RUNS / "fit"
+        results = run_study(out, quick, threads, progress)
+        study = results["loss_study"]
+        weights = study["pixel_weight"]["chosen"], study["chamfer_weight"]["chosen"]
         typer.echo(
-            f"{loss}: learning rate {choice['learning_rate']:g}, smoothness "
-            f"{choice['smoothness']:g}, lambda {choice['lambda']:g}"
+            f"loss study: {study['forms']['chosen']}; beside pixel MSE at weight "
+            f"{weights[0]:g}, beside Chamfer at {weights[1]:g}"
         )
-    for name, key in (("DR-KFS", "drkfs_beats_chamfer"), ("combined", "combination_beats_chamfer")):
-        for kind, row in results[key].items():
+    for against, key in (("Chamfer", "beats_chamfer"), ("pixel MSE", "beats_pixel_mse")):
+        for loss, row in results[key].items():
             typer.echo(
-                f"{name} beats Chamfer on {row['wins']}/{row['cells']} {kind} cells "
+                f"{loss} beats {against} on {row['wins']}/{row['cells']} visual cells "
                 f"({row['share']:.0%})"
             )
-    for key, setup in results["landscape"].items():
-        for loss, row in setup["summary"].items():
-            typer.echo(
-                f"landscape ({key} config) {loss}: median relative error "
-                f"{row['median_relative_error']:.2f}, monotone descent {row['monotone_share']:.0%}"
-            )
+    summary = results["summary"]
+    typer.echo(
+        f"best DR-KFS loss: {summary['best_drkfs_loss']}: beats Chamfer on "
+        f"{summary['share_beats_chamfer']:.0%}, pixel MSE on "
+        f"{summary['share_beats_pixel_mse']:.0%} of the visual cells at "
+        f"{summary['chamfer_l1_ratio']:.2f} x Chamfer's Chamfer-L1"
+    )
     typer.echo(f"{out / 'results.json'}, {out / 'gallery.png'} in {results['seconds_total']:.0f} s")
 
 

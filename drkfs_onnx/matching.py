@@ -76,3 +76,30 @@ def match_score(desc_a: torch.Tensor, desc_b: torch.Tensor, config: PipelineConf
         distances = best_match_distances(queries, targets, config)
         scores.append(match_rules.reduce(distances, torch.ones_like(distances), config, torch))
     return torch.stack(scores).mean()
+
+
+def soft_match_distances(
+    queries: torch.Tensor, targets: torch.Tensor, config: PipelineConfig, temperature: float
+) -> torch.Tensor:
+    """(N, D), (M, D) -> (N,) soft best-match squared distances: each query's candidates (all
+    targets under 'global', its window under 'window') weighted by softmax(-d / temperature),
+    so the match moves smoothly from one candidate to the next instead of jumping. Tends to the
+    hard best match as the temperature falls; a loss form with no runtime counterpart."""
+    if config.matching == "window":
+        table = torch.as_tensor(match_rules.window_table(config).copy(), device=queries.device)
+        squared = ((queries[:, None, :] - targets[table]) ** 2).sum(-1)  # (N, W)
+    else:
+        squared = (queries[:, None, :] - targets[None]).pow(2).sum(-1)  # (N, M)
+    weights = torch.softmax(-squared / temperature, dim=1)
+    return (weights * squared).sum(1)
+
+
+def soft_match_score(
+    desc_a: torch.Tensor, desc_b: torch.Tensor, config: PipelineConfig, temperature: float
+) -> torch.Tensor:
+    """``match_score`` with ``soft_match_distances`` in place of the best matches."""
+    scores = []
+    for queries, targets in match_rules.directions(desc_a, desc_b, config):
+        distances = soft_match_distances(queries, targets, config, temperature)
+        scores.append(match_rules.reduce(distances, torch.ones_like(distances), config, torch))
+    return torch.stack(scores).mean()

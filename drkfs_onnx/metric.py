@@ -148,7 +148,7 @@ class DRKFS(nn.Module):
 
     def score_to(self, verts: torch.Tensor, faces: torch.Tensor, target: Target) -> torch.Tensor:
         """The score of mesh A, (V, 3), (F, 3), against a prepared reference -> ()."""
-        return match_score(self._features_to(verts, faces, target), target.features, self.config)
+        return match_score(self.features_to(verts, faces, target), target.features, self.config)
 
     def patch_distances(
         self, verts: torch.Tensor, faces: torch.Tensor, target: Target
@@ -162,15 +162,16 @@ class DRKFS(nn.Module):
         config = self.config
         grid = (config.num_views, config.patches_per_side, config.patches_per_side)
         pairs = match_rules.directions(
-            self._features_to(verts, faces, target), target.features, config
+            self.features_to(verts, faces, target), target.features, config
         )
         return {
             side: best_match_distances(queries, targets, config).reshape(grid)
             for side, (queries, targets) in zip(match_rules.query_sides(config), pairs, strict=True)
         }
 
-    def _features_to(self, verts: torch.Tensor, faces: torch.Tensor, target: Target):
-        """(K * P, D) descriptors of mesh A placed as the reference ``target`` asks."""
+    def features_to(self, verts: torch.Tensor, faces: torch.Tensor, target: Target):
+        """(K * P, D) descriptors of mesh A, (V, 3), (F, 3), placed as the reference ``target``
+        asks (its frame under 'joint')."""
         return self.features(place_by(verts, self.normalization, target.frame), faces)
 
     def forward(

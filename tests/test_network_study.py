@@ -12,17 +12,16 @@ from typer.testing import CliRunner
 from drkfs_onnx.benchmark.point_metrics import iou, is_watertight
 from drkfs_onnx.cameras import make_cameras
 from drkfs_onnx.cli import app
+from drkfs_onnx.config import PipelineConfig
+from drkfs_onnx.fitting.judges import VISUAL, SilhouetteJudge, unseen_cameras
 from drkfs_onnx.fitting.network import (
     JUDGED,
-    LOSSES,
     PRIMITIVES,
     QUICK_NETWORK,
     TEST_SEED,
     TRAIN_SEED,
     Reconstructor,
-    SilhouetteJudge,
     make_shape,
-    unseen_cameras,
 )
 from drkfs_onnx.fitting.study import slug
 
@@ -48,10 +47,10 @@ def test_training_and_test_shapes_differ_and_are_normalised():
 
 
 def test_silhouette_cameras_are_none_of_the_losses_and_half_look_from_below():
-    cameras = unseen_cameras(QUICK_NETWORK.loss_config, 8)
+    cameras = unseen_cameras(PipelineConfig.loss(), 8)
     assert (cameras.eyes[:, 1] < 0).sum() == 4
-    for views in (2, 6, 25):  # the quick loss, the training config, the paper's
-        trained = make_cameras(QUICK_NETWORK.loss_config.replace(num_views=views)).eyes
+    for views in (2, 6, 12, 25):  # the quick judge, the loss, its coarse stage, the paper's
+        trained = make_cameras(PipelineConfig.loss(num_views=views)).eyes
         distances = np.linalg.norm(cameras.eyes[:, None] - trained[None], axis=-1)
         assert distances.min() > 0.2  # camera distance 2.5: at least ~5 degrees apart
     judge = SilhouetteJudge(QUICK_NETWORK.judge_config, 8)
@@ -74,18 +73,27 @@ def test_quick_network_study_judges_every_test_shape_and_saves_its_meshes(quick_
     out, output = quick_network_study
     results = json.loads((out / "results.json").read_text())
     names = {f"{family} {TEST_SEED}" for family in QUICK_NETWORK.families}
+    losses = [recipe.name for recipe in QUICK_NETWORK.recipes()]
+    assert results["plan"]["losses"] == losses and len(losses) == 5
     assert set(results["table"]) == names
     for name, rows in results["table"].items():
-        assert set(rows) == set(LOSSES)
-        for loss in LOSSES:
+        assert set(rows) == set(losses)
+        for loss in losses:
             assert set(JUDGED) <= set(rows[loss])
             mesh = trimesh.load(out / results["meshes"][name][loss], process=False)
             assert len(mesh.faces) == PRIMITIVES * 320
             assert results["meshes"][name][loss] == f"meshes/{slug(name)}/{slug(loss)}.ply"
-    for loss in LOSSES[1:]:
-        assert results["beats_chamfer"][loss]["cells"] == len(names) * len(JUDGED)
-    # every network starts from the same weights: the first objective is each term's scale
-    assert results["training"]["Chamfer"]["objective_first"] == pytest.approx(1.0)
-    assert results["training"]["DR-KFS"]["objective_first"] == pytest.approx(1.0)
+    for loss in losses[1:]:  # LFD is not asked for in the quick plan
+        assert results["beats_chamfer"][loss]["cells"] == len(names) * (len(VISUAL) - 1)
+    # every network starts from the same weights: the first objective is the sum of the weights
+    for recipe in QUICK_NETWORK.recipes():
+        first = results["training"][recipe.name]["objective_first"]
+        assert first == pytest.approx(sum(w for w, _ in recipe.terms)), recipe.name
+    summary = results["summary"]
+    assert summary["best_drkfs_loss"] in losses[2:]
+    assert (
+        summary["share_beats_pixel_mse"]
+        == (results["beats_pixel_mse"][summary["best_drkfs_loss"]]["share"])
+    )
     assert (out / "gallery.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    assert "beats Chamfer on" in output
+    assert "beats Chamfer on" in output and "best DR-KFS loss:" in output

@@ -29,10 +29,17 @@ TINY = 1e-30
 
 
 def probe(
-    objective: Objective, template: torch.Tensor, faces: torch.Tensor, settings: FitSettings
+    objective: Objective,
+    template: torch.Tensor,
+    faces: torch.Tensor,
+    settings: FitSettings,
+    checks: int = CHECKS,
 ) -> dict:
-    """-> {"checks": [...], "median_relative_error", "monotone_share", "monotone_at_start"}."""
-    checks = []
+    """-> {"checks": [...], "median_relative_error", "monotone_share", "monotone_at_start"}.
+
+    The probe runs the fit's first ``checks`` x EVERY steps, each at the progress it has in the
+    whole fit (``settings.steps``), so a staged loss is probed at the stage the fit is in."""
+    found = []
 
     def check(step: int, verts: torch.Tensor, delta: torch.Tensor) -> None:
         if step % EVERY:
@@ -49,7 +56,7 @@ def probe(
                 float(objective(verts + k * vertex_step * downhill))
                 for k in range(1, DESCENT_POINTS + 1)
             ]
-        checks.append(
+        found.append(
             {
                 "step": step,
                 "vertex_step": vertex_step,
@@ -61,10 +68,11 @@ def probe(
             }
         )
 
-    fit_mesh(objective, template, faces, replace(settings, steps=CHECKS * EVERY), check)
+    short = replace(settings, steps=checks * EVERY)
+    fit_mesh(objective, template, faces, short, check, total_steps=settings.steps)
     return {
-        "checks": checks,
-        "median_relative_error": float(np.median([c["relative_error"] for c in checks])),
-        "monotone_share": float(np.mean([c["monotone"] for c in checks])),
-        "monotone_at_start": checks[0]["monotone"],
+        "checks": found,
+        "median_relative_error": float(np.median([c["relative_error"] for c in found])),
+        "monotone_share": float(np.mean([c["monotone"] for c in found])),
+        "monotone_at_start": found[0]["monotone"],
     }

@@ -15,6 +15,7 @@ import numpy as np
 import torch
 
 from ..benchmark.point_metrics import sample_surface
+from ..loss import DrkfsLoss
 from ..metric import DRKFS
 from .geometry import Smoothness, chamfer, surface_points
 
@@ -26,16 +27,19 @@ def float_tensor(array: np.ndarray) -> torch.Tensor:
     return torch.as_tensor(np.asarray(array, dtype=np.float32))
 
 
-class DrkfsLoss:
-    """DR-KFS of the prediction against the target, whose features are computed once."""
+class DrkfsTerm:
+    """A DR-KFS loss form (``loss.DrkfsLoss``: its stages and match) of the prediction against
+    the target, prepared once; ``at(progress)`` says how far the fit has come."""
 
-    def __init__(self, metric: DRKFS, target_verts: np.ndarray, target_faces: np.ndarray, faces):
-        self.metric, self.faces = metric, faces
-        with torch.no_grad():
-            self.target = metric.target(float_tensor(target_verts), torch.as_tensor(target_faces))
+    def __init__(self, loss: DrkfsLoss, target_verts: np.ndarray, target_faces: np.ndarray, faces):
+        self.loss, self.faces, self.progress = loss, faces, 0.0
+        self.target = loss.target(float_tensor(target_verts), torch.as_tensor(target_faces))
+
+    def at(self, progress: float) -> None:
+        self.progress = progress
 
     def __call__(self, verts: torch.Tensor) -> torch.Tensor:
-        return self.metric.score_to(verts, self.faces, self.target)
+        return self.loss(verts, self.faces, self.target, self.progress)
 
 
 class ChamferLoss:
@@ -65,12 +69,20 @@ class PixelLoss:
 
 
 class Objective:
-    """sum_i weight_i * loss_i(verts) / loss_i(template): each term starts at its weight."""
+    """sum_i weight_i * loss_i(verts) / loss_i(template): each term starts at its weight (a
+    staged term at its first stage; its later stages keep that scale)."""
 
     def __init__(self, terms: list[tuple[float, object]], template: torch.Tensor):
         self.terms = terms
+        self.at(0.0)
         with torch.no_grad():
             self.scales = [max(float(loss(template)), 1e-12) for _, loss in terms]
+
+    def at(self, progress: float) -> None:
+        """Tell the terms that change with training (``DrkfsTerm``) how far the fit has come."""
+        for _, loss in self.terms:
+            if isinstance(loss, DrkfsTerm):
+                loss.at(progress)
 
     def __call__(self, verts: torch.Tensor) -> torch.Tensor:
         parts = [w * loss(verts) / s for (w, loss), s in zip(self.terms, self.scales, strict=True)]
@@ -100,16 +112,20 @@ def fit_mesh(
     faces: torch.Tensor,
     settings: FitSettings,
     watch: Watch | None = None,
+    total_steps: int | None = None,
 ) -> FitResult:
     """Optimise per-vertex offsets of ``template`` (V, 3) with Adam; the loss each step is
     objective + smoothness * Smoothness. ``watch(step, verts (V, 3), delta (V, 3))`` sees each
-    step's starting vertices and the move the optimiser made from them."""
+    step's starting vertices and the move the optimiser made from them. A staged objective is
+    told each step's progress, step / ``total_steps`` (default: the settings' steps; the first
+    steps of a longer fit pass its length)."""
     smooth = Smoothness(template, faces)
     offsets = torch.zeros_like(template, requires_grad=True)
     optimizer = torch.optim.Adam([offsets], lr=settings.learning_rate)
     history = []
     start = time.perf_counter()
     for step in range(settings.steps):
+        objective.at(step / (total_steps or settings.steps))
         verts = template + offsets
         value = objective(verts)
         loss = value + settings.smoothness * smooth(verts)

@@ -1,6 +1,7 @@
-"""``drkfs fit --network``: the paper's setting, small. A network reconstructs procedural shapes
-from a sample of their surface points; it is trained once per loss from the same initial
-weights on the same batches, and judged on held-out seeds by metrics neither loss computes.
+"""``drkfs fit --network``: the paper's setting. A network reconstructs procedural shapes from a
+sample of their surface points; it is trained once per loss (Chamfer, pixel MSE, the DR-KFS loss
+and its combinations, as the fitting study's loss study chose them) from the same initial
+weights on the same batches, and judged on held-out seeds by metrics no loss computes.
 
 The decoder deforms PRIMITIVES icospheres (AtlasNet's idea with closed patches, so the result is
 watertight and has a volume): vertex = anchor_k + RADIUS * u + MLP(code, e_k, u) for each unit
@@ -22,18 +23,16 @@ import torch
 import trimesh
 from torch import nn
 
-from ..benchmark.point_metrics import iou, sample_surface
-from ..cameras import Cameras, hemisphere_directions, look_at, make_cameras
+from ..benchmark.point_metrics import sample_surface
 from ..config import PipelineConfig
 from ..mesh import frame_of, place
-from ..metric import DRKFS
-from ..render import Renderer
 from ..synthetic.shapes import assemble, random_shape
 from .gallery import write_gallery
-from .geometry import Smoothness, chamfer, surface_points
-from .judges import HIGHER_IS_BETTER, Judge
-from .mesh_fit import CHAMFER_SAMPLES, TARGET_SAMPLES, DrkfsLoss, float_tensor
-from .study import chamfer_ratios, save_mesh, share, slug
+from .geometry import Smoothness
+from .judges import HIGHER_IS_BETTER, SURFACE, UNSEEN_VIEWS, VISUAL, Judge
+from .losses import CHAMFER, PIXEL, Recipe, Terms, alone, with_chamfer, with_pixel
+from .mesh_fit import DrkfsTerm, float_tensor
+from .study import _column, chamfer_ratios, save_mesh, share, slug, summary
 
 # seeds of the shapes the network trains and is tested on: disjoint from the benchmark's
 # (2026-2028), the held-out checks' (3000-3002) and the nets' training data (seeds 0-2)
@@ -43,10 +42,7 @@ PRIMITIVES = 8
 SPHERE_LEVEL = 2  # 162 vertices, 320 faces per primitive: 2,560 faces in all
 RADIUS = 0.25  # each primitive starts as a sphere of this radius at its anchor
 ANCHOR = 0.35  # anchors start at the corners of a cube of this half size
-UNSEEN_TURN = np.pi / 4  # radians
-SILHOUETTE = 0.5  # a pixel belongs to the silhouette where the soft coverage passes this
-JUDGED = ("F-score 1%", "normal consistency", "volumetric IoU", "silhouette IoU", "DR-KFS")
-LOSSES = ("Chamfer", "DR-KFS", "DR-KFS + lambda*Chamfer")
+JUDGED = (*SURFACE, "volumetric IoU", *VISUAL)
 
 
 @dataclass(frozen=True)
@@ -58,25 +54,38 @@ class NetworkPlan:
     batch: int
     learning_rate: float
     smoothness: float  # weight of the primitives' Laplacian smoothness beside losses starting at 1
-    weight: float  # lambda of DR-KFS + lambda*Chamfer: the fitting study's choice
-    loss_config: PipelineConfig  # the DR-KFS loss's config
+    # the DR-KFS loss and its weights beside pixel MSE and Chamfer: the fitting study's loss
+    # study's choice (bench/fit/results.json, "loss_study")
+    form: str
+    pixel_weight: float
+    chamfer_weight: float
     judge_config: PipelineConfig  # the paper preset, as a judge
-    unseen_views: int  # silhouette cameras, none of them among the loss's
+    lfd: bool = True  # judge with LFD where it is installed
+    unseen_views: int = UNSEEN_VIEWS  # the silhouette judge's cameras
     seed: int = 0
+
+    def recipes(self) -> list[Recipe]:
+        return [
+            alone(CHAMFER),
+            alone(PIXEL),
+            alone(self.form),
+            with_pixel(self.form, self.pixel_weight),
+            with_chamfer(self.form, self.chamfer_weight),
+        ]
 
 
 FULL = NetworkPlan(
     families=("chair", "table", "lamp", "airplane"),
-    train_per_family=16,
-    test_per_family=3,
-    steps=500,
+    train_per_family=32,
+    test_per_family=4,
+    steps=2000,
     batch=2,
     learning_rate=1e-3,
     smoothness=10.0,
-    weight=10.0,
-    loss_config=PipelineConfig.training(),
+    form="window r0 mean, coarse to fine",
+    pixel_weight=1.0,
+    chamfer_weight=10.0,
     judge_config=PipelineConfig.paper(),
-    unseen_views=8,
 )
 QUICK_NETWORK = replace(
     FULL,
@@ -84,8 +93,8 @@ QUICK_NETWORK = replace(
     train_per_family=2,
     test_per_family=1,
     steps=2,
-    loss_config=PipelineConfig.training(num_views=2, image_size=64),
-    judge_config=PipelineConfig.paper(num_views=4, image_size=128),
+    judge_config=PipelineConfig.paper(num_views=2, image_size=64),
+    lfd=False,
     unseen_views=2,
 )
 
@@ -95,7 +104,6 @@ class Shape(NamedTuple):
     verts: np.ndarray  # (V, 3) float64 in its normalised frame
     faces: np.ndarray  # (F, 3) int64
     points: torch.Tensor  # (INPUT_POINTS, 3) the network's input
-    samples: torch.Tensor  # (TARGET_SAMPLES, 3) the Chamfer loss's target points
 
 
 def make_shape(family: str, seed: int) -> Shape:
@@ -106,7 +114,6 @@ def make_shape(family: str, seed: int) -> Shape:
         verts,
         faces,
         float_tensor(sample_surface(verts, faces, INPUT_POINTS, seed).points),
-        float_tensor(sample_surface(verts, faces, TARGET_SAMPLES, seed + 1).points),
     )
 
 
@@ -173,49 +180,20 @@ class Reconstructor(nn.Module):
         return verts.reshape(b, k * v, 3)
 
 
-class Losses:
-    """Each loss of LOSSES for one predicted mesh against a training shape, its targets
-    prepared once for every network (DR-KFS features at the loss config, Chamfer samples).
-    ``reseed`` restarts the Chamfer draws, so every network sees the same ones."""
-
-    def __init__(self, metric: DRKFS, train: list[Shape], faces: torch.Tensor):
-        self.faces = faces
-        self.drkfs_losses = [DrkfsLoss(metric, s.verts, s.faces, faces) for s in train]
-        self.samples = [s.samples for s in train]
-        self.generator = torch.Generator()
-
-    def reseed(self, seed: int) -> None:
-        self.generator.manual_seed(seed)
-
-    def chamfer(self, verts: torch.Tensor, index: int) -> torch.Tensor:
-        points = surface_points(verts, self.faces, CHAMFER_SAMPLES, self.generator)
-        return chamfer(points, self.samples[index])
-
-    def drkfs(self, verts: torch.Tensor, index: int) -> torch.Tensor:
-        return self.drkfs_losses[index](verts)
+def targets(recipe: Recipe, train: list[Shape], faces: torch.Tensor, terms: Terms) -> list:
+    """Each training shape's (weight, term) pairs of ``recipe``, its targets prepared once."""
+    return [[(w, terms.term(t, s.verts, s.faces, faces)) for w, t in recipe.terms] for s in train]
 
 
-def terms(loss: str, weight: float, losses: Losses) -> list[tuple[float, object]]:
-    if loss == "Chamfer":
-        return [(1.0, losses.chamfer)]
-    if loss == "DR-KFS":
-        return [(1.0, losses.drkfs)]
-    if loss == "DR-KFS + lambda*Chamfer":
-        return [(1.0, losses.drkfs), (weight, losses.chamfer)]
-    raise ValueError(f"unknown loss {loss!r}; use one of {', '.join(LOSSES)}")
-
-
-def train(plan: NetworkPlan, loss: str, points: torch.Tensor, losses: Losses, progress) -> dict:
-    """One network trained with ``loss`` on the training shapes' input ``points`` (S, N, 3) ->
-    {"model", "history", "seconds_per_step"}. Every loss starts from the same weights and sees
-    the same batches; each term is divided by its mean over the first batch, so one smoothness
-    weight and one step size serve them all."""
+def train(plan: NetworkPlan, recipe: Recipe, points: torch.Tensor, shape_terms: list, progress):
+    """One network trained with ``recipe`` on the training shapes' input ``points`` (S, N, 3)
+    -> {"model", "history", "seconds_per_step"}. Every recipe starts from the same weights and
+    sees the same batches (and the same Chamfer draws); each term is divided by its mean over
+    the first batch, so one smoothness weight and one step size serve them all."""
     torch.manual_seed(plan.seed)
     model = Reconstructor()
     smooth = Smoothness(model.spheres().detach(), model.faces)
-    losses.reseed(plan.seed)
-    parts = terms(loss, plan.weight, losses)
-    weights = torch.tensor([w for w, _ in parts])
+    weights = torch.tensor([w for w, _ in recipe.terms])
     rng = np.random.default_rng(plan.seed)
     optimizer = torch.optim.Adam(model.parameters(), lr=plan.learning_rate)
     scales, history = None, []
@@ -223,12 +201,13 @@ def train(plan: NetworkPlan, loss: str, points: torch.Tensor, losses: Losses, pr
     for step in range(plan.steps):
         batch = rng.choice(len(points), size=plan.batch, replace=False)
         predicted = model(points[batch])
-        values = torch.stack(
-            [
-                torch.stack([term(verts, int(i)) for _, term in parts])
-                for verts, i in zip(predicted, batch, strict=True)
-            ]
-        ).mean(0)  # (terms,)
+        values = []
+        for verts, index in zip(predicted, batch, strict=True):
+            for _, term in shape_terms[index]:
+                if isinstance(term, DrkfsTerm):
+                    term.at(step / plan.steps)
+            values.append(torch.stack([term(verts) for _, term in shape_terms[index]]))
+        values = torch.stack(values).mean(0)  # (terms,)
         if scales is None:
             scales = values.detach().clamp_min(1e-12)
         objective = (weights * values / scales).sum()
@@ -238,33 +217,9 @@ def train(plan: NetworkPlan, loss: str, points: torch.Tensor, losses: Losses, pr
         optimizer.step()
         history.append(float(objective.detach()))
         if step % max(1, plan.steps // 10) == 0:
-            progress(f"{loss}: step {step} objective {history[-1]:.4f}")
+            progress(f"{recipe.name}: step {step} objective {history[-1]:.4f}")
     seconds = (time.perf_counter() - start) / max(plan.steps, 1)
     return {"model": model, "history": history, "seconds_per_step": seconds}
-
-
-def unseen_cameras(config: PipelineConfig, count: int) -> Cameras:
-    """``count`` cameras at the config's distance, every other one below the horizon: a
-    ``count``-point spiral turned by UNSEEN_TURN about the vertical, so that it shares no camera
-    with the spirals the losses use (which all start at azimuth 0)."""
-    directions = hemisphere_directions(count)
-    c, s = np.cos(UNSEEN_TURN), np.sin(UNSEEN_TURN)
-    directions = directions @ np.array([[c, 0.0, -s], [0.0, 1.0, 0.0], [s, 0.0, c]])
-    directions[1::2, 1] *= -1.0
-    eyes = directions * config.camera_distance
-    return Cameras(rotations=look_at(eyes), eyes=eyes, focal=make_cameras(config).focal)
-
-
-class SilhouetteJudge:
-    """Silhouette masks of meshes seen from ``unseen_cameras`` (compare them with ``iou``)."""
-
-    def __init__(self, config: PipelineConfig, count: int):
-        self.renderer = Renderer(config, unseen_cameras(config, count))
-
-    @torch.no_grad()
-    def mask(self, verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
-        alpha = self.renderer.render(float_tensor(verts), torch.as_tensor(faces), "silhouette")
-        return alpha.numpy() > SILHOUETTE
 
 
 def run_network_study(out: Path, quick: bool, threads: int = 2, progress=print) -> dict:
@@ -274,35 +229,38 @@ def run_network_study(out: Path, quick: bool, threads: int = 2, progress=print) 
     train_set = shapes(plan, TRAIN_SEED, plan.train_per_family)
     test_set = shapes(plan, TEST_SEED, plan.test_per_family)
     _, faces = primitives()
-    losses = Losses(DRKFS.pretrained(plan.loss_config), train_set, faces)
     points = torch.stack([s.points for s in train_set])
-    trained = {loss: train(plan, loss, points, losses, progress) for loss in LOSSES}
-
-    judge = Judge(plan.judge_config, threads)
-    silhouettes = SilhouetteJudge(plan.judge_config, plan.unseen_views)
+    terms, recipes = Terms(), plan.recipes()
+    trained = {
+        recipe.name: train(plan, recipe, points, targets(recipe, train_set, faces, terms), progress)
+        for recipe in recipes
+    }
+    judge = Judge(plan.judge_config, threads, plan.unseen_views, plan.lfd)
     faces = faces.numpy()
     table, meshes, gallery = {}, {}, []
-    for shape in test_set:
-        folder = out / "meshes" / slug(shape.name)
-        target = judge.prepare(shape.verts, shape.faces)
-        target_mask = silhouettes.mask(shape.verts, shape.faces)
-        rows, row_meshes = {}, [(shape.verts, shape.faces)]
-        meshes[shape.name] = {"target": save_mesh(folder / "target.ply", shape.verts, shape.faces)}
-        for loss, result in trained.items():
-            model = result["model"]
-            with torch.no_grad():
-                verts = model(shape.points[None])[0].double().numpy()
-            rows[loss] = judge.compare(judge.prepare(verts, faces), target)
-            rows[loss]["silhouette IoU"] = iou(silhouettes.mask(verts, faces), target_mask)
-            meshes[shape.name][loss] = save_mesh(folder / f"{slug(loss)}.ply", verts, faces)
-            row_meshes.append((verts, faces))
-        table[shape.name] = rows
-        gallery.append((shape.name, row_meshes))
-        progress(
-            f"{shape.name}: " + "; ".join(f"{k} {v['F-score 1%']:.3f}" for k, v in rows.items())
-        )
-    write_gallery(out / "gallery.png", ["TARGET", "CHAMFER", "DR-KFS", "DR-KFS+CHAMFER"], gallery)
-
+    try:
+        for shape in test_set:
+            folder = out / "meshes" / slug(shape.name)
+            target = judge.prepare(shape.verts, shape.faces)
+            rows, row_meshes = {}, [(shape.verts, shape.faces)]
+            meshes[shape.name] = {
+                "target": save_mesh(folder / "target.ply", shape.verts, shape.faces)
+            }
+            for name, result in trained.items():
+                with torch.no_grad():
+                    verts = result["model"](shape.points[None])[0].double().numpy()
+                rows[name] = judge.compare(judge.prepare(verts, faces), target)
+                meshes[shape.name][name] = save_mesh(folder / f"{slug(name)}.ply", verts, faces)
+                row_meshes.append((verts, faces))
+            table[shape.name] = rows
+            gallery.append((shape.name, row_meshes))
+            progress(
+                f"{shape.name}: " + "; ".join(f"{k} {v['F-score 1%']:.3f}" for k, v in rows.items())
+            )
+    finally:
+        judge.close()
+    write_gallery(out / "gallery.png", ["TARGET", *(_column(r.name) for r in recipes)], gallery)
+    names = [r.name for r in recipes]
     results = {
         "command": f"drkfs fit --network{' --quick' if quick else ''} --out {out}",
         "quick": quick,
@@ -310,37 +268,43 @@ def run_network_study(out: Path, quick: bool, threads: int = 2, progress=print) 
         "torch_threads": torch.get_num_threads(),
         "platform": platform.platform(),
         "device": "cpu",
+        "lfd": judge.lfd_note,
         "plan": {
-            **{k: v for k, v in asdict(plan).items() if not k.endswith("_config")},
-            "loss_config": plan.loss_config.to_dict(),
+            **{k: v for k, v in asdict(plan).items() if k != "judge_config"},
             "judge_config": plan.judge_config.to_dict(),
+            "losses": names,
             "train_seeds": [TRAIN_SEED, TRAIN_SEED + plan.train_per_family - 1],
             "test_seeds": [TEST_SEED, TEST_SEED + plan.test_per_family - 1],
             "network": f"PointNet encoder ({INPUT_POINTS} points) -> {PRIMITIVES} deformed "
             f"icospheres (level {SPHERE_LEVEL})",
-            "parameters": sum(p.numel() for p in trained[LOSSES[0]]["model"].parameters()),
+            "parameters": sum(p.numel() for p in trained[names[0]]["model"].parameters()),
         },
         "judged": list(JUDGED),
+        "visual": list(VISUAL),
         "higher_is_better": sorted(HIGHER_IS_BETTER & set(JUDGED)),
         "table": table,
         "meshes": meshes,
         "training": {
-            loss: {
+            name: {
                 "objective_first": r["history"][0],
                 "objective_last": r["history"][-1],
                 "seconds_per_step": r["seconds_per_step"],
             }
-            for loss, r in trained.items()
+            for name, r in trained.items()
         },
-        "beats_chamfer": {loss: share(table, loss, JUDGED) for loss in LOSSES[1:]},
-        "chamfer_l1_over_chamfer_trained": chamfer_ratios(table, LOSSES),
+        "beats_chamfer": {n: share(table, n, CHAMFER, VISUAL) for n in names[1:]},
+        "beats_pixel_mse": {n: share(table, n, PIXEL, VISUAL) for n in names if n != PIXEL},
+        "chamfer_l1_over_chamfer_trained": chamfer_ratios(table, names),
         "means": {
-            loss: {
-                m: float(np.mean([r[loss][m] for r in table.values() if r[loss][m] is not None]))
-                for m in (*JUDGED, "Chamfer-L1")
+            name: {
+                m: float(np.mean(found))
+                if (found := [r[name][m] for r in table.values() if r[name][m] is not None])
+                else None
+                for m in JUDGED
             }
-            for loss in LOSSES
-        },
+            for name in names
+        },  # fmt: skip
+        "summary": summary(table, recipes, plan.form),
     }
     results["seconds_total"] = time.perf_counter() - start
     (out / "results.json").write_text(json.dumps(results, indent=1))

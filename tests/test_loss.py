@@ -1,0 +1,69 @@
+"""DR-KFS as a training loss: the loss preset, its coarse-to-fine stages and the soft match."""
+
+from pathlib import Path
+
+import pytest
+import torch
+
+from drkfs_onnx import PipelineConfig, load_mesh
+from drkfs_onnx.loss import COARSE_TO_FINE, DrkfsLoss, SoftMatch, Stage
+from drkfs_onnx.matching import best_match_distances, soft_match_distances
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+
+
+def _mesh(name: str):
+    mesh = load_mesh(EXAMPLES / name)
+    return torch.tensor(mesh.vertices, dtype=torch.float32), torch.tensor(mesh.faces)
+
+
+def test_the_loss_preset_is_the_training_renderer_with_a_position_aligned_mean():
+    config = PipelineConfig.loss()
+    assert (config.sigma, config.gamma) == (PipelineConfig.training().sigma, 0.1)
+    assert (config.matching, config.window, config.reduction) == ("window", 0, "mean")
+    assert config.features_part() == PipelineConfig.training().features_part()  # same nets
+
+
+def test_each_stage_runs_until_its_share_of_training_and_scores_a_mesh_zero_against_itself():
+    loss = DrkfsLoss.pretrained()
+    assert [loss.stage(p) for p in (0.0, 0.39, 0.4, 0.9, 1.0)] == [0, 0, 1, 1, 1]
+    verts, faces = _mesh("chair.obj")
+    target = loss.target(verts, faces)
+    assert len(target) == len(COARSE_TO_FINE)
+    for progress in (0.0, 1.0):
+        assert loss(verts, faces, target, progress).item() == 0.0
+    moved = verts.clone().requires_grad_(True)
+    value = loss(moved + torch.tensor([0.02, 0.0, 0.0]), faces, target, 0.0)
+    value.backward()
+    assert value.item() > 0 and torch.isfinite(moved.grad).all() and moved.grad.abs().sum() > 0
+
+
+def test_a_schedule_must_end_with_a_stage_that_runs_to_the_end():
+    with pytest.raises(ValueError, match="last stage"):
+        DrkfsLoss([], (Stage(PipelineConfig.loss(), 0.5),), None)
+
+
+def test_the_soft_match_anneals_and_tends_to_the_best_match():
+    soft = SoftMatch(start=0.1, end=0.01)
+    assert soft.temperature(0.0) == pytest.approx(0.1) and soft.temperature(1.0) == pytest.approx(
+        0.01
+    )
+    config = PipelineConfig.loss(window=1)
+    size = config.num_views * config.patches_per_view
+    generator = torch.Generator().manual_seed(0)
+    queries = torch.nn.functional.normalize(torch.randn(size, 8, generator=generator), dim=1)
+    targets = torch.nn.functional.normalize(torch.randn(size, 8, generator=generator), dim=1)
+    hard = best_match_distances(queries, targets, config)
+    cold = soft_match_distances(queries, targets, config, 1e-4)
+    warm = soft_match_distances(queries, targets, config, 1.0)
+    assert torch.allclose(cold.double(), hard.double(), atol=1e-5)
+    assert (warm > hard - 1e-6).all() and (
+        warm > hard + 1e-3
+    ).any()  # a weighted mean of the window
+
+
+def test_the_soft_loss_scores_a_mesh_zero_against_itself_only_in_the_limit():
+    loss = DrkfsLoss.pretrained((Stage(PipelineConfig.loss(window=1), 1.0),), SoftMatch())
+    verts, faces = _mesh("chair.obj")
+    target = loss.target(verts, faces)
+    assert loss(verts, faces, target, 1.0).item() < loss(verts, faces, target, 0.0).item()
