@@ -32,9 +32,11 @@ MATCH_FIELDS = (
 @dataclass(frozen=True)
 class PipelineConfig:
     """Pipeline numbers. The renderer, detector and patch numbers follow the DR-KFS paper and
-    SoftRas; the cameras, image size, HardNet width and match are the cheapest setting within
-    one point of the best structural-ranking accuracy on the project's benchmark
-    (``bench/match_study.py``). ``PipelineConfig.paper()`` is the paper's recipe.
+    SoftRas; the cameras, image size, HardNet width, nets and match were chosen on the project's
+    benchmark by the rule of ``bench/match_study.py`` (the most of its goals met on the three
+    tiers of change, people's judgments, retrieval and the bars test; docs/matching.md).
+    ``PipelineConfig.paper()`` is the paper's recipe, ``structure()`` the same nets with the
+    previous default's match, ``loss()`` the form a training loss takes.
 
     Geometry is in a y-up world where a normalised mesh fits the unit sphere. Cameras sit on the
     upper hemisphere at ``camera_distance`` looking at the origin. Screen distances (``sigma``)
@@ -68,7 +70,7 @@ class PipelineConfig:
     patch_stride: int = 16
     descriptor_dim: int = 128
     descriptor_width: float = 0.5
-    nets: str = "correspondence"
+    nets: str = "metric"
     # Instance-norm eps of HardNet's input: sqrt(eps) = 0.03 is a contrast floor. With 1e-6 a flat
     # PoI patch was normalised float rounding, and torch and onnxruntime descriptors of
     # near-flat patches differed by 4e-4.
@@ -78,13 +80,15 @@ class PipelineConfig:
     # in row and column; 0 is the same position). direction: 'forward' (A's patches search B, the
     # paper), 'backward' (B's search A: sees parts missing from A), 'both' (their mean: a part
     # missing from either side counts, and match(a, b) == match(b, a)).
-    matching: str = "global"
+    matching: str = "window"
     window: int = 0
     direction: str = "both"
     # Reduction of the best-match squared distances (see ``match_rules.reduce``): 'sum' and
     # 'mean' (the paper), 'tail' (mean of the largest ``tail_fraction`` of them), 'power' (power
-    # mean of order ``power``), 'softmax' (log-mean-exp at ``temperature``).
-    reduction: str = "power"
+    # mean of order ``power``), 'softmax' (log-mean-exp at ``temperature``: near the mean where
+    # every patch moves a little, as on a simplified surface; near the maximum where a few
+    # patches move a lot, as where a part is missing).
+    reduction: str = "softmax"
     tail_fraction: float = 0.05
     power: float = 8.0
     temperature: float = 0.1
@@ -138,21 +142,25 @@ class PipelineConfig:
 
     @classmethod
     def structure(cls, **changes: Any) -> PipelineConfig:
-        """The default's cameras and match with the nets fine-tuned to rank the metric's own
-        structural edits above its mild ones (``drkfs train``'s metric stage): the best
-        structural ranking on the benchmark, at the cost of shape retrieval, which is why it is
-        not the default (docs/training.md)."""
-        return cls(**{"nets": "metric", **changes})
+        """The default's nets and cameras with the previous default's match: every patch
+        searches all of the other mesh's (global, both directions) and the best-match distances
+        are reduced by their power mean of order 8, which listens to the few patches a missing
+        part changes. It ranks structure a little higher and surface defects and people's
+        judgments lower than the default (docs/matching.md)."""
+        previous = dict(matching="global", direction="both", reduction="power", power=8.0)
+        return cls(**{"nets": "metric", **previous, **changes})
 
     @classmethod
     def training(cls, **changes: Any) -> PipelineConfig:
-        """The default metric with a softer renderer, for a loss an optimiser follows: SoftRas'
+        """The first studies' DR-KFS as a loss: the correspondence nets and the previous
+        default's match (global, both, power mean of order 8) with a softer renderer, SoftRas'
         reconstruction sigma (1e-4) and a depth blend of gamma 0.1 instead of SoftRas' 1e-4,
         under which the nearest face takes a pixel almost outright and a step that reorders two
-        faces jumps the loss. Same nets as the default (they rank structure as well on these
-        renders); the fitting study measures its gradients (README, "DR-KFS as a training
-        loss")."""
-        return cls(**{"sigma": 1e-4, "gamma": 0.1, **changes})
+        faces jumps the loss. ``loss()`` is what the loss study chose over it (docs/fitting.md)."""
+        first = dict(
+            nets="correspondence", matching="global", direction="both", reduction="power", power=8.0
+        )
+        return cls(**{"sigma": 1e-4, "gamma": 0.1, **first, **changes})
 
     @classmethod
     def loss(cls, **changes: Any) -> PipelineConfig:

@@ -16,11 +16,20 @@ def test_paper_preset_is_the_papers_pipeline():
     assert config.descriptor_dim == 128
 
 
-def test_training_preset_is_the_default_with_a_softer_renderer():
+def test_training_preset_is_the_previous_default_with_a_softer_renderer():
     training, default = PipelineConfig.training(), PipelineConfig()
     assert training.sigma > default.sigma and training.gamma > default.gamma
-    assert training.replace(sigma=default.sigma, gamma=default.gamma) == default
+    previous = PipelineConfig.structure(nets="correspondence")
+    assert training.replace(sigma=default.sigma, gamma=default.gamma) == previous
     assert PipelineConfig.training(num_views=2).num_views == 2
+
+
+def test_presets_share_the_defaults_cameras_and_differ_in_nets_and_match():
+    default, structure = PipelineConfig(), PipelineConfig.structure()
+    assert (default.nets, default.matching, default.reduction) == ("metric", "window", "softmax")
+    assert structure.features_part() == default.features_part()  # the same descriptors
+    assert (structure.matching, structure.reduction, structure.power) == ("global", "power", 8.0)
+    assert PipelineConfig.paper().nets == PipelineConfig.loss().nets == "correspondence"
 
 
 def test_config_is_frozen_and_round_trips_through_json():

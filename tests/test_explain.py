@@ -26,13 +26,20 @@ def test_the_top_patch_of_each_view_that_sees_the_missing_leg_lies_where_the_leg
     leg = np.abs(no_leg.views["b"] - no_leg.views["a"]) > CHANGED  # (K, S, S), B's frame
     seeing = [view for view in range(config.num_views) if leg[view].sum() >= 20]
     assert len(seeing) >= 3
+    side, size, stride = config.patches_per_side, config.patch_size, config.patch_stride
+
+    def held(view: int, row: int, column: int) -> int:
+        """How many of the leg's pixels the patch at (row, column) of ``view`` covers."""
+        return leg[
+            view, stride * row : stride * row + size, stride * column : stride * column + size
+        ].sum()
+
     for view in seeing:
         # the reference's patches search the chair without the leg: the leg's patch finds none
-        row, column = np.unravel_index(no_leg.shares["b"][view].argmax(), (7, 7))
-        window = leg[view, 16 * row : 16 * row + 32, 16 * column : 16 * column + 32]
-        assert window.sum() >= 0.5 * leg[view].sum(), (view, row, column)
-    best = no_leg.top_patches(1)[0]
-    assert best["mesh"] == "b" and best["view"] in seeing
+        row, column = np.unravel_index(no_leg.shares["b"][view].argmax(), (side, side))
+        most = max(held(view, r, c) for r in range(side) for c in range(side))
+        assert held(view, row, column) >= 0.6 * most, (view, row, column)
+    assert no_leg.top_patches(1)[0]["view"] in seeing
 
 
 def test_shares_sum_to_one_over_both_meshes_and_zero_is_clear(no_leg):

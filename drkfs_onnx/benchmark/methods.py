@@ -30,6 +30,7 @@ RETRIEVAL_SAMPLES = 10_000
 DEFAULT_NAME = "DR-KFS"  # the shipped default config, marked "default": true in results.json
 PAPER_NAME = "DR-KFS paper"  # PipelineConfig.paper(), marked "preset": "paper"
 STRUCTURE_NAME = "DR-KFS structure"  # PipelineConfig.structure(), marked "preset": "structure"
+PREVIOUS_NAME = "DR-KFS previous default"  # before issue 30: correspondence nets, global power 8
 
 
 @dataclass
@@ -178,15 +179,16 @@ def _match_of(config: PipelineConfig) -> dict:
 
 
 def drkfs_configs(views: int | None = None) -> dict[str, PipelineConfig]:
-    """The DR-KFS rows of the benchmark by name: the default, the paper and structure presets
-    (the structure preset is the default with the metric-trained nets: what that training
-    contributes), and the default and paper each with the other's match (what the cameras and
-    what the match contribute). ``views`` caps the camera count (the quick run)."""
+    """The DR-KFS rows of the benchmark by name: the default, the paper and structure presets,
+    the previous default (the structure preset's match with the correspondence nets), and the
+    default and paper each with the other's match (what the cameras and what the match
+    contribute). ``views`` caps the camera count (the quick run)."""
     default, paper = PipelineConfig(), PipelineConfig.paper()
     configs = {
         DEFAULT_NAME: default,
         PAPER_NAME: paper,
         STRUCTURE_NAME: PipelineConfig.structure(),
+        PREVIOUS_NAME: PipelineConfig.structure(nets="correspondence"),
         "DR-KFS default cameras, paper match": default.replace(**_match_of(paper)),
         "DR-KFS paper cameras, default match": paper.replace(**_match_of(default)),
     }

@@ -40,9 +40,7 @@ FORMS: dict[str, tuple[tuple[Stage, ...], SoftMatch | None]] = {
     "window r0 power 2": (_fine(reduction="power", power=2.0), None),
     "window r1 mean": (_fine(window=1), None),
     "soft match, window r1": (_fine(window=1), SoftMatch()),
-    "soft match, global": (_fine(matching="global"), SoftMatch()),
     "window r0 mean, coarse to fine": (_coarse_to_fine(), None),
-    "window r0 power 2, coarse to fine": (_coarse_to_fine(reduction="power", power=2.0), None),
     "soft match, window r1, coarse to fine": (_coarse_to_fine(window=1), SoftMatch()),
 }
 

@@ -73,7 +73,7 @@ FULL = StudyPlan(
     problems=("chair:3", "table:3", "airplane:3", "cow", "homer", "fandisk"),
     tuning=("sofa:3", "cheburashka"),
     forms=tuple(FORMS),
-    pixel_weights=(0.3, 1.0, 3.0),
+    pixel_weights=(0.3, 1.0),
     chamfer_weights=(1.0, 10.0),
 )
 QUICK_STUDY = StudyPlan(

@@ -95,7 +95,7 @@ QUICK_TRAIN = TrainPlan(
     hardnet_steps=6,
     hardnet_batch=32,
     checkpoint_every=3,
-    config=PipelineConfig(num_views=4, image_size=128).to_dict(),
+    config=PipelineConfig(num_views=4, image_size=128, nets="correspondence").to_dict(),
     metric=MetricPlan(
         shapes_per_family=2,
         objectives=("ranking", "patch contrast"),
