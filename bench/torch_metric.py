@@ -7,9 +7,11 @@ Meshes come from ../shared/meshes (read in place): woody (~1k faces), cow (~5k),
 memory (max RSS) is its own. The sparse renderer is compared with the dense reference of the
 tests at a size where the dense one runs, in the same run.
 
-The training step: one DR-KFS step at ``PipelineConfig.training()`` of the network study's
-prediction (8 deformed icospheres, 2,560 faces) against a prepared synthetic chair, render +
-features + match + backward, with and without the BatchNorm folding, in the same process.
+The training step: one DR-KFS step of the network study's prediction (8 deformed icospheres,
+2,560 faces) against a prepared synthetic chair, render + features + match + backward: at each
+stage of the loss (``drkfs_onnx.loss.DrkfsLoss``: its coarse stage and the loss preset
+``PipelineConfig.loss()``, goal 0.5 s) and at the first studies' ``PipelineConfig.training()``,
+the last with and without the BatchNorm folding, in the same process.
 """
 
 from __future__ import annotations
@@ -113,44 +115,65 @@ def run_training_step(repeats: int) -> dict:
     from drkfs_onnx import DRKFS, PipelineConfig
     from drkfs_onnx.fitting.mesh_fit import float_tensor
     from drkfs_onnx.fitting.network import Reconstructor, make_shape
+    from drkfs_onnx.loss import DrkfsLoss
 
     torch.manual_seed(0)
-    metric = DRKFS.pretrained(PipelineConfig.training())
     shape = make_shape("chair", 4000)
     model = Reconstructor()
     with torch.no_grad():
-        target = metric.target(float_tensor(shape.verts), torch.as_tensor(shape.faces))
         prediction = model(shape.points[None])[0]
         prediction += 0.02 * torch.randn(prediction.shape)  # off the spheres, as in training
+    truth = float_tensor(shape.verts), torch.as_tensor(shape.faces)
 
-    def step():
-        verts = prediction.clone().requires_grad_(True)
-        metric.score_to(verts, model.faces, target).backward()
+    def timed_step(loss_of) -> float:
+        def step():
+            verts = prediction.clone().requires_grad_(True)
+            loss_of(verts).backward()
 
-    step()  # warm-up
-    folded = _best(step, repeats)
+        step()  # warm-up
+        return _best(step, repeats)
+
+    loss = DrkfsLoss.pretrained()
+    target = loss.target(*truth)
+    stages = {
+        f"stage {i} (until {stage.until:g})": timed_step(
+            lambda v, p=stage.until - 1e-9: loss(v, model.faces, target, p)
+        )
+        for i, stage in enumerate(loss.stages)
+    }
+    metric = DRKFS.pretrained(PipelineConfig.training())
+    with torch.no_grad():
+        first = metric.target(*truth)
+    folded = timed_step(lambda v: metric.score_to(v, model.faces, first))
     # the baseline: the layers one by one, as before the folding (an instance attribute shadows
     # the method; nn.Module's own __setattr__ would file the Sequential as a submodule instead)
     descriptor = metric.descriptor
     object.__setattr__(descriptor, "_folded", descriptor.features)
-    layered = _best(step, repeats)
+    layered = timed_step(lambda v: metric.score_to(v, model.faces, first))
     del descriptor.__dict__["_folded"]
     from torch.profiler import profile as torch_profile
 
+    verts = prediction.clone().requires_grad_(True)
     with torch_profile() as prof:
-        step()
+        loss(verts, model.faces, target, 1.0).backward()
     events = sorted(prof.key_averages(), key=lambda e: e.self_cpu_time_total, reverse=True)
     total = sum(e.self_cpu_time_total for e in events)
     return {
-        "config": "PipelineConfig.training()",
         "prediction_faces": len(model.faces),
         "target": shape.name,
-        "step_s": folded,
-        "step_without_batchnorm_folding_s": layered,
-        "goal_s": 0.3,
-        "profile_top_ops": [
-            {"op": e.key, "share": round(e.self_cpu_time_total / total, 3)} for e in events[:8]
-        ],
+        "loss": {
+            "stages": [{"config": s.config.to_dict(), "until": s.until} for s in loss.stages],
+            "step_s": stages,
+            "goal_s": 0.5,
+            "profile_top_ops_loss_preset": [
+                {"op": e.key, "share": round(e.self_cpu_time_total / total, 3)} for e in events[:8]
+            ],
+        },
+        "training_config": {
+            "config": "PipelineConfig.training()",
+            "step_s": folded,
+            "step_without_batchnorm_folding_s": layered,
+        },
     }
 
 
