@@ -1,6 +1,6 @@
-"""The ``drkfs-score explain`` picture (matplotlib: ``pip install "drkfs-onnx[plot]"``): for each
-view, A's and B's renders side by side, each patch's best-match distance as a heat overlay on
-the patch grid, and the patches that carry most of the score outlined."""
+"""The ``drkfs-score explain`` picture (matplotlib: ``pip install "drkfs-onnx[plot]"``): A's views
+in the top row and B's below them, each patch's best-match distance as a heat overlay on the
+patch grid, and the patches that carry most of the score outlined."""
 
 from __future__ import annotations
 
@@ -26,14 +26,14 @@ def write_explanation(path: Path, explanation: Explanation, top: int = 5) -> Non
     peak = max(float(d.max()) for d in explanation.distances.values())
     outlined = explanation.top_patches(top)
     figure = Figure(
-        figsize=(2 * CELL_INCHES + 0.8, CELL_INCHES * config.num_views + 0.6),
+        figsize=(CELL_INCHES * config.num_views + 1.2, 2 * CELL_INCHES + 0.6),
         layout="constrained",
     )
-    grid = figure.subplots(config.num_views, 2, squeeze=False)
+    grid = figure.subplots(2, config.num_views, squeeze=False)
     heat = None
-    for column, mesh in enumerate(SIDES):
+    for row, mesh in enumerate(SIDES):
         for view in range(config.num_views):
-            axes = grid[view, column]
+            axes = grid[row, view]
             axes.imshow(explanation.views[mesh][view], cmap="gray", vmin=0.0, vmax=1.0)
             if mesh in explanation.distances:
                 distances = explanation.distances[mesh][view]
@@ -58,12 +58,12 @@ def write_explanation(path: Path, explanation: Explanation, top: int = 5) -> Non
             axes.set_ylim(size - 0.5, -0.5)
             axes.set_xticks([])
             axes.set_yticks([])
-            if column == 0:
-                axes.set_ylabel(f"view {view}", fontsize=8)
-        searched = "" if mesh in explanation.distances else " (its patches do not search)"
-        role = "A" if mesh == "a" else "B, reference"
-        grid[0, column].set_title(
-            f"{role}: {Path(explanation.names[mesh]).name}{searched}", fontsize=8
+            if row == 0:
+                axes.set_title(f"view {view}", fontsize=8)
+        searched = "" if mesh in explanation.distances else "\n(does not search)"
+        role = "A" if mesh == "a" else "B (reference)"
+        grid[row, 0].set_ylabel(
+            f"{role}\n{Path(explanation.names[mesh]).name}{searched}", fontsize=8
         )
     figure.suptitle(
         f"DR-KFS {explanation.score:.4g}; top {len(outlined)} patches outlined "
