@@ -262,13 +262,14 @@ def _geometric_folder(folder, faces: dict[str, dict[str, float]]):
     """A Geo-metric-like folder: each face's stimuli (the example chair, shifted per level) and
     a JODPerMesh.csv with the given JOD per level in every setting."""
     chair = load_mesh(EXAMPLES / "chair.obj")
-    lines = ["basemesh,dst_type,setting,magnitude,JOD"]
+    lines = ["basemesh,dst_type,setting,magnitude,JOD," + ",".join(human.DATASET_METRICS)]
     for face, jods in faces.items():
         for shift, (level, value) in enumerate(jods.items()):
             path = human.stimulus(folder, face, level)
             path.parent.mkdir(parents=True, exist_ok=True)
             trimesh.Trimesh(chair.vertices + [0.01 * shift, 0, 0], chair.faces).export(path)
-            lines += [f"{face},Simp,{s},Simp_{level},{value}" for s in human.SETTINGS]
+            metrics = ",".join([str(-value)] * len(human.DATASET_METRICS))  # worse: larger
+            lines += [f"{face},Simp,{s},Simp_{level},{value},{metrics}" for s in human.SETTINGS]
     (folder / human.JOD_FILE).parent.mkdir(parents=True)
     (folder / human.JOD_FILE).write_text("\n".join(lines) + "\n")
     return folder
@@ -286,6 +287,8 @@ def test_human_agreement_is_spearman_against_the_jod_difference_per_setting(tmp_
     assert [agreement[s] for s in human.SETTINGS] == pytest.approx([-1.0] * 4)
     assert agreement["within_level"]["p03.12"]["close_flipped"] == pytest.approx(-1.0)
     assert human.human_agreement(bench, {}, differences) is None
+    reference = human.dataset_agreement(bench, tmp_path, differences)
+    assert reference["MSDM2"]["close_normal"] == pytest.approx(-1.0)
     index = json.loads(bench.write(tmp_path / "set").read_text())  # stimuli named, not copied
     assert set(index["files"].values()) == {str(p) for p in bench.sources.values()}
 

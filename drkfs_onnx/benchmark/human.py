@@ -53,16 +53,25 @@ def faces_in(folder: Path) -> list[str]:
     return faces
 
 
-def jod_differences(folder: Path) -> dict[tuple[str, str, str], float]:
-    """(face, level, setting) -> JOD(level) - JOD(stand-in) from the dataset's JODPerMesh.csv."""
+# the dataset's own metrics, computed by its authors against the true references
+DATASET_METRICS = ("MSDM2", "FMPD", "METRO", "RMS")
+
+
+def _simplification_rows(folder: Path, column: str) -> dict[tuple[str, str, str], float]:
+    """(face, level, setting) -> ``column`` of JODPerMesh.csv's simplification rows."""
     with open(folder / JOD_FILE, newline="") as handle:
-        jod = {
+        return {
             (row["basemesh"], row["magnitude"].removeprefix("Simp_"), row["setting"]): float(
-                row["JOD"]
+                row[column]
             )
             for row in csv.DictReader(handle)
             if row["dst_type"] == "Simp"
         }
+
+
+def jod_differences(folder: Path) -> dict[tuple[str, str, str], float]:
+    """(face, level, setting) -> JOD(level) - JOD(stand-in) from the dataset's JODPerMesh.csv."""
+    jod = _simplification_rows(folder, "JOD")
     return {
         (face, level, setting): value - jod[(face, REFERENCE, setting)]
         for (face, level, setting), value in jod.items()
@@ -111,3 +120,23 @@ def human_agreement(bench: BenchSet, values: dict[int, float | None], jod: dict)
         for setting in SETTINGS
     }
     return result
+
+
+def dataset_agreement(bench: BenchSet, folder: Path, jod: dict) -> dict[str, dict]:
+    """``human_agreement`` of the dataset's own metrics (DATASET_METRICS) on the same pairs,
+    for reference: they were computed against the true references, which DR-KFS never sees
+    (per setting, so each setting's value of a metric is its own row)."""
+    rows = [c for c in bench.comparisons if c.group == "human"]
+    found = {}
+    for metric in DATASET_METRICS:
+        values = _simplification_rows(folder, metric)
+        found[metric] = {
+            setting: float(
+                spearmanr(
+                    [values[(c.base, c.kind, setting)] for c in rows],
+                    [jod[(c.base, c.kind, setting)] for c in rows],
+                )[0]
+            )
+            for setting in SETTINGS
+        }
+    return found

@@ -17,7 +17,7 @@ from ..synthetic.tiers import TIERS
 from ..synthetic.variants import structural_wins
 from . import sets
 from .chart import pareto_front, write_chart
-from .human import add_human, human_agreement
+from .human import add_human, dataset_agreement, human_agreement
 from .methods import (
     DEFAULT_NAME,
     PAPER_NAME,
@@ -286,6 +286,7 @@ def run_bench(
         "platform": platform.platform(),
         "peers": peer_notes,
         "methods": summary,
+        "human_dataset_metrics": None if jod is None else dataset_agreement(bench, human, jod),
         "pareto_front": front,
         "stability": stability_table(bench, scores, summary),
         "torch_stability": torch_stability(bench, torch_method.metric),
