@@ -2,6 +2,7 @@
 silhouettes are judged from, and the quick plan end to end through the CLI."""
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -15,6 +16,7 @@ from drkfs_onnx.cli import app
 from drkfs_onnx.config import PipelineConfig
 from drkfs_onnx.fitting.judges import VISUAL, SilhouetteJudge, unseen_cameras
 from drkfs_onnx.fitting.network import (
+    FULL,
     JUDGED,
     PRIMITIVES,
     QUICK_NETWORK,
@@ -24,6 +26,14 @@ from drkfs_onnx.fitting.network import (
     make_shape,
 )
 from drkfs_onnx.fitting.study import slug
+
+
+def test_the_full_plan_trains_with_the_committed_loss_studys_choice():
+    results = Path(__file__).parents[1] / "bench" / "fit" / "results.json"
+    study = json.loads(results.read_text())["loss_study"]
+    assert FULL.form == study["forms"]["chosen"]
+    assert FULL.pixel_weight == study["pixel_weight"]["chosen"]
+    assert FULL.chamfer_weight == study["chamfer_weight"]["chosen"]
 
 
 def test_the_network_starts_as_closed_spheres_and_gives_every_parameter_a_gradient():

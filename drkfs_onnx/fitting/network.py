@@ -32,7 +32,7 @@ from .geometry import Smoothness
 from .judges import HIGHER_IS_BETTER, SURFACE, UNSEEN_VIEWS, VISUAL, Judge
 from .losses import CHAMFER, PIXEL, Recipe, Terms, alone, with_chamfer, with_pixel
 from .mesh_fit import DrkfsTerm, float_tensor
-from .study import _column, chamfer_ratios, save_mesh, share, slug, summary
+from .study import chamfer_ratios, column_title, save_mesh, share, slug, summary
 
 # seeds of the shapes the network trains and is tested on: disjoint from the benchmark's
 # (2026-2028), the held-out checks' (3000-3002) and the nets' training data (seeds 0-2)
@@ -83,8 +83,8 @@ FULL = NetworkPlan(
     learning_rate=1e-3,
     smoothness=10.0,
     form="window r0 mean, coarse to fine",
-    pixel_weight=1.0,
-    chamfer_weight=10.0,
+    pixel_weight=0.3,
+    chamfer_weight=1.0,
     judge_config=PipelineConfig.paper(),
 )
 QUICK_NETWORK = replace(
@@ -259,7 +259,8 @@ def run_network_study(out: Path, quick: bool, threads: int = 2, progress=print) 
             )
     finally:
         judge.close()
-    write_gallery(out / "gallery.png", ["TARGET", *(_column(r.name) for r in recipes)], gallery)
+    columns = ["TARGET", *(column_title(r.name, plan.form) for r in recipes)]
+    write_gallery(out / "gallery.png", columns, gallery)
     names = [r.name for r in recipes]
     results = {
         "command": f"drkfs fit --network{' --quick' if quick else ''} --out {out}",

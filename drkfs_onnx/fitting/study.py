@@ -7,10 +7,12 @@ Two parts, one run:
    (``losses.FORMS``: each idea alone and combined) fits each problem, is judged, and its
    gradient is probed (``landscape.probe``); the form with the best mean rank is "the DR-KFS
    loss". Its weight beside pixel MSE and beside Chamfer is chosen the same way.
-2. **The fitting study**: Chamfer, pixel MSE, the first studies' DR-KFS (the scoring match at the
-   training renderer), the DR-KFS loss and its two combinations on ``StudyPlan.problems``, with
-   the probe on every rendered loss. Every fitted mesh is saved as PLY beside results.json;
-   ``summary`` holds the done-means numbers of the best DR-KFS-containing loss.
+2. **The fitting study**: Chamfer, pixel MSE, the DR-KFS loss and its two combinations on
+   ``StudyPlan.problems``, with the probe on the DR-KFS loss and pixel MSE. Every fitted mesh is
+   saved as PLY beside results.json, and the gallery drawn from them; ``summary`` holds the
+   done-means numbers of the best DR-KFS-containing loss.
+
+Each finished fit is kept in OUT/checkpoint.json, so a stopped run resumes where it stopped.
 
 The judge renders at the paper's config (other cameras than the losses saw) and adds silhouettes
 from cameras below the horizon and LFD where it is installed.
@@ -55,7 +57,6 @@ class StudyPlan:
     probe_checks: int = CHECKS  # gradient checks per probe
     lfd: bool = True  # judge with LFD where it is installed
     unseen_views: int = UNSEEN_VIEWS  # the silhouette judge's cameras
-    references: bool = True  # fit Chamfer and pixel MSE in the loss study too, for the record
     # each loss's step size, chosen in the first study on sofa:3 (Chamfer 0.001, the rendered
     # losses and their combinations 0.003); smoothness 10 for all
     chamfer_rate: float = 0.001
@@ -87,7 +88,6 @@ QUICK_STUDY = StudyPlan(
     probe_checks=1,
     lfd=False,
     unseen_views=2,
-    references=False,
 )
 
 
@@ -154,6 +154,29 @@ def converged(history: list[float]) -> float:
     return (start - history[-1]) / max(abs(start), 1e-12)
 
 
+class Checkpoint:
+    """The finished fits of a run, rewritten to OUT/checkpoint.json after each one, so that a run
+    that was stopped resumes where it stopped; a checkpoint of another plan is ignored, and a
+    finished run removes it."""
+
+    def __init__(self, path: Path, plan: StudyPlan):
+        self.path, self.plan = path, repr(plan)
+        saved = json.loads(path.read_text()) if path.exists() else {}
+        self.done: dict[str, dict] = saved["done"] if saved.get("plan") == self.plan else {}
+
+    def get(self, key: str) -> dict | None:
+        return self.done.get(key)
+
+    def put(self, key: str, value: dict) -> None:
+        self.done[key] = value
+        scratch = self.path.with_suffix(".tmp")  # a kill mid-write leaves the last one whole
+        scratch.write_text(json.dumps({"plan": self.plan, "done": self.done}))
+        scratch.replace(self.path)
+
+    def remove(self) -> None:
+        self.path.unlink(missing_ok=True)
+
+
 class Fitter:
     """Fits recipes to problems at the plan's settings and judges the results."""
 
@@ -218,10 +241,10 @@ def landscape_summary(rows: dict[str, dict]) -> dict:
     return summary
 
 
-def loss_study(plan: StudyPlan, fitter: Fitter, progress) -> dict:
+def loss_study(plan: StudyPlan, fitter: Fitter, checkpoint: Checkpoint, progress) -> dict:
     """Every DR-KFS form on the tuning problems, then the chosen form's weight beside pixel MSE
     and beside Chamfer: each choice by the lowest mean rank over every judged metric, averaged
-    over the tuning problems. Pixel MSE and Chamfer are fitted alongside, for reference."""
+    over the tuning problems."""
     problems = [load_problem(spec) for spec in plan.tuning]
     report: dict = {"problems": {p.name: p.description for p in problems}, "rows": {}}
 
@@ -232,10 +255,14 @@ def loss_study(plan: StudyPlan, fitter: Fitter, progress) -> dict:
                 continue
             row = {"recipe": [list(t) for t in recipe.terms], "problems": {}}
             for problem in problems:
-                result = fitter.fit(recipe, problem)
-                judged = fitter.judged(problem, result.verts)
-                if recipe.rendered:
-                    judged["landscape"] = fitter.landscape(recipe, problem)
+                key = f"loss study/{problem.name}/{recipe.name}"
+                judged = checkpoint.get(key)
+                if judged is None:
+                    result = fitter.fit(recipe, problem)
+                    judged = fitter.judged(problem, result.verts)
+                    if recipe.rendered:
+                        judged["landscape"] = fitter.landscape(recipe, problem)
+                    checkpoint.put(key, judged)
                 row["problems"][problem.name] = judged
                 progress(f"loss study {problem.name}: {recipe.name}: {_brief_judged(judged)}")
             if recipe.rendered:
@@ -249,8 +276,6 @@ def loss_study(plan: StudyPlan, fitter: Fitter, progress) -> dict:
         ]
         return {n: float(np.mean([ranks[n] for ranks in per_problem])) for n in names}
 
-    if plan.references:
-        run([alone(CHAMFER), alone(PIXEL)])
     ranks = run([alone(form) for form in plan.forms])
     chosen = min(ranks, key=ranks.get)
     report["forms"] = {"mean_rank": ranks, "chosen": chosen}
@@ -268,13 +293,13 @@ def _brief_judged(row: dict) -> str:
 
 
 def study_recipes(choice: dict) -> list[Recipe]:
-    """The fitting study's losses: Chamfer, pixel MSE, the first studies' DR-KFS, the chosen
-    DR-KFS loss and its two combinations at the chosen weights."""
+    """The fitting study's losses: Chamfer, pixel MSE, the chosen DR-KFS loss and its two
+    combinations at the chosen weights (the first studies' DR-KFS, the scoring match, is in the
+    loss study)."""
     form = choice["forms"]["chosen"]
     return [
         alone(CHAMFER),
         alone(PIXEL),
-        alone(SCORING),
         alone(form),
         with_pixel(form, choice["pixel_weight"]["chosen"]),
         with_chamfer(form, choice["chamfer_weight"]["chosen"]),
@@ -314,10 +339,13 @@ def run_study(out: Path, quick: bool, threads: int = 2, progress=print) -> dict:
     plan = QUICK_STUDY if quick else FULL
     judge = Judge(plan.judge_config, threads, plan.unseen_views, plan.lfd)
     fitter = Fitter(plan, judge)
+    checkpoint = Checkpoint(out / "checkpoint.json", plan)
+    resumed = len(checkpoint.done)
     try:
-        choice = loss_study(plan, fitter, progress)
+        choice = loss_study(plan, fitter, checkpoint, progress)
         recipes = study_recipes(choice)
-        results = fitting_study(plan, fitter, recipes, choice["forms"]["chosen"], out, progress)
+        form = choice["forms"]["chosen"]
+        results = fitting_study(plan, fitter, recipes, form, out, checkpoint, progress)
     finally:
         judge.close()
     results = {
@@ -340,19 +368,46 @@ def run_study(out: Path, quick: bool, threads: int = 2, progress=print) -> dict:
         **results,
     }
     results["summary"] = summary(results["table"], recipes, choice["forms"]["chosen"])
+    results["fits_resumed"] = resumed  # from a checkpoint: seconds_total does not count them
     results["seconds_total"] = time.perf_counter() - start
     (out / "results.json").write_text(json.dumps(results, indent=1))
+    draw_gallery(out)
+    checkpoint.remove()
     return results
 
 
+def draw_gallery(out: Path) -> None:
+    """OUT/gallery.png from a finished study's results.json and saved meshes: per problem the
+    target, the template and each loss's fit, from the same two cameras."""
+    results = json.loads((out / "results.json").read_text())
+    form = results["loss_study"]["forms"]["chosen"]
+    rows = []
+    for spec in (QUICK_STUDY if results["quick"] else FULL).problems:
+        problem = load_problem(spec)
+        fits = results["fits"][problem.name]
+        meshes = [(problem.target_verts, problem.target_faces)]
+        for path in (fits["template"], *(fits[n]["mesh"] for n in results["losses"])):
+            fitted = trimesh.load(out / path, process=False)
+            meshes.append((np.asarray(fitted.vertices), problem.template_faces))
+        rows.append((problem.name, meshes))
+    columns = ["TARGET", "TEMPLATE", *(column_title(n, form) for n in results["losses"])]
+    write_gallery(out / "gallery.png", columns, rows)
+
+
 def fitting_study(
-    plan: StudyPlan, fitter: Fitter, recipes: list[Recipe], form: str, out: Path, progress
+    plan: StudyPlan,
+    fitter: Fitter,
+    recipes: list[Recipe],
+    form: str,
+    out: Path,
+    checkpoint: Checkpoint,
+    progress,
 ) -> dict:
-    """Every recipe on every problem of the plan, judged, saved and probed; ``form`` is the
-    DR-KFS loss on its own (the summary's)."""
+    """Every recipe on every problem of the plan, judged and saved; ``form`` is the DR-KFS loss
+    on its own (the summary's), probed with pixel MSE on every problem."""
     problems = [load_problem(spec) for spec in plan.problems]
     names = [r.name for r in recipes]
-    table, fits, landscapes, gallery = {}, {}, {}, []
+    table, fits, landscapes = {}, {}, {}
     for problem in problems:
         folder = out / "meshes" / slug(problem.name)
         rows = {"template": fitter.judged(problem, problem.template_verts)}
@@ -365,34 +420,38 @@ def fitting_study(
                 folder / "template.ply", problem.template_verts, problem.template_faces
             ),
         }
-        meshes = [(problem.target_verts, problem.target_faces)]
-        meshes.append((problem.template_verts, problem.template_faces))
         landscapes[problem.name] = {}
         for recipe in recipes:
-            result = fitter.fit(recipe, problem)
-            rows[recipe.name] = fitter.judged(problem, result.verts)
-            fits[problem.name][recipe.name] = {
-                "mesh": save_mesh(
-                    folder / f"{slug(recipe.name)}.ply", result.verts, problem.template_faces
-                ),
-                "objective_first": result.objective[0],
-                "objective_last": result.objective[-1],
-                "fall_over_last_tenth": converged(result.objective),
-                "seconds_per_step": result.seconds_per_step,
-            }
-            if recipe.rendered:
-                landscapes[problem.name][recipe.name] = fitter.landscape(recipe, problem)
-            meshes.append((result.verts, problem.template_faces))
+            key = f"{problem.name}/{recipe.name}"
+            if checkpoint.get(key) is None:
+                result = fitter.fit(recipe, problem)
+                path = folder / f"{slug(recipe.name)}.ply"
+                checkpoint.put(key, {
+                    "judged": fitter.judged(problem, result.verts),
+                    "fit": {
+                        "mesh": save_mesh(path, result.verts, problem.template_faces),
+                        "objective_first": result.objective[0],
+                        "objective_last": result.objective[-1],
+                        "fall_over_last_tenth": converged(result.objective),
+                        "seconds_per_step": result.seconds_per_step,
+                    },
+                    # the DR-KFS loss and pixel MSE alone: the loss study probed the rest
+                    "landscape": fitter.landscape(recipe, problem)
+                    if recipe.name in (PIXEL, form)
+                    else None,
+                })  # fmt: skip
+            done = checkpoint.get(key)
+            rows[recipe.name] = done["judged"]
+            fits[problem.name][recipe.name] = done["fit"]
+            if done["landscape"] is not None:
+                landscapes[problem.name][recipe.name] = done["landscape"]
             progress(f"{problem.name}: {recipe.name}: {_brief(rows[recipe.name])}")
         table[problem.name] = rows
-        gallery.append((problem.name, meshes))
     best = summary(table, recipes, form)["best_drkfs_loss"]
-    for problem in problems:  # the name the README and outside judges look for
+    for problem in problems:  # the name outside judges look for
         folder = out / "meshes" / slug(problem.name)
         shutil.copy(folder / f"{slug(best)}.ply", folder / "best_drkfs.ply")
         fits[problem.name]["best_drkfs"] = str((folder / "best_drkfs.ply").relative_to(out))
-    columns = ["TARGET", "TEMPLATE", *(_column(n) for n in names)]
-    write_gallery(out / "gallery.png", columns, gallery)
     return {
         "losses": names,
         "settings": {
@@ -434,5 +493,6 @@ def seconds_per_step(
     }
 
 
-def _column(name: str) -> str:
-    return name.upper().replace(" X ", "·").replace("DR-KFS (SCORING MATCH)", "DR-KFS SCORING")
+def column_title(name: str, form: str) -> str:
+    """A gallery column's title: the DR-KFS loss named as such, one term a line."""
+    return name.replace(form, "DR-KFS loss").replace(" + ", "\n+ ").replace(" x ", "·").upper()
