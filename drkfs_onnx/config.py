@@ -157,10 +157,8 @@ class PipelineConfig:
         reconstruction sigma (1e-4) and a depth blend of gamma 0.1 instead of SoftRas' 1e-4,
         under which the nearest face takes a pixel almost outright and a step that reorders two
         faces jumps the loss. ``loss()`` is what the loss study chose over it (docs/fitting.md)."""
-        first = dict(
-            nets="correspondence", matching="global", direction="both", reduction="power", power=8.0
-        )
-        return cls(**{"sigma": 1e-4, "gamma": 0.1, **first, **changes})
+        first = dict(nets="correspondence", sigma=1e-4, gamma=0.1)
+        return cls.structure(**{**first, **changes})
 
     @classmethod
     def loss(cls, **changes: Any) -> PipelineConfig:

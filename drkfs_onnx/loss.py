@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import torch
 
 from .config import PipelineConfig
-from .matching import soft_match_score
+from .matching import match_score
 from .metric import DRKFS, Target
 
 
@@ -35,7 +35,6 @@ COARSE_TO_FINE = (
     Stage(PipelineConfig.loss(num_views=12, image_size=64, sigma=1e-3, gamma=0.3), 0.4),
     Stage(PipelineConfig.loss(), 1.0),
 )
-FINE_ONLY = (Stage(PipelineConfig.loss(), 1.0),)
 
 
 @dataclass(frozen=True)
@@ -86,8 +85,6 @@ class DrkfsLoss:
     ) -> torch.Tensor:
         index = self.stage(progress)
         metric, prepared = self.metrics[index], target[index]
-        if self.soft is None:
-            return metric.score_to(verts, faces, prepared)
         features = metric.features_to(verts, faces, prepared)
-        temperature = self.soft.temperature(progress)
-        return soft_match_score(features, prepared.features, metric.config, temperature)
+        temperature = None if self.soft is None else self.soft.temperature(progress)
+        return match_score(features, prepared.features, metric.config, temperature)

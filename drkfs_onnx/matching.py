@@ -68,12 +68,21 @@ def best_match_distances(
     return ((queries - targets[index]) ** 2).sum(1)
 
 
-def match_score(desc_a: torch.Tensor, desc_b: torch.Tensor, config: PipelineConfig) -> torch.Tensor:
+def match_score(
+    desc_a: torch.Tensor,
+    desc_b: torch.Tensor,
+    config: PipelineConfig,
+    temperature: float | None = None,
+) -> torch.Tensor:
     """DR-KFS score from the (K * P, D) descriptor sets of A and B: the reduced best-match
-    distances of each direction the config searches, averaged (``match_rules``)."""
+    distances of each direction the config searches, averaged (``match_rules``); with a
+    ``temperature``, soft best matches (``soft_match_distances``) in place of the hard ones."""
     scores = []
     for queries, targets in match_rules.directions(desc_a, desc_b, config):
-        distances = best_match_distances(queries, targets, config)
+        if temperature is None:
+            distances = best_match_distances(queries, targets, config)
+        else:
+            distances = soft_match_distances(queries, targets, config, temperature)
         scores.append(match_rules.reduce(distances, torch.ones_like(distances), config, torch))
     return torch.stack(scores).mean()
 
@@ -92,14 +101,3 @@ def soft_match_distances(
         squared = (queries[:, None, :] - targets[None]).pow(2).sum(-1)  # (N, M)
     weights = torch.softmax(-squared / temperature, dim=1)
     return (weights * squared).sum(1)
-
-
-def soft_match_score(
-    desc_a: torch.Tensor, desc_b: torch.Tensor, config: PipelineConfig, temperature: float
-) -> torch.Tensor:
-    """``match_score`` with ``soft_match_distances`` in place of the best matches."""
-    scores = []
-    for queries, targets in match_rules.directions(desc_a, desc_b, config):
-        distances = soft_match_distances(queries, targets, config, temperature)
-        scores.append(match_rules.reduce(distances, torch.ones_like(distances), config, torch))
-    return torch.stack(scores).mean()
