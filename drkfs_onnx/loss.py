@@ -18,7 +18,7 @@ import torch
 
 from .config import PipelineConfig
 from .matching import match_score
-from .metric import DRKFS, Target
+from .metric import DRKFS, Target, with_nets
 
 
 @dataclass(frozen=True)
@@ -71,6 +71,15 @@ class DrkfsLoss:
     ) -> DrkfsLoss:
         """The shipped nets at each stage's config (``DRKFS.pretrained``)."""
         metrics = [DRKFS.pretrained(s.config, normalization=normalization) for s in stages]
+        return cls(metrics, stages, soft)
+
+    @classmethod
+    def from_nets(
+        cls, nets: DRKFS, stages: tuple[Stage, ...] = COARSE_TO_FINE, soft: SoftMatch | None = None
+    ) -> DrkfsLoss:
+        """Copies of ``nets``' detector and HardNet at each stage's config: nets of one's own
+        (fine-tuned for the loss, say) in place of the shipped ones."""
+        metrics = [with_nets(s.config, nets.detector, nets.descriptor) for s in stages]
         return cls(metrics, stages, soft)
 
     def stage(self, progress: float) -> int:

@@ -182,3 +182,11 @@ class DRKFS(nn.Module):
         faces_b: torch.Tensor,
     ) -> torch.Tensor:
         return self.score_to(verts_a, faces_a, self.target(verts_b, faces_b))
+
+
+def with_nets(config: PipelineConfig, detector: nn.Module, descriptor: nn.Module) -> DRKFS:
+    """A DRKFS at ``config`` carrying copies of the given detector and HardNet."""
+    metric = DRKFS(config)
+    metric.detector.load_state_dict(detector.state_dict())
+    metric.descriptor.load_state_dict(descriptor.state_dict())
+    return metric

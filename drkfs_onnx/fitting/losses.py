@@ -76,17 +76,23 @@ def with_chamfer(form: str, weight: float) -> Recipe:
 
 
 class Terms:
-    """Builds the terms of recipes for targets; every DR-KFS form's nets are loaded once."""
+    """Builds the terms of recipes for targets; every DR-KFS form's nets are loaded once: the
+    shipped ones, or copies of ``nets``' detector and HardNet."""
 
-    def __init__(self):
+    def __init__(self, nets: DRKFS | None = None):
         # pixel MSE of the training renderer's views: the renders DR-KFS's loss forms end with
         self.pixel_metric = DRKFS.pretrained(PipelineConfig.training())
+        self.nets = nets
         self.losses: dict[tuple, DrkfsLoss] = {}  # by (stages, soft match)
 
     def loss_of(self, stages: tuple[Stage, ...], soft: SoftMatch | None) -> DrkfsLoss:
         key = (stages, soft)
         if key not in self.losses:
-            self.losses[key] = DrkfsLoss.pretrained(stages, soft)
+            self.losses[key] = (
+                DrkfsLoss.pretrained(stages, soft)
+                if self.nets is None
+                else DrkfsLoss.from_nets(self.nets, stages, soft)
+            )
         return self.losses[key]
 
     def term(self, term: str, target_verts: np.ndarray, target_faces: np.ndarray, faces):

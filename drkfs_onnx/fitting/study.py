@@ -180,8 +180,8 @@ class Checkpoint:
 class Fitter:
     """Fits recipes to problems at the plan's settings and judges the results."""
 
-    def __init__(self, plan: StudyPlan, judge: Judge):
-        self.plan, self.judge, self.terms = plan, judge, Terms()
+    def __init__(self, plan: StudyPlan, judge: Judge, terms: Terms | None = None):
+        self.plan, self.judge, self.terms = plan, judge, terms or Terms()
         self.targets: dict[str, object] = {}
 
     def objective(self, recipe: Recipe, problem: Problem):

@@ -220,14 +220,6 @@ def choose_smallest(rows: dict, cost: dict, chamfer: dict):
                key=cost.get)  # fmt: skip
 
 
-def with_nets(config: PipelineConfig, detector: torch.nn.Module, descriptor: torch.nn.Module):
-    """A DRKFS at ``config`` carrying copies of the given detector and HardNet."""
-    metric = DRKFS(config)
-    metric.detector.load_state_dict(detector.state_dict())
-    metric.descriptor.load_state_dict(descriptor.state_dict())
-    return metric
-
-
 class MetricStage:
     """One run of a MetricPlan in a work folder; ``fit`` is ``training.run.fit``, ``timed``
     records a stage's seconds."""

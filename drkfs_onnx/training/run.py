@@ -20,7 +20,7 @@ from torch import nn
 from ..config import PipelineConfig
 from ..detector import PoIDetector
 from ..hardnet import HardNet
-from ..metric import DRKFS
+from ..metric import DRKFS, with_nets
 from ..synthetic.shapes import FAMILIES
 from ..weights import MANIFEST
 from .data import ViewPairs, render_pairs, sample_matches
@@ -35,7 +35,6 @@ from .metric_stage import (
     admissible,
     choose_objective,
     choose_smallest,
-    with_nets,
 )
 from .net_losses import correspondence_triplet, detector_loss
 from .net_metrics import (

@@ -1,0 +1,134 @@
+"""Nets fine-tuned for the loss, measured (issue 32's fourth idea).
+
+    python bench/loss_nets.py --out bench/fit/loss_nets.json [--quick]
+
+1. Graded series (``drkfs_onnx.training.graded``) of held-out bases: how fast the loss's score
+   and its patches' distances grow with an edit, for the loss's shipped nets (correspondence),
+   the scoring default's (metric) and the fine-tuned ones.
+2. The correspondence nets fine-tuned with ``graded_monotone`` on series of other bases (work
+   folder ``--work``, resumable).
+3. The loss study's fits (``drkfs fit``'s tuning problems, plan and judges) of the chosen loss
+   form with the shipped and with the fine-tuned nets, with their landscape probes.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from drkfs_onnx.config import PipelineConfig
+from drkfs_onnx.fitting.judges import Judge
+from drkfs_onnx.fitting.losses import Terms, alone
+from drkfs_onnx.fitting.study import FULL, QUICK_STUDY, Fitter, load_problem, mean_ranks
+from drkfs_onnx.metric import DRKFS
+from drkfs_onnx.synthetic.shapes import FAMILIES
+from drkfs_onnx.training import graded
+from drkfs_onnx.training.run import train_steps
+
+STEPS, LEARNING_RATE = 200, 1e-4
+TRAIN_SHAPES, HELDOUT_SHAPES = 2, 1  # bases per family
+SHIPPED, TUNED = "shipped nets", "fine-tuned for the loss"
+
+
+def fine_tune(data: graded.GradedViews, steps: int, work: Path) -> DRKFS:
+    """The loss's shipped nets after ``steps`` of ``graded_monotone`` (checkpointed in work)."""
+    metric = DRKFS.pretrained(PipelineConfig.loss())
+    metric.detector.requires_grad_(True)
+    metric.descriptor.requires_grad_(True)
+    loss_fn = graded.graded_monotone(data, graded.TRAIN_SEED)
+    train_steps(metric, loss_fn, steps, LEARNING_RATE, work / "loss_nets.pt", 20)
+    return metric.requires_grad_(False)
+
+
+def fits(plan, form: str, nets: dict[str, DRKFS | None], threads: int) -> dict:
+    """The form fitted to the plan's tuning problems with each set of nets, judged and probed,
+    and each set's mean rank over the judged metrics (1: best), averaged over the problems."""
+    judge = Judge(plan.judge_config, threads, plan.unseen_views, plan.lfd)
+    recipe, rows = alone(form), {}
+    try:
+        for name, metric in nets.items():
+            fitter = Fitter(plan, judge, Terms(metric))
+            rows[name] = {}
+            for spec in plan.tuning:
+                problem = load_problem(spec)
+                result = fitter.fit(recipe, problem)
+                judged = fitter.judged(problem, result.verts)
+                judged["landscape"] = fitter.landscape(recipe, problem)
+                rows[name][problem.name] = judged
+                print(f"{name} / {problem.name}: F-score {judged['F-score 1%']:.3f}", flush=True)
+    finally:
+        judge.close()
+    problems = list(rows[SHIPPED])
+    ranks = [mean_ranks({n: rows[n][p] for n in rows}) for p in problems]
+    return {
+        "form": form,
+        "lfd": judge.lfd_note,
+        "rows": rows,
+        "mean_rank": {n: float(np.mean([r[n] for r in ranks])) for n in rows},
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", type=Path, required=True)
+    parser.add_argument("--work", type=Path, default=Path(".drkfs-train/loss-nets"))
+    parser.add_argument("--quick", action="store_true", help="one family, two steps")
+    parser.add_argument("--threads", type=int, default=2)
+    args = parser.parse_args()
+    torch.set_num_threads(args.threads)
+    start = time.perf_counter()
+    config = PipelineConfig.loss()
+    families = ["chair"] if args.quick else list(FAMILIES)
+    steps = 2 if args.quick else STEPS
+    work = args.work / ("quick" if args.quick else "full")
+    work.mkdir(parents=True, exist_ok=True)
+    heldout = graded.render_graded_views(config, families, HELDOUT_SHAPES, graded.HELDOUT_SEED)
+    train = graded.render_graded_views(config, families, TRAIN_SHAPES, graded.TRAIN_SEED)
+    began = time.perf_counter()
+    tuned = fine_tune(train, steps, work)
+    tuning_seconds = time.perf_counter() - began
+    growth = {
+        "correspondence nets (the loss's)": graded.grade_stats(DRKFS.pretrained(config), heldout),
+        "metric nets (the scoring default's)": graded.grade_stats(
+            DRKFS.pretrained(config.replace(nets="metric")), heldout
+        ),
+        TUNED: graded.grade_stats(tuned, heldout),
+    }
+    for name, stats in growth.items():
+        print(f"{name}: {stats['all']}", flush=True)
+    plan = QUICK_STUDY if args.quick else FULL
+    chosen = "window r0 mean"
+    if not args.quick:  # the loss study's choice, as drkfs fit made it
+        committed = json.loads(Path("bench/fit/results.json").read_text())
+        chosen = committed["loss_study"]["forms"]["chosen"]
+    results = {
+        "command": f"python bench/loss_nets.py --out {args.out}{' --quick' if args.quick else ''}",
+        "torch_threads": torch.get_num_threads(),
+        "config": config.to_dict(),
+        "grades": graded.GRADES,
+        "elasticity_asked": graded.ELASTICITY,
+        "bases": {
+            "families": families,
+            "train": {"seed": graded.TRAIN_SEED, "per_family": TRAIN_SHAPES, "series": len(train)},
+            "heldout": {
+                "seed": graded.HELDOUT_SEED,
+                "per_family": HELDOUT_SHAPES,
+                "series": len(heldout),
+            },
+        },  # fmt: skip
+        "fine_tuning": {"steps": steps, "learning_rate": LEARNING_RATE, "seconds": tuning_seconds},
+        "growth_heldout": growth,
+        "fits": fits(plan, chosen, {SHIPPED: None, TUNED: tuned}, args.threads),
+    }
+    results["seconds"] = time.perf_counter() - start
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps(results, indent=1) + "\n")
+
+
+if __name__ == "__main__":
+    main()
