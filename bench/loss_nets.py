@@ -50,12 +50,12 @@ def fits(plan, form: str, nets: dict[str, DRKFS | None], threads: int) -> dict:
     and each set's mean rank over the judged metrics (1: best), averaged over the problems."""
     judge = Judge(plan.judge_config, threads, plan.unseen_views, plan.lfd)
     recipe, rows = alone(form), {}
+    problems = [load_problem(spec) for spec in plan.tuning]
     try:
         for name, metric in nets.items():
             fitter = Fitter(plan, judge, Terms(metric))
             rows[name] = {}
-            for spec in plan.tuning:
-                problem = load_problem(spec)
+            for problem in problems:
                 result = fitter.fit(recipe, problem)
                 judged = fitter.judged(problem, result.verts)
                 judged["landscape"] = fitter.landscape(recipe, problem)
@@ -63,8 +63,7 @@ def fits(plan, form: str, nets: dict[str, DRKFS | None], threads: int) -> dict:
                 print(f"{name} / {problem.name}: F-score {judged['F-score 1%']:.3f}", flush=True)
     finally:
         judge.close()
-    problems = list(rows[SHIPPED])
-    ranks = [mean_ranks({n: rows[n][p] for n in rows}) for p in problems]
+    ranks = [mean_ranks({n: rows[n][p.name] for n in rows}) for p in problems]
     return {
         "form": form,
         "lfd": judge.lfd_note,

@@ -152,16 +152,23 @@ def patch_elasticity(distances: torch.Tensor, change: torch.Tensor) -> torch.Ten
 
 
 def series_loss(metric: DRKFS, images: torch.Tensor) -> torch.Tensor:
-    """(1 + G, K, S, S) a series' views -> () each grade's score ranked above the previous
-    grade's (SCENE_MARGIN), plus each patch's distance growing at least ELASTICITY times as fast
-    as its pixel change, where that grew; both hinges on log ratios, so scaling the descriptors
-    cannot win."""
+    """(1 + G, K, S, S) a series' views -> () ``graded_objective`` of its terms."""
     scores, distances = graded_terms(metric, images)
+    return graded_objective(scores, distances, patch_change(images, metric.config))
+
+
+def graded_objective(
+    scores: torch.Tensor, distances: torch.Tensor, change: torch.Tensor
+) -> torch.Tensor:
+    """(G,) scores, (G, K * P) distances and pixel changes -> () each grade's score ranked above
+    the previous grade's (SCENE_MARGIN), plus each patch's distance growing at least ELASTICITY
+    times as fast as its pixel change, where that grew; both hinges on log ratios, so scaling
+    the descriptors cannot win."""
     loss = torch.stack([
         ranking_loss(scores[g : g + 1], scores[g + 1 : g + 2], SCENE_MARGIN)
         for g in range(len(scores) - 1)
     ]).mean()  # fmt: skip
-    return loss + patch_hinge(distances, patch_change(images, metric.config))
+    return loss + patch_hinge(distances, change)
 
 
 def patch_hinge(distances: torch.Tensor, change: torch.Tensor) -> torch.Tensor:
@@ -196,11 +203,9 @@ def grade_stats(metric: DRKFS, data: GradedViews) -> dict:
         change = patch_change(images, metric.config)
         kind = found[list(GRADES)[k]]
         kind["scene"].append(scores[1:] > scores[:-1])
-        kind["patch"].append(
-            distances[1:][grown_pairs(change)] > distances[:-1][grown_pairs(change)]
-        )
+        kind["patch"].append((distances[1:] > distances[:-1])[grown_pairs(change)])
         kind["elasticity"].append(patch_elasticity(distances, change))
-        kind["loss"].append(float(series_loss(metric, images)))
+        kind["loss"].append(float(graded_objective(scores, distances, change)))
 
     def stats(scene: list, patch: list, elasticity: list, loss: list) -> dict:
         elastic = torch.cat(elasticity)
