@@ -13,7 +13,7 @@ from drkfs_onnx.benchmark import human, peers, sets
 from drkfs_onnx.benchmark import point_metrics as pm
 from drkfs_onnx.benchmark.chart import pareto_front, write_chart
 from drkfs_onnx.benchmark.methods import Placed
-from drkfs_onnx.benchmark.run import run_bench
+from drkfs_onnx.benchmark.run import TIER_PAIRS, run_bench
 from drkfs_onnx.benchmark.sets import STABILITY, _box_with_cavity
 from drkfs_onnx.mesh import frame_of, load_mesh, place
 from drkfs_onnx.synthetic.shapes import (
@@ -188,6 +188,13 @@ def test_quick_bench_scores_every_method_on_the_same_rows(quick):
             wins = row["tiers"][pair] * count
             assert wins == pytest.approx(round(wins)), (name, pair)  # a share of whole pairs
             assert row["tiers"]["synthetic"][pair] == row["tiers"][pair]  # no shared mesh here
+            missed = row["tiers"]["misses"][pair]  # the wrong-way variant pairs, by name
+            assert sum(missed.values()) == pytest.approx(count - wins), (name, pair)
+            lower, higher = TIER_PAIRS[pair]
+            kinds = {"invisible": INVISIBLE, "surface": SURFACE, "structural": STRUCTURAL}
+            for named in missed:
+                low, high = named.split(" < ")
+                assert low in kinds[lower] and high in kinds[higher], named
         assert row["tiers"]["shared"]["invisible_vs_structural"] is None
         assert row["seconds_per_pair"] >= row["seconds_per_cached_pair"], name
         assert row["retrieval"]["queries"] > 0, name
@@ -291,6 +298,32 @@ def test_human_agreement_is_spearman_against_the_jod_difference_per_setting(tmp_
     assert reference["MSDM2"]["close_normal"] == pytest.approx(-1.0)
     index = json.loads(bench.write(tmp_path / "set").read_text())  # stimuli named, not copied
     assert set(index["files"].values()) == {str(p) for p in bench.sources.values()}
+
+
+def test_human_ceiling_is_what_separating_the_levels_alone_can_reach(tmp_path):
+    # people tell the levels apart and nothing else: a perfect level separator reaches the
+    # rank correlation of a two-valued variable with 8 ranks, and no luck does better
+    tied = {f"F{i}": {"p12.50": 0.0, "p06.25": -1.0, "p03.12": -2.0} for i in range(4)}
+    bench = sets.BenchSet()
+    ceiling = human.agreement_ceiling(
+        bench, human.add_human(bench, _geometric_folder(tmp_path / "a", tied))
+    )
+    best = -np.sqrt(3 * 8**2 / (4 * (8**2 - 1)))
+    assert ceiling["far_normal"]["levels_only"] == pytest.approx(best)
+    assert ceiling["far_normal"]["levels_only_lucky"] == pytest.approx(best)
+    # faces ordered within a level the same way in every setting: people agree with themselves,
+    # and a scorer blind within a level falls short of -1 by luck
+    ordered = {
+        f"F{i}": {"p12.50": -0.5, "p06.25": -1.0 - i, "p03.12": -2.0 - 2 * i} for i in range(4)
+    }
+    bench = sets.BenchSet()
+    ceiling = human.agreement_ceiling(
+        bench, human.add_human(bench, _geometric_folder(tmp_path / "b", ordered))
+    )
+    for setting in human.SETTINGS:
+        found = ceiling[setting]
+        assert found["people_within_level"] == pytest.approx(1.0)
+        assert -1.0 < found["levels_only_lucky"] < found["levels_only"] < 0.0
 
 
 def test_a_folder_without_the_stimuli_is_named(tmp_path):

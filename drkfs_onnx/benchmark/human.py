@@ -140,3 +140,43 @@ def dataset_agreement(bench: BenchSet, folder: Path, jod: dict) -> dict[str, dic
             for setting in SETTINGS
         }
     return found
+
+
+CEILING_DRAWS = 2000  # random within-level orders drawn for ``agreement_ceiling``
+
+
+def agreement_ceiling(bench: BenchSet, jod: dict, seed: int = 0) -> dict[str, dict]:
+    """What this protocol lets any scorer reach, from the people's data alone, per setting.
+
+    ``levels_only``: the mean Spearman of a scorer that ranks every 3.125% face above every
+    6.25% one but orders the faces within a level at random, with ``levels_only_lucky``, the
+    2.5th percentile over CEILING_DRAWS such orders (what luck alone may reach).
+    ``people_within_level``: the Spearman, within one level, between this setting's JOD
+    differences and another setting's, averaged over the other settings and both levels: how
+    well people's own judgments in another viewing order the faces within a level, a bound on
+    what any scorer can learn there.
+    """
+    rows = [c for c in bench.comparisons if c.group == "human"]
+    level = np.array([LEVELS.index(c.kind) for c in rows])  # 0: the coarser level
+    rng = np.random.default_rng(seed)
+    orders = [rng.permutation(len(rows)) for _ in range(CEILING_DRAWS)]
+    found = {}
+    for setting in SETTINGS:
+        people = np.array([jod[(c.base, c.kind, setting)] for c in rows])
+        # coarser level first, ranks inside a level drawn at random: larger = further
+        draws = [spearmanr((1 - level) * len(rows) + order, people)[0] for order in orders]
+        within = [
+            spearmanr(
+                [jod[(c.base, c.kind, setting)] for c in rows if c.kind == lv],
+                [jod[(c.base, c.kind, other)] for c in rows if c.kind == lv],
+            )[0]
+            for other in SETTINGS
+            if other != setting
+            for lv in LEVELS
+        ]
+        found[setting] = {
+            "levels_only": float(np.mean(draws)),
+            "levels_only_lucky": float(np.percentile(draws, 2.5)),
+            "people_within_level": float(np.mean(within)),
+        }
+    return found

@@ -6,7 +6,7 @@ import json
 import os
 import platform
 import time
-from collections import defaultdict
+from collections import Counter, defaultdict
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -17,7 +17,7 @@ from ..synthetic.tiers import TIERS
 from ..synthetic.variants import structural_wins
 from . import sets
 from .chart import pareto_front, write_chart
-from .human import add_human, dataset_agreement, human_agreement
+from .human import add_human, agreement_ceiling, dataset_agreement, human_agreement
 from .methods import (
     DEFAULT_NAME,
     PAPER_NAME,
@@ -140,18 +140,29 @@ TIER_PAIRS = {
 def tier_accuracy(bench: sets.BenchSet, values: dict[int, float | None]) -> dict:
     """For each pair of tiers, the share of (lower-tier, higher-tier) variant pairs of one base
     where the higher tier's variant is further from the base: all bases pooled, and per half
-    (synthetic bases, shared meshes); with the pair counts and each tier's median value."""
-    groups: dict[str, dict[str, list[float]]] = defaultdict(lambda: defaultdict(list))
+    (synthetic bases, shared meshes); with the pair counts, each tier's median value and
+    ``misses``: per pair of tiers, how many bases order each pair of variants the wrong way."""
+    groups: dict[str, dict[str, dict[str, float]]] = defaultdict(lambda: defaultdict(dict))
     for i, c in enumerate(bench.comparisons):
         if c.group == "tiers" and values.get(i) is not None:
-            groups[c.base][c.kind].append(values[i])
+            groups[c.base][c.kind][c.label] = values[i]
 
     def accuracy(bases: list[str], lower: str, higher: str) -> tuple[float | None, int]:
         wins = pairs = 0
         for base in bases:
-            w, n = structural_wins(groups[base][higher], groups[base][lower])
+            w, n = structural_wins(
+                list(groups[base][higher].values()), list(groups[base][lower].values())
+            )
             wins, pairs = wins + w, pairs + n
         return (wins / pairs if pairs else None), pairs
+
+    def misses(lower: str, higher: str) -> dict[str, int]:
+        found: Counter[str] = Counter()
+        for group in groups.values():
+            for low, low_value in group[lower].items():
+                for high, high_value in group[higher].items():
+                    found[f"{low} < {high}"] += structural_wins([high_value], [low_value])[0] == 0
+        return {pair: n for pair, n in found.most_common() if n}
 
     halves = {
         "synthetic": [b for b in groups if b not in sets.SHARED_MESHES],
@@ -166,11 +177,12 @@ def tier_accuracy(bench: sets.BenchSet, values: dict[int, float | None]) -> dict
     result["median"] = {
         tier: (
             float(np.median(found))
-            if (found := [v for g in groups.values() for v in g[tier]])
+            if (found := [v for g in groups.values() for v in g[tier].values()])
             else None
         )
         for tier in TIERS
     }
+    result["misses"] = {name: misses(*tiers) for name, tiers in TIER_PAIRS.items()}
     return result
 
 
@@ -287,6 +299,7 @@ def run_bench(
         "peers": peer_notes,
         "methods": summary,
         "human_dataset_metrics": None if jod is None else dataset_agreement(bench, human, jod),
+        "human_ceiling": None if jod is None else agreement_ceiling(bench, jod),
         "pareto_front": front,
         "stability": stability_table(bench, scores, summary),
         "torch_stability": torch_stability(bench, torch_method.metric),
@@ -306,11 +319,18 @@ def run_bench(
 DEFINITIONS = {
     "tiers": "for two tiers of change (invisible < surface < structural, synthetic.tiers), the "
     "share of (lower-tier, higher-tier) variant pairs of one base where the higher tier's variant "
-    "is further from the base; all bases pooled, and per half (synthetic bases, shared meshes)",
+    "is further from the base; all bases pooled, and per half (synthetic bases, shared meshes); "
+    "misses: per pair of tiers, how many bases order each pair of variants the wrong way (a tie "
+    "counts as wrong)",
     "human": "Geo-metric's simplification stimuli: each face's 3.125% and 6.25% simplifications "
     "scored against its 12.5% one (a stand-in for the missing reference); Spearman of the scores "
     "against JOD(prediction) - JOD(stand-in) per viewing setting (negative: agrees with people), "
     "over all pairs and within each level",
+    "human_ceiling": "what the human protocol lets any scorer reach, per setting: levels_only, "
+    "the mean Spearman of a scorer that separates the two levels perfectly but orders faces "
+    "within a level at random (levels_only_lucky: its 2.5th percentile over 2,000 orders); "
+    "people_within_level, the within-level Spearman between this setting's JOD differences and "
+    "the other settings' (people's own agreement within a level)",
     "seconds_per_pair": "2 x seconds per new mesh (render + features / samples / voxels) + "
     "seconds per comparison of prepared meshes, measured on the tier, bars, stability and human "
     "comparisons; renders shared between methods are charged to each",
