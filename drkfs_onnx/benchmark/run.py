@@ -157,23 +157,24 @@ def tier_accuracy(bench: sets.BenchSet, values: dict[int, float | None]) -> dict
         return (wins / pairs if pairs else None), pairs
 
     def misses(lower: str, higher: str) -> dict[str, int]:
-        found: Counter[str] = Counter()
-        for group in groups.values():
-            for low, low_value in group[lower].items():
-                for high, high_value in group[higher].items():
-                    found[f"{low} < {high}"] += structural_wins([high_value], [low_value])[0] == 0
-        return {pair: n for pair, n in found.most_common() if n}
+        found = Counter(
+            f"{low} < {high}"
+            for group in groups.values()
+            for low, low_value in group[lower].items()
+            for high, high_value in group[higher].items()
+            if not structural_wins([high_value], [low_value])[0]
+        )
+        return dict(found.most_common())
 
     halves = {
         "synthetic": [b for b in groups if b not in sets.SHARED_MESHES],
         "shared": [b for b in groups if b in sets.SHARED_MESHES],
     }
-    result: dict = {name: accuracy(list(groups), *tiers)[0] for name, tiers in TIER_PAIRS.items()}
+    pooled = {name: accuracy(list(groups), *tiers) for name, tiers in TIER_PAIRS.items()}
+    result: dict = {name: share for name, (share, _) in pooled.items()}
     for half, bases in halves.items():
         result[half] = {name: accuracy(bases, *tiers)[0] for name, tiers in TIER_PAIRS.items()}
-    result["pairs"] = {
-        name: accuracy(list(groups), *tiers)[1] for name, tiers in TIER_PAIRS.items()
-    }
+    result["pairs"] = {name: pairs for name, (_, pairs) in pooled.items()}
     result["median"] = {
         tier: (
             float(np.median(found))
