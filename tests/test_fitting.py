@@ -4,6 +4,8 @@ study end to end (quick plan, through the CLI), and the README's training-loop e
 import json
 import re
 import struct
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -16,6 +18,7 @@ from drkfs_onnx.cli import app
 from drkfs_onnx.fitting.geometry import Smoothness, chamfer, surface_points
 from drkfs_onnx.fitting.judges import METRICS, VISUAL
 from drkfs_onnx.fitting.landscape import AGREEMENT, CHECKS, probe
+from drkfs_onnx.fitting.losses import pixel_with_chamfer, with_both
 from drkfs_onnx.fitting.mesh_fit import (
     ChamferLoss,
     DrkfsTerm,
@@ -163,6 +166,40 @@ def test_a_checkpoint_keeps_finished_fits_for_the_same_plan_only(tmp_path):
     assert Checkpoint(path, FULL).get("chair 3/Chamfer") is None  # another plan starts afresh
     Checkpoint(path, QUICK_STUDY).remove()
     assert not path.exists()
+
+
+def test_the_control_is_the_three_term_loss_without_its_drkfs_term():
+    three = with_both("window r0 mean", 0.3, 1.0)
+    assert three.terms == ((1.0, "pixel MSE"), (0.3, "window r0 mean"), (1.0, "Chamfer"))
+    assert three.forms == ["window r0 mean"] and not three.rendered
+    control = pixel_with_chamfer(1.0)
+    assert control.terms == tuple(t for t in three.terms if t[1] not in three.forms)
+    assert control.forms == []
+
+
+def test_the_combinations_script_fits_every_loss_in_one_run_on_the_quick_plan(tmp_path):
+    out = tmp_path / "fit" / "combinations.json"
+    done = subprocess.run(
+        [sys.executable, "bench/fit_combinations.py", "--out", str(out), "--quick",
+         "--threads", "1"],
+        cwd=ROOT, capture_output=True, text=True, timeout=600,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr[-2000:]
+    results = json.loads(out.read_text())
+    three, control = "pixel MSE + 1 x window r0 mean + 10 x Chamfer", "pixel MSE + 10 x Chamfer"
+    assert results["losses"] == [
+        "Chamfer", "pixel MSE", "pixel MSE + 1 x window r0 mean",
+        "window r0 mean + 10 x Chamfer", three, control,
+    ]  # fmt: skip
+    for rows in results["table"].values():
+        assert set(rows) == set(results["losses"])
+        assert all(0.0 <= row["F-score 1%"] <= 1.0 for row in rows.values())
+    drkfs_term = results["comparisons"][f"{three} vs {control}"]
+    assert drkfs_term["visual"]["cells"] == 2 * (len(VISUAL) - 1)  # two problems, no LFD
+    assert 0 <= drkfs_term["visual"]["wins"] <= drkfs_term["visual"]["cells"]
+    # six losses ranked 1 to 6 on every metric of every problem
+    assert sum(results["mean_rank"].values()) == pytest.approx(21.0)
+    assert not (tmp_path / "fit" / "meshes").exists()  # a quick run saves no fits
 
 
 @pytest.fixture(scope="module")

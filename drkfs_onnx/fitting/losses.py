@@ -75,6 +75,17 @@ def with_chamfer(form: str, weight: float) -> Recipe:
     return Recipe(f"{form} + {weight:g} x Chamfer", ((1.0, form), (weight, CHAMFER)))
 
 
+def with_both(form: str, pixel_weight: float, chamfer_weight: float) -> Recipe:
+    """Pixel MSE with ``form`` and Chamfer beside it at their own weights."""
+    name = f"pixel MSE + {pixel_weight:g} x {form} + {chamfer_weight:g} x Chamfer"
+    return Recipe(name, ((1.0, PIXEL), (pixel_weight, form), (chamfer_weight, CHAMFER)))
+
+
+def pixel_with_chamfer(weight: float) -> Recipe:
+    """The same without DR-KFS: what its term adds to the other two."""
+    return Recipe(f"pixel MSE + {weight:g} x Chamfer", ((1.0, PIXEL), (weight, CHAMFER)))
+
+
 class Terms:
     """Builds the terms of recipes for targets; every DR-KFS form's nets are loaded once: the
     shipped ones, or copies of ``nets``' detector and HardNet."""
