@@ -2,6 +2,8 @@
 chart, and the quick run end to end."""
 
 import json
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -357,3 +359,19 @@ def test_lfd_sees_the_missing_leg_and_not_the_retessellation():
         assert missing > 0 and lfd.compare(prepared["no_leg"], prepared["chair"]) == (missing,)
     finally:
         lfd.close()
+
+
+def test_the_turn_search_script_scores_every_turn_set_and_the_turn_about_the_centre(tmp_path):
+    out = tmp_path / "turn_search.json"
+    done = subprocess.run(
+        [sys.executable, "bench/turn_search.py", "--out", str(out), "--quick", "--threads", "1"],
+        cwd=Path(__file__).resolve().parents[1], capture_output=True, text=True, timeout=600,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr[-2000:]
+    results = json.loads(out.read_text())
+    assert set(results["tiers"]) == {"no turn", "+-1", "+-2", "+-3", "turned_about_centre"}
+    for accuracy in results["tiers"].values():
+        assert all(0.0 <= accuracy[pair] <= 1.0 for pair in TIER_PAIRS)
+    # the quick set's chair turns about its own origin; both turns are seen
+    turn = results["turn_scores"]["chair"]
+    assert turn["about_origin"] > 0.0 and turn["about_centre"] > 0.0
