@@ -49,7 +49,11 @@ from drkfs_onnx.fitting.study import (
     slug,
 )
 
-QUICK_CHOICE = {"form": "window r0 mean", "pixel_weight": 1.0, "chamfer_weight": 10.0}
+QUICK_CHOICE = {  # the quick plan's only candidates
+    "form": "window r0 mean",
+    "pixel_weight": QUICK_STUDY.pixel_weights[0],
+    "chamfer_weight": QUICK_STUDY.chamfer_weights[0],
+}
 
 
 def committed_choice(study: Path) -> dict:
@@ -95,13 +99,14 @@ def main() -> None:
     form, pixel_weight, chamfer_weight = (
         choice["form"], choice["pixel_weight"], choice["chamfer_weight"]
     )  # fmt: skip
+    drkfs_with_chamfer = with_chamfer(form, chamfer_weight)
     three = with_both(form, pixel_weight, chamfer_weight)
     control = pixel_with_chamfer(chamfer_weight)
     recipes = [
         alone(CHAMFER),
         alone(PIXEL),
         with_pixel(form, pixel_weight),
-        with_chamfer(form, chamfer_weight),
+        drkfs_with_chamfer,
         three,
         control,
     ]
@@ -147,7 +152,7 @@ def main() -> None:
             for n in names
         },
         "mean_rank": {n: float(np.mean([r[n] for r in ranks])) for n in names},
-        "comparisons": comparisons(table, three.name, control.name, recipes[3].name),
+        "comparisons": comparisons(table, three.name, control.name, drkfs_with_chamfer.name),
         "chamfer_l1_over_chamfer_fit": chamfer_ratios(table, names),
         "seconds_per_step": seconds,
         "seconds": time.perf_counter() - start,
