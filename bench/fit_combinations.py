@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from drkfs_onnx.fitting.judges import METRICS, SURFACE, VISUAL, Judge
+from drkfs_onnx.fitting.judges import Judge
 from drkfs_onnx.fitting.losses import (
     CHAMFER,
     PIXEL,
@@ -44,8 +44,9 @@ from drkfs_onnx.fitting.study import (
     chamfer_ratios,
     load_problem,
     mean_ranks,
+    metric_means,
+    pair_shares,
     save_mesh,
-    share,
     slug,
 )
 
@@ -68,21 +69,17 @@ def committed_choice(study: Path) -> dict:
 
 def comparisons(table: dict, three: str, control: str, pair_with_chamfer: str) -> dict:
     """Shares of visual and surface cells each challenger wins against each rival."""
-    asked = {
-        f"{three} vs {PIXEL}": (three, PIXEL),
-        f"{three} vs {CHAMFER}": (three, CHAMFER),
-        f"{three} vs {control}": (three, control),  # what the DR-KFS term adds
-        f"{three} vs {pair_with_chamfer}": (three, pair_with_chamfer),  # what pixel MSE adds
-        f"{control} vs {PIXEL}": (control, PIXEL),
-        f"{pair_with_chamfer} vs {control}": (pair_with_chamfer, control),  # DR-KFS for pixels
-    }
-    return {
-        name: {
-            kind: {k: v for k, v in share(table, a, b, metrics).items() if k != "cell_wins"}
-            for kind, metrics in (("visual", VISUAL), ("surface", SURFACE))
-        }
-        for name, (a, b) in asked.items()
-    }
+    return pair_shares(
+        table,
+        {
+            f"{three} vs {PIXEL}": (three, PIXEL),
+            f"{three} vs {CHAMFER}": (three, CHAMFER),
+            f"{three} vs {control}": (three, control),  # what the DR-KFS term adds
+            f"{three} vs {pair_with_chamfer}": (three, pair_with_chamfer),  # what pixel MSE adds
+            f"{control} vs {PIXEL}": (control, PIXEL),
+            f"{pair_with_chamfer} vs {control}": (pair_with_chamfer, control),  # DR-KFS for pixels
+        },
+    )
 
 
 def main() -> None:
@@ -143,14 +140,7 @@ def main() -> None:
         "choice": choice,
         "losses": names,
         "table": table,
-        "means": {
-            n: {
-                m: float(np.mean(found))
-                for m in METRICS
-                if (found := [rows[n][m] for rows in table.values() if rows[n].get(m) is not None])
-            }
-            for n in names
-        },
+        "means": metric_means(table, names),
         "mean_rank": {n: float(np.mean([r[n] for r in ranks])) for n in names},
         "comparisons": comparisons(table, three.name, control.name, drkfs_with_chamfer.name),
         "chamfer_l1_over_chamfer_fit": chamfer_ratios(table, names),

@@ -2,6 +2,8 @@
 silhouettes are judged from, and the quick plan end to end through the CLI."""
 
 import json
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -107,3 +109,33 @@ def test_quick_network_study_judges_every_test_shape_and_saves_its_meshes(quick_
     )
     assert (out / "gallery.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert "beats Chamfer on" in output and "best DR-KFS loss:" in output
+
+
+def test_the_combinations_script_retrains_chamfer_exactly_and_adds_two_networks(
+    quick_network_study, tmp_path
+):
+    study, _ = quick_network_study
+    out = tmp_path / "network" / "combinations.json"
+    done = subprocess.run(
+        [sys.executable, "bench/network_combinations.py", "--quick", "--out", str(out),
+         "--study", str(study / "results.json"), "--threads", str(torch.get_num_threads())],
+        cwd=Path(__file__).resolve().parents[1], capture_output=True, text=True, timeout=600,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr[-2000:]
+    results = json.loads(out.read_text())
+    # same weights, batches and draws: the Chamfer network judges exactly as the study's did,
+    # so the study's rows stand beside the new ones
+    assert results["reproduced"]["exact"] and results["reproduced"]["cells"] > 0
+    three, control = (
+        "pixel MSE + 0.3 x window r0 mean, coarse to fine + 1 x Chamfer",
+        ("pixel MSE + 1 x Chamfer"),
+    )
+    study_losses = [recipe.name for recipe in QUICK_NETWORK.recipes()]
+    assert results["losses"] == [*study_losses, three, control]
+    for name, rows in results["table"].items():
+        assert set(rows) == set(results["losses"])
+        for loss in (three, control):
+            assert (out.parent / results["meshes"][name][loss]).exists()
+    assert sum(results["mean_rank"].values()) == pytest.approx(28.0)  # seven ranked 1 to 7
+    drkfs_term = results["comparisons"][f"{three} vs {control}"]["visual"]
+    assert drkfs_term["cells"] == len(QUICK_NETWORK.families) * (len(VISUAL) - 1)

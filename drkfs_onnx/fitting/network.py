@@ -224,6 +224,32 @@ def train(plan: NetworkPlan, recipe: Recipe, points: torch.Tensor, shape_terms: 
     return {"model": model, "history": history, "seconds_per_step": seconds}
 
 
+def judge_networks(
+    trained: dict, test_set: list[Shape], faces: np.ndarray, judge: Judge, out: Path, progress
+) -> tuple[dict, dict, list]:
+    """Each trained network's reconstruction of each test shape, judged against the shape and
+    saved as OUT/meshes/<shape>/<loss>.ply -> (table: shape -> loss -> judged row, meshes: the
+    saved files relative to OUT, gallery rows)."""
+    table, meshes, gallery = {}, {}, []
+    for shape in test_set:
+        folder = out / "meshes" / slug(shape.name)
+        target = judge.prepare(shape.verts, shape.faces)
+        rows, row_meshes = {}, [(shape.verts, shape.faces)]
+        meshes[shape.name] = {"target": save_mesh(folder / "target.ply", shape.verts, shape.faces)}
+        for name, result in trained.items():
+            with torch.no_grad():
+                verts = result["model"](shape.points[None])[0].double().numpy()
+            rows[name] = judge.compare(judge.prepare(verts, faces), target)
+            meshes[shape.name][name] = save_mesh(folder / f"{slug(name)}.ply", verts, faces)
+            row_meshes.append((verts, faces))
+        table[shape.name] = rows
+        gallery.append((shape.name, row_meshes))
+        progress(
+            f"{shape.name}: " + "; ".join(f"{k} {v['F-score 1%']:.3f}" for k, v in rows.items())
+        )
+    return table, meshes, gallery
+
+
 def run_network_study(out: Path, quick: bool, threads: int = 2, progress=print) -> dict:
     start = time.perf_counter()
     out.mkdir(parents=True, exist_ok=True)
@@ -238,27 +264,10 @@ def run_network_study(out: Path, quick: bool, threads: int = 2, progress=print) 
         for recipe in recipes
     }
     judge = Judge(plan.judge_config, threads, plan.unseen_views, plan.lfd)
-    faces = faces.numpy()
-    table, meshes, gallery = {}, {}, []
     try:
-        for shape in test_set:
-            folder = out / "meshes" / slug(shape.name)
-            target = judge.prepare(shape.verts, shape.faces)
-            rows, row_meshes = {}, [(shape.verts, shape.faces)]
-            meshes[shape.name] = {
-                "target": save_mesh(folder / "target.ply", shape.verts, shape.faces)
-            }
-            for name, result in trained.items():
-                with torch.no_grad():
-                    verts = result["model"](shape.points[None])[0].double().numpy()
-                rows[name] = judge.compare(judge.prepare(verts, faces), target)
-                meshes[shape.name][name] = save_mesh(folder / f"{slug(name)}.ply", verts, faces)
-                row_meshes.append((verts, faces))
-            table[shape.name] = rows
-            gallery.append((shape.name, row_meshes))
-            progress(
-                f"{shape.name}: " + "; ".join(f"{k} {v['F-score 1%']:.3f}" for k, v in rows.items())
-            )
+        table, meshes, gallery = judge_networks(
+            trained, test_set, faces.numpy(), judge, out, progress
+        )
     finally:
         judge.close()
     columns = ["TARGET", *(column_title(r.name, plan.form) for r in recipes)]

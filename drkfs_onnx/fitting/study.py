@@ -123,6 +123,30 @@ def share(table: dict, challenger: str, against: str, metrics: tuple[str, ...]) 
     return {"wins": wins, "cells": len(cells), "share": wins / len(cells), "cell_wins": cells}
 
 
+def pair_shares(table: dict, pairs: dict[str, tuple[str, str]]) -> dict:
+    """For each named (challenger, rival) pair, the shares of visual and of surface cells the
+    challenger wins (``share`` without its cell list)."""
+    return {
+        name: {
+            kind: {k: v for k, v in share(table, a, b, metrics).items() if k != "cell_wins"}
+            for kind, metrics in (("visual", VISUAL), ("surface", SURFACE))
+        }
+        for name, (a, b) in pairs.items()
+    }
+
+
+def metric_means(table: dict, names) -> dict[str, dict[str, float]]:
+    """Each loss's mean of each judged metric over the table's rows that have it."""
+    return {
+        n: {
+            m: float(np.mean(found))
+            for m in METRICS
+            if (found := [rows[n][m] for rows in table.values() if rows[n].get(m) is not None])
+        }
+        for n in names
+    }
+
+
 def chamfer_ratios(table: dict, losses) -> dict[str, float]:
     """Each loss's Chamfer-L1 over the Chamfer result's, averaged over the table's rows."""
     return {
