@@ -55,7 +55,8 @@ def diagonal(parts: list[Part]) -> float:
     return float(np.linalg.norm(np.ptp(verts, axis=0)))
 
 
-def _rotation_y(degrees: float) -> np.ndarray:
+def rotation_y(degrees: float) -> np.ndarray:
+    """(3, 3): a turn of ``degrees`` about the vertical (y) axis."""
     c, s = np.cos(np.radians(degrees)), np.sin(np.radians(degrees))
     return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
 
@@ -80,7 +81,7 @@ def make_variants(
 
     verts, faces = mesh(parts)
     jitter = verts + rng.normal(size=verts.shape) * 0.002 * size
-    rotated = verts @ _rotation_y(2.0).T
+    rotated = verts @ rotation_y(2.0).T
     return [
         Variant("part_removed", "structural", *mesh(without(parts, name))),
         Variant("part_added", "structural", *mesh([*parts, added])),
@@ -141,7 +142,7 @@ def surface_variants(
         Variant("jittered", "mild", jitter, faces),
         Variant("part_thickened", "mild", verts + 0.01 * size * region[:, None] * normals, faces),
         Variant("part_shifted", "mild", verts + 0.025 * size * region[:, None] * direction, faces),
-        Variant("rotated", "mild", verts @ _rotation_y(2.0).T, faces),
+        Variant("rotated", "mild", verts @ rotation_y(2.0).T, faces),
     ]  # fmt: skip
 
 
