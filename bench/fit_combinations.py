@@ -24,7 +24,6 @@ import json
 import time
 from pathlib import Path
 
-import numpy as np
 import torch
 
 from drkfs_onnx.fitting.judges import Judge
@@ -41,9 +40,9 @@ from drkfs_onnx.fitting.study import (
     FULL,
     QUICK_STUDY,
     Fitter,
+    average_ranks,
     chamfer_ratios,
     load_problem,
-    mean_ranks,
     metric_means,
     pair_shares,
     save_mesh,
@@ -131,7 +130,6 @@ def main() -> None:
     finally:
         judge.close()
     names = [r.name for r in recipes]
-    ranks = [mean_ranks(rows) for rows in table.values()]
     results = {
         "command": f"python bench/fit_combinations.py --out {args.out}"
         + (" --quick" if args.quick else ""),
@@ -141,7 +139,7 @@ def main() -> None:
         "losses": names,
         "table": table,
         "means": metric_means(table, names),
-        "mean_rank": {n: float(np.mean([r[n] for r in ranks])) for n in names},
+        "mean_rank": average_ranks(table, names),
         "comparisons": comparisons(table, three.name, control.name, drkfs_with_chamfer.name),
         "chamfer_l1_over_chamfer_fit": chamfer_ratios(table, names),
         "seconds_per_step": seconds,

@@ -18,13 +18,12 @@ import json
 import time
 from pathlib import Path
 
-import numpy as np
 import torch
 
 from drkfs_onnx.config import PipelineConfig
 from drkfs_onnx.fitting.judges import Judge
 from drkfs_onnx.fitting.losses import Terms, alone
-from drkfs_onnx.fitting.study import FULL, QUICK_STUDY, Fitter, load_problem, mean_ranks
+from drkfs_onnx.fitting.study import FULL, QUICK_STUDY, Fitter, average_ranks, load_problem
 from drkfs_onnx.metric import DRKFS
 from drkfs_onnx.synthetic.shapes import FAMILIES
 from drkfs_onnx.training import graded
@@ -63,12 +62,13 @@ def fits(plan, form: str, nets: dict[str, DRKFS | None], threads: int) -> dict:
                 print(f"{name} / {problem.name}: F-score {judged['F-score 1%']:.3f}", flush=True)
     finally:
         judge.close()
-    ranks = [mean_ranks({n: rows[n][p.name] for n in rows}) for p in problems]
     return {
         "form": form,
         "lfd": judge.lfd_note,
         "rows": rows,
-        "mean_rank": {n: float(np.mean([r[n] for r in ranks])) for n in rows},
+        "mean_rank": average_ranks(
+            {p.name: {n: rows[n][p.name] for n in rows} for p in problems}, list(rows)
+        ),
     }
 
 

@@ -20,7 +20,6 @@ import json
 import time
 from pathlib import Path
 
-import numpy as np
 import torch
 
 from drkfs_onnx.fitting.judges import METRICS, Judge
@@ -36,7 +35,7 @@ from drkfs_onnx.fitting.network import (
     targets,
     train,
 )
-from drkfs_onnx.fitting.study import chamfer_ratios, mean_ranks, metric_means, pair_shares
+from drkfs_onnx.fitting.study import average_ranks, chamfer_ratios, metric_means, pair_shares
 
 
 def reproduction(new: dict, committed: dict) -> dict:
@@ -100,7 +99,6 @@ def main() -> None:
         f"{control.name} vs {PIXEL}": (control.name, PIXEL),
         f"{control.name} vs {CHAMFER}": (control.name, CHAMFER),
     }
-    ranks = [mean_ranks(rows) for rows in table.values()]
     results = {
         "command": f"python bench/network_combinations.py --out {args.out}"
         + (" --quick" if args.quick else ""),
@@ -112,7 +110,7 @@ def main() -> None:
         "table": table,
         "meshes": {s: {n: m[n] for n in (three.name, control.name)} for s, m in meshes.items()},
         "means": metric_means(table, names),
-        "mean_rank": {n: float(np.mean([r[n] for r in ranks])) for n in names},
+        "mean_rank": average_ranks(table, names),
         "comparisons": pair_shares(table, pairs),
         "chamfer_l1_over_chamfer_trained": chamfer_ratios(table, names),
         "seconds_per_step": {n: r["seconds_per_step"] for n, r in trained.items()},

@@ -109,6 +109,13 @@ def mean_ranks(rows: dict[str, dict[str, float | None]]) -> dict[str, float]:
     return ranks
 
 
+def average_ranks(table: dict, names) -> dict[str, float]:
+    """Each of ``names``' ``mean_ranks`` among ``names`` on each of the table's rows (problem ->
+    name -> judged row), averaged over the rows."""
+    per_row = [mean_ranks({n: rows[n] for n in names}) for rows in table.values()]
+    return {n: float(np.mean([ranks[n] for ranks in per_row])) for n in names}
+
+
 def share(table: dict, challenger: str, against: str, metrics: tuple[str, ...]) -> dict:
     """The (problem, metric) cells where ``challenger``'s result beats ``against``'s; a cell
     either side lacks (volumetric IoU of an open mesh, LFD where it is not installed) is not
@@ -295,10 +302,10 @@ def loss_study(plan: StudyPlan, fitter: Fitter, checkpoint: Checkpoint, progress
                 )
             report["rows"][recipe.name] = row
         names = [r.name for r in recipes]
-        per_problem = [
-            mean_ranks({n: report["rows"][n]["problems"][p.name] for n in names}) for p in problems
-        ]
-        return {n: float(np.mean([ranks[n] for ranks in per_problem])) for n in names}
+        table = {
+            p.name: {n: report["rows"][n]["problems"][p.name] for n in names} for p in problems
+        }
+        return average_ranks(table, names)
 
     ranks = run([alone(form) for form in plan.forms])
     chosen = min(ranks, key=ranks.get)
@@ -337,10 +344,7 @@ def summary(table: dict, recipes: list[Recipe], alone_name: str) -> dict:
     pixel MSE's."""
     names = [r.name for r in recipes]
     containing = [r.name for r in recipes if r.forms]
-    ranks = {
-        n: float(np.mean([mean_ranks({m: rows[m] for m in names})[n] for rows in table.values()]))
-        for n in containing
-    }
+    ranks = {n: rank for n, rank in average_ranks(table, names).items() if n in containing}
     best = min(ranks, key=ranks.get)
 
     def mean_fscore(name: str) -> float:
