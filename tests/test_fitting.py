@@ -4,8 +4,6 @@ study end to end (quick plan, through the CLI), and the README's training-loop e
 import json
 import re
 import struct
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -18,7 +16,7 @@ from drkfs_onnx.cli import app
 from drkfs_onnx.fitting.geometry import Smoothness, chamfer, surface_points
 from drkfs_onnx.fitting.judges import METRICS, VISUAL
 from drkfs_onnx.fitting.landscape import AGREEMENT, CHECKS, probe
-from drkfs_onnx.fitting.losses import pixel_with_chamfer, with_both
+from drkfs_onnx.fitting.losses import pixel_with_chamfer, with_both, with_chamfer, with_pixel
 from drkfs_onnx.fitting.mesh_fit import (
     ChamferLoss,
     DrkfsTerm,
@@ -177,31 +175,6 @@ def test_the_control_is_the_three_term_loss_without_its_drkfs_term():
     assert control.forms == []
 
 
-def test_the_combinations_script_fits_every_loss_in_one_run_on_the_quick_plan(tmp_path):
-    out = tmp_path / "fit" / "combinations.json"
-    done = subprocess.run(
-        [sys.executable, "bench/fit_combinations.py", "--out", str(out), "--quick",
-         "--threads", "1"],
-        cwd=ROOT, capture_output=True, text=True, timeout=600,
-    )  # fmt: skip
-    assert done.returncode == 0, done.stderr[-2000:]
-    results = json.loads(out.read_text())
-    three, control = "pixel MSE + 1 x window r0 mean + 10 x Chamfer", "pixel MSE + 10 x Chamfer"
-    assert results["losses"] == [
-        "Chamfer", "pixel MSE", "pixel MSE + 1 x window r0 mean",
-        "window r0 mean + 10 x Chamfer", three, control,
-    ]  # fmt: skip
-    for rows in results["table"].values():
-        assert set(rows) == set(results["losses"])
-        assert all(0.0 <= row["F-score 1%"] <= 1.0 for row in rows.values())
-    drkfs_term = results["comparisons"][f"{three} vs {control}"]
-    assert drkfs_term["visual"]["cells"] == 2 * (len(VISUAL) - 1)  # two problems, no LFD
-    assert 0 <= drkfs_term["visual"]["wins"] <= drkfs_term["visual"]["cells"]
-    # six losses ranked 1 to 6 on every metric of every problem
-    assert sum(results["mean_rank"].values()) == pytest.approx(21.0)
-    assert not (tmp_path / "fit" / "meshes").exists()  # a quick run saves no fits
-
-
 @pytest.fixture(scope="module")
 def quick_study(tmp_path_factory, shared_meshes):
     out = tmp_path_factory.mktemp("fit")
@@ -230,8 +203,16 @@ def test_quick_study_writes_the_table_the_shares_and_the_summary(quick_study):
     results = json.loads((out / "results.json").read_text())
     names = {"chair 3", "woody"}
     assert set(results["table"]) == names and len(QUICK_STUDY.problems) == 2
-    chosen = results["loss_study"]["forms"]["chosen"]
-    assert results["losses"][:3] == ["Chamfer", "pixel MSE", chosen]
+    study = results["loss_study"]
+    chosen = study["forms"]["chosen"]
+    pixel_weight = study["pixel_weight"]["chosen"]
+    chamfer_weight = study["chamfer_weight"]["chosen"]
+    three = with_both(chosen, pixel_weight, chamfer_weight).name
+    control = pixel_with_chamfer(chamfer_weight).name
+    assert results["losses"] == [
+        "Chamfer", "pixel MSE", chosen, with_pixel(chosen, pixel_weight).name,
+        with_chamfer(chosen, chamfer_weight).name, three, control,
+    ]  # fmt: skip
     for rows in results["table"].values():
         assert set(rows) == {"template", *results["losses"]}
         for values in rows.values():
@@ -250,6 +231,13 @@ def test_quick_study_writes_the_table_the_shares_and_the_summary(quick_study):
     assert summary["chamfer_l1_ratio"] == pytest.approx(
         results["chamfer_l1_over_chamfer_fit"][best]
     )
+    drkfs_term = results["comparisons"][f"{three} vs {control}"]
+    assert drkfs_term["visual"]["cells"] == len(names) * (len(VISUAL) - 1)
+    assert drkfs_term["visual"] == {
+        k: v for k, v in share(results["table"], three, control, VISUAL).items() if k != "cell_wins"
+    }
+    # seven losses ranked 1 to 7 on every metric of every problem
+    assert sum(results["mean_rank"].values()) == pytest.approx(28.0)
     assert set(results["seconds_per_step"]["losses"]) == set(results["losses"])
     chair = results["fits"]["chair 3"]["Chamfer"]  # three steps of Chamfer already help
     assert chair["objective_last"] < chair["objective_first"]
@@ -287,7 +275,7 @@ def test_quick_study_gallery_is_a_png_with_a_cell_per_mesh(quick_study):
     data = (out / "gallery.png").read_bytes()
     assert data[:8] == b"\x89PNG\r\n\x1a\n"
     width, height = struct.unpack(">II", data[16:24])
-    assert width > 7 * 128 and height > 2 * 2 * 128  # 7 columns, 2 problems of 2 views
+    assert width > 9 * 128 and height > 2 * 2 * 128  # 9 columns, 2 problems of 2 views
 
 
 def test_readme_training_loop_example_runs(monkeypatch):

@@ -7,10 +7,10 @@ Two parts, one run:
    (``losses.FORMS``: each idea alone and combined) fits each problem, is judged, and its
    gradient is probed (``landscape.probe``); the form with the best mean rank is "the DR-KFS
    loss". Its weight beside pixel MSE and beside Chamfer is chosen the same way.
-2. **The fitting study**: Chamfer, pixel MSE, the DR-KFS loss and its two combinations on
-   ``StudyPlan.problems``, with the probe on the DR-KFS loss and pixel MSE. Every fitted mesh is
-   saved as PLY beside results.json, and the gallery drawn from them; ``summary`` holds the
-   done-means numbers of the best DR-KFS-containing loss.
+2. **The fitting study**: Chamfer, pixel MSE, the DR-KFS loss, its two pairs, all three terms
+   and the control (pixel MSE + Chamfer) on ``StudyPlan.problems``, with the probe on the DR-KFS
+   loss and pixel MSE. Every fitted mesh is saved as PLY beside results.json, and the gallery
+   drawn from them; ``summary`` holds the done-means numbers of the best DR-KFS-containing loss.
 
 Each finished fit is kept in OUT/checkpoint.json, so a stopped run resumes where it stopped.
 
@@ -37,7 +37,19 @@ from ..synthetic.shapes import FAMILIES
 from .gallery import write_gallery
 from .judges import HIGHER_IS_BETTER, METRICS, SURFACE, UNSEEN_VIEWS, VISUAL, Judge, better
 from .landscape import CHECKS, probe
-from .losses import CHAMFER, FORMS, PIXEL, SCORING, Recipe, Terms, alone, with_chamfer, with_pixel
+from .losses import (
+    CHAMFER,
+    FORMS,
+    PIXEL,
+    SCORING,
+    Recipe,
+    Terms,
+    alone,
+    pixel_with_chamfer,
+    with_both,
+    with_chamfer,
+    with_pixel,
+)
 from .mesh_fit import DrkfsTerm, FitSettings, Objective, fit_mesh, float_tensor
 from .problems import Problem, shared, synthetic
 
@@ -324,17 +336,40 @@ def _brief_judged(row: dict) -> str:
 
 
 def study_recipes(choice: dict) -> list[Recipe]:
-    """The fitting study's losses: Chamfer, pixel MSE, the chosen DR-KFS loss and its two
-    combinations at the chosen weights (the first studies' DR-KFS, the scoring match, is in the
-    loss study)."""
+    """The fitting study's losses: Chamfer, pixel MSE, the chosen DR-KFS loss, its two pairs at
+    the chosen weights, all three terms at those weights, and the control (the three-term loss
+    without its DR-KFS term), so one run tells what the DR-KFS term adds (the first studies'
+    DR-KFS, the scoring match, is in the loss study)."""
     form = choice["forms"]["chosen"]
+    pixel_weight = choice["pixel_weight"]["chosen"]
+    chamfer_weight = choice["chamfer_weight"]["chosen"]
     return [
         alone(CHAMFER),
         alone(PIXEL),
         alone(form),
-        with_pixel(form, choice["pixel_weight"]["chosen"]),
-        with_chamfer(form, choice["chamfer_weight"]["chosen"]),
+        with_pixel(form, pixel_weight),
+        with_chamfer(form, chamfer_weight),
+        with_both(form, pixel_weight, chamfer_weight),
+        pixel_with_chamfer(chamfer_weight),
     ]
+
+
+def comparisons(table: dict, recipes: list[Recipe]) -> dict:
+    """Shares of visual and surface cells won in the pairs that tell what each term adds:
+    ``recipes`` as ``study_recipes`` orders them."""
+    _, _, _, pair_with_pixel, pair_with_chamfer, three, control = (r.name for r in recipes)
+    return pair_shares(
+        table,
+        {
+            f"{three} vs {PIXEL}": (three, PIXEL),
+            f"{three} vs {CHAMFER}": (three, CHAMFER),
+            f"{three} vs {control}": (three, control),  # what the DR-KFS term adds
+            f"{three} vs {pair_with_chamfer}": (three, pair_with_chamfer),  # what pixel MSE adds
+            f"{three} vs {pair_with_pixel}": (three, pair_with_pixel),  # what Chamfer adds
+            f"{control} vs {PIXEL}": (control, PIXEL),
+            f"{pair_with_chamfer} vs {control}": (pair_with_chamfer, control),  # DR-KFS for pixels
+        },
+    )
 
 
 def summary(table: dict, recipes: list[Recipe], alone_name: str) -> dict:
@@ -492,6 +527,9 @@ def fitting_study(
         "surface_beats_chamfer": {
             n: share(table, n, CHAMFER, SURFACE) for n in names if n != CHAMFER
         },
+        "comparisons": comparisons(table, recipes),
+        "means": metric_means(table, names),
+        "mean_rank": average_ranks(table, names),
         "chamfer_l1_over_chamfer_fit": chamfer_ratios(table, names),
         "landscape": {
             "problems": landscapes,
