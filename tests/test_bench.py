@@ -14,9 +14,10 @@ import trimesh
 from drkfs_onnx.benchmark import human, peers, sets
 from drkfs_onnx.benchmark import point_metrics as pm
 from drkfs_onnx.benchmark.chart import pareto_front, write_chart
-from drkfs_onnx.benchmark.methods import Placed
-from drkfs_onnx.benchmark.run import TIER_PAIRS, run_bench
+from drkfs_onnx.benchmark.methods import DrkfsOnnx, Placed
+from drkfs_onnx.benchmark.run import TIER_PAIRS, run_bench, tier_accuracy
 from drkfs_onnx.benchmark.sets import STABILITY, _box_with_cavity
+from drkfs_onnx.config import PipelineConfig
 from drkfs_onnx.mesh import frame_of, load_mesh, place
 from drkfs_onnx.synthetic.shapes import (
     ALL_FAMILIES,
@@ -354,6 +355,42 @@ def test_a_folder_without_the_stimuli_is_named(tmp_path):
     (tmp_path / human.JOD_FILE).write_text("basemesh\n")
     with pytest.raises(ValueError, match="b4f5cc9"):
         human.faces_in(tmp_path)
+
+
+def test_the_reductions_script_reproduces_the_benchmarks_default_from_one_set_of_distances(
+    tmp_path,
+):
+    jods = {f"F{i}": {"p12.50": -0.5, "p06.25": -1.0 - i, "p03.12": -2.0 - 2 * i} for i in range(3)}
+    folder = _geometric_folder(tmp_path / "geo", jods)
+    out = tmp_path / "reductions.json"
+    done = subprocess.run(
+        [sys.executable, "bench/reductions.py", "--out", str(out), "--quick", "--human",
+         str(folder), "--threads", "1"],
+        cwd=Path(__file__).resolve().parents[1], capture_output=True, text=True, timeout=600,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr[-2000:]
+    rows = json.loads(out.read_text())["rows"]
+    assert len(rows) == 7 and all(set(r["human"]) >= set(human.SETTINGS) for r in rows.values())
+    # the default's row is what the benchmark's default scores on the same set
+    bench = sets.BenchSet()
+    sets.tiers(bench, ["chair"], [])
+    jod = human.add_human(bench, folder)
+    method = DrkfsOnnx("DR-KFS", PipelineConfig(), None, threads=1)
+    values = {}
+    for i, c in enumerate(bench.comparisons):
+        frame = frame_of(bench.shapes[c.reference][0])
+        shape, reference = (
+            method.prepare(Placed(key, place(bench.shapes[key][0], frame), bench.shapes[key][1]))[0]
+            for key in (c.shape, c.reference)
+        )
+        values[i] = method.compare(shape, reference)[0]
+    default = rows["default (softmax, t = 0.1)"]
+    accuracy = tier_accuracy(bench, values)
+    assert default["tiers"] == {pair: accuracy[pair] for pair in TIER_PAIRS}
+    agreement = human.human_agreement(bench, values, jod)
+    assert [default["human"][s] for s in human.SETTINGS] == pytest.approx(
+        [agreement[s] for s in human.SETTINGS]
+    )
 
 
 def test_lfd_is_skipped_with_its_reason_where_it_is_not_installed(tmp_path):

@@ -1,0 +1,101 @@
+"""Reductions of the default's own best-match distances, on the tier set and people's judgments:
+can a second component from the same descriptors (issue 30's "structure" and "surface") agree
+with people better than the score does?
+
+    python bench/reductions.py --out bench/results/reductions.json --human DIR
+
+On the benchmark's tier set (``sets.tiers``) and, with ``--human``, Geo-metric's
+simplification pairs (``human.add_human``; DIR as for ``drkfs bench --human``), the default's
+feature graph describes every mesh once and finds each pair's best-match distances once
+(``runtime.match.best_matches``, every direction the default searches). Each reduction of
+REDUCTIONS then turns the same distances into a score (``match_rules.reduce``), scored by the
+benchmark's own measures: the three tier accuracies (``run.tier_accuracy``) and the Spearman per
+viewing setting (``human.human_agreement``). The default's own row reproduces the benchmark's.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+from drkfs_onnx import match_rules
+from drkfs_onnx.benchmark import human, sets
+from drkfs_onnx.benchmark.methods import DrkfsOnnx, Placed
+from drkfs_onnx.benchmark.run import TIER_PAIRS, tier_accuracy
+from drkfs_onnx.config import PipelineConfig
+from drkfs_onnx.mesh import frame_of, place
+from drkfs_onnx.runtime.match import best_matches
+from drkfs_onnx.synthetic.shapes import FAMILIES
+
+DEFAULT = PipelineConfig()
+REDUCTIONS = {  # name -> the default with another reduction of the same distances
+    "default (softmax, t = 0.1)": DEFAULT,
+    "softmax, t = 0.03": DEFAULT.replace(temperature=0.03),
+    "softmax, t = 1": DEFAULT.replace(temperature=1.0),
+    "mean": DEFAULT.replace(reduction="mean"),
+    "power 2": DEFAULT.replace(reduction="power", power=2.0),
+    "power 8": DEFAULT.replace(reduction="power", power=8.0),
+    "tail 10%": DEFAULT.replace(reduction="tail", tail_fraction=0.1),
+}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", type=Path, required=True)
+    parser.add_argument("--human", type=Path, help="a Geo-metric clone (see drkfs bench --human)")
+    parser.add_argument("--quick", action="store_true", help="one synthetic base")
+    parser.add_argument("--threads", type=int, default=2)
+    args = parser.parse_args()
+    start = time.perf_counter()
+    bench = sets.BenchSet()
+    if args.quick:
+        sets.tiers(bench, ["chair"], [])
+    else:
+        sets.tiers(bench, list(FAMILIES), sets.SWEPT_MESHES)
+    jod = human.add_human(bench, args.human) if args.human else None
+    method = DrkfsOnnx("DR-KFS", DEFAULT, None, args.threads)
+    distances = {}  # comparison index -> [(distances, weights)] per direction
+    for reference in dict.fromkeys(c.reference for c in bench.comparisons):
+        verts, faces = bench.shapes[reference]
+        frame = frame_of(verts)
+        described, _ = method.prepare(Placed(reference, place(verts, frame), faces))
+        for i, c in enumerate(bench.comparisons):
+            if c.reference == reference:
+                shape_verts, shape_faces = bench.shapes[c.shape]
+                shape, _ = method.prepare(Placed(c.shape, place(shape_verts, frame), shape_faces))
+                distances[i] = [
+                    best_matches(queries, targets, DEFAULT)
+                    for queries, targets in match_rules.directions(shape, described, DEFAULT)
+                ]
+    results = {
+        "command": f"python bench/reductions.py --out {args.out}"
+        + (" --human DIR" if args.human else "")
+        + (" --quick" if args.quick else ""),
+        "config": DEFAULT.to_dict(),
+        "reductions": {name: config.to_dict() for name, config in REDUCTIONS.items()},
+        "rows": {},
+    }
+    for name, config in REDUCTIONS.items():
+        values = {
+            i: float(np.mean([match_rules.reduce(d, w, config) for d, w in pairs]))
+            for i, pairs in distances.items()
+        }
+        accuracy = tier_accuracy(bench, values)
+        row = {
+            "tiers": {pair: accuracy[pair] for pair in TIER_PAIRS},
+            "human": None if jod is None else human.human_agreement(bench, values, jod),
+        }
+        results["rows"][name] = row
+        agreement = "" if jod is None else [round(row["human"][s], 3) for s in human.SETTINGS]
+        print(name, {p: round(a, 3) for p, a in row["tiers"].items()}, agreement, flush=True)
+    results["seconds"] = time.perf_counter() - start
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps(results, indent=1) + "\n")
+
+
+if __name__ == "__main__":
+    main()
