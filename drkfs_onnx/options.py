@@ -22,7 +22,7 @@ Preset = Annotated[
     str,
     typer.Option(
         help="default (chosen by the benchmark), paper (25 views, 256 px, global sum) or "
-        "structure (the default with the nets fine-tuned for the metric)."
+        "structure (the default's nets, global match, power mean of order 8)."
     ),
 ]
 Matching = Annotated[
