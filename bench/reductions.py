@@ -29,7 +29,6 @@ from drkfs_onnx.benchmark.run import TIER_PAIRS, tier_accuracy
 from drkfs_onnx.config import PipelineConfig
 from drkfs_onnx.mesh import frame_of, place
 from drkfs_onnx.runtime.match import best_matches
-from drkfs_onnx.synthetic.shapes import FAMILIES
 
 DEFAULT = PipelineConfig()
 REDUCTIONS = {  # name -> the default with another reduction of the same distances
@@ -51,11 +50,7 @@ def main() -> None:
     parser.add_argument("--threads", type=int, default=2)
     args = parser.parse_args()
     start = time.perf_counter()
-    bench = sets.BenchSet()
-    if args.quick:
-        sets.tiers(bench, ["chair"], [])
-    else:
-        sets.tiers(bench, list(FAMILIES), sets.SWEPT_MESHES)
+    bench = sets.tier_set(args.quick)
     jod = human.add_human(bench, args.human) if args.human else None
     method = DrkfsOnnx("DR-KFS", DEFAULT, None, args.threads)
     distances = {}  # comparison index -> [(distances, weights)] per direction

@@ -28,7 +28,6 @@ from drkfs_onnx.benchmark.methods import DrkfsOnnx, Placed
 from drkfs_onnx.benchmark.run import TIER_PAIRS, tier_accuracy
 from drkfs_onnx.config import PipelineConfig
 from drkfs_onnx.mesh import frame_of, place
-from drkfs_onnx.synthetic.shapes import FAMILIES
 from drkfs_onnx.synthetic.variants import rotation_y
 
 TURN_SETS = {  # name -> degrees about the vertical
@@ -46,11 +45,7 @@ def main() -> None:
     parser.add_argument("--threads", type=int, default=2)
     args = parser.parse_args()
     start = time.perf_counter()
-    bench = sets.BenchSet()
-    if args.quick:
-        sets.tiers(bench, ["chair"], [])
-    else:
-        sets.tiers(bench, list(FAMILIES), sets.SWEPT_MESHES)
+    bench = sets.tier_set(args.quick)
     method = DrkfsOnnx("DR-KFS", PipelineConfig(), None, args.threads)
     angles = sorted({a for turns in TURN_SETS.values() for a in turns})
     values: dict[str, dict[int, float]] = {name: {} for name in TURN_SETS}

@@ -372,8 +372,7 @@ def test_the_reductions_script_reproduces_the_benchmarks_default_from_one_set_of
     rows = json.loads(out.read_text())["rows"]
     assert len(rows) == 7 and all(set(r["human"]) >= set(human.SETTINGS) for r in rows.values())
     # the default's row is what the benchmark's default scores on the same set
-    bench = sets.BenchSet()
-    sets.tiers(bench, ["chair"], [])
+    bench = sets.tier_set(quick=True)
     jod = human.add_human(bench, folder)
     method = DrkfsOnnx("DR-KFS", PipelineConfig(), None, threads=1)
     values = {}

@@ -233,16 +233,25 @@ def stability(bench: BenchSet, surface: str, large: str | None) -> None:
         bench.comparisons.append(Comparison("stability", case, case, STABILITY[case], a, b))
 
 
-def build(quick: bool) -> BenchSet:
-    """The full set, or the quick subset the tests run (one synthetic base, a small retrieval
-    set, the stability cases on a small mesh and no 200k-face case)."""
+def tier_set(quick: bool) -> BenchSet:
+    """The benchmark's tier set (every family's base and the swept shared meshes), or the
+    quick one of one synthetic base."""
     bench = BenchSet()
     if quick:
         tiers(bench, ["chair"], [])
+    else:
+        tiers(bench, list(FAMILIES), SWEPT_MESHES)
+    return bench
+
+
+def build(quick: bool) -> BenchSet:
+    """The full set, or the quick subset the tests run (one synthetic base, a small retrieval
+    set, the stability cases on a small mesh and no 200k-face case)."""
+    bench = tier_set(quick)
+    if quick:
         retrieval(bench, ["chair", "table", "lamp"], 2)
         stability(bench, "woody", None)
     else:
-        tiers(bench, list(FAMILIES), SWEPT_MESHES)
         retrieval(bench, list(ALL_FAMILIES), RETRIEVAL_PER_FAMILY)
         stability(bench, "cow", "stanford-bunny")
     bars(bench)

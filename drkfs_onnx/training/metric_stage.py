@@ -96,12 +96,10 @@ def benchmark_set(quick: bool) -> sets.BenchSet:
     """The benchmark's tier, bars and retrieval sets (``sets.build`` without the stability
     cases, which score no ranking). Retrieval keeps the training families, two shapes each,
     as the nets were chosen with."""
-    bench = sets.BenchSet()
+    bench = sets.tier_set(quick)
     if quick:
-        sets.tiers(bench, ["chair"], [])
         sets.retrieval(bench, ["chair", "table", "lamp"], 2)
     else:
-        sets.tiers(bench, list(FAMILIES), sets.SWEPT_MESHES)
         sets.retrieval(bench, list(FAMILIES), 2)
     sets.bars(bench)
     return bench
