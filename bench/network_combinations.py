@@ -63,8 +63,9 @@ def main() -> None:
     start = time.perf_counter()
     plan = QUICK_NETWORK if args.quick else FULL
     study = json.loads(args.study.read_text())
-    three = with_both(plan.form, plan.pixel_weight, plan.chamfer_weight)
-    control = pixel_with_chamfer(plan.chamfer_weight)
+    weight = study["validation"]["chosen"]  # the study's Chamfer weight, chosen on validation
+    three = with_both(plan.form, plan.pixel_weight, weight)
+    control = pixel_with_chamfer(weight)
     train_set = shapes(plan, TRAIN_SEED, plan.train_per_family)
     test_set = shapes(plan, TEST_SEED, plan.test_per_family)
     _, faces = primitives()

@@ -16,7 +16,7 @@ from drkfs_onnx.benchmark.point_metrics import iou, is_watertight
 from drkfs_onnx.cameras import make_cameras
 from drkfs_onnx.cli import app
 from drkfs_onnx.config import PipelineConfig
-from drkfs_onnx.fitting.judges import VISUAL, SilhouetteJudge, unseen_cameras
+from drkfs_onnx.fitting.judges import HIGHER_IS_BETTER, VISUAL, SilhouetteJudge, unseen_cameras
 from drkfs_onnx.fitting.network import (
     FULL,
     JUDGED,
@@ -24,7 +24,10 @@ from drkfs_onnx.fitting.network import (
     QUICK_NETWORK,
     TEST_SEED,
     TRAIN_SEED,
+    VALIDATION_SEED,
     Reconstructor,
+    Trainings,
+    choose_chamfer_weight,
     make_shape,
 )
 from drkfs_onnx.fitting.study import slug
@@ -35,7 +38,7 @@ def test_the_full_plan_trains_with_the_committed_loss_studys_choice():
     study = json.loads(results.read_text())["loss_study"]
     assert FULL.form == study["forms"]["chosen"]
     assert FULL.pixel_weight == study["pixel_weight"]["chosen"]
-    assert FULL.chamfer_weight == study["chamfer_weight"]["chosen"]
+    assert FULL.chamfer_weights[0] == study["chamfer_weight"]["chosen"]  # the others: validation
 
 
 def test_the_network_starts_as_closed_spheres_and_gives_every_parameter_a_gradient():
@@ -51,9 +54,13 @@ def test_the_network_starts_as_closed_spheres_and_gives_every_parameter_a_gradie
     assert all(p.grad is not None and p.grad.abs().sum() > 0 for p in model.parameters())
 
 
-def test_training_and_test_shapes_differ_and_are_normalised():
-    a, b = make_shape("chair", TRAIN_SEED), make_shape("chair", TEST_SEED)
-    assert not np.allclose(a.verts.max(0), b.verts.max(0))
+def test_training_validation_and_test_shapes_differ_and_are_normalised():
+    a, b, c = (make_shape("chair", s) for s in (TRAIN_SEED, VALIDATION_SEED, TEST_SEED))
+    for one, other in ((a, b), (a, c), (b, c)):
+        assert not np.allclose(one.verts.max(0), other.verts.max(0))
+    # each split's seeds stay below the next one's first
+    assert TRAIN_SEED + FULL.train_per_family <= VALIDATION_SEED
+    assert VALIDATION_SEED + FULL.validation_per_family <= TEST_SEED
     lower, upper = a.verts.min(0), a.verts.max(0)
     assert np.linalg.norm(upper - lower) == pytest.approx(2.0)
 
@@ -73,6 +80,46 @@ def test_silhouette_cameras_are_none_of_the_losses_and_half_look_from_below():
     assert iou(smaller, mask) == pytest.approx(0.25, abs=0.05)  # areas scale by 1/4
 
 
+def test_the_chamfer_weight_with_most_validation_wins_is_chosen_and_a_tie_keeps_the_first():
+    first, second = (r.name for r in FULL.candidates())
+
+    def row(win: bool) -> dict:
+        """Beats (or loses to) a Chamfer row of ones on every visual metric."""
+        return {m: 2.0 if (m in HIGHER_IS_BETTER) == win else 0.5 for m in VISUAL} | {
+            "Chamfer-L1": 1.0
+        }
+
+    def table(wins_first: list[bool], wins_second: list[bool]) -> dict:
+        ones = {m: 1.0 for m in [*VISUAL, "Chamfer-L1"]}
+        return {
+            f"shape {i}": {"Chamfer": ones, first: row(a), second: row(b)}
+            for i, (a, b) in enumerate(zip(wins_first, wins_second, strict=True))
+        }
+
+    chosen = choose_chamfer_weight(FULL, table([True, False], [True, True]))
+    assert chosen["chosen"] == FULL.chamfer_weights[1]
+    assert chosen["shares"] == {first: 0.5, second: 1.0}
+    assert (
+        choose_chamfer_weight(FULL, table([True, False], [False, True]))["chosen"]
+        == (FULL.chamfer_weights[0])
+    )
+
+
+def test_a_stopped_study_resumes_with_the_networks_it_had_trained(tmp_path):
+    torch.manual_seed(3)
+    model = Reconstructor()
+    result = {"model": model, "history": [1.0, 0.5], "seconds_per_step": 0.2}
+    recipe = FULL.candidates()[0]
+    Trainings(tmp_path, FULL).put(recipe, result)
+    resumed = Trainings(tmp_path, FULL).get(recipe)
+    points = make_shape("chair", TEST_SEED).points[None]
+    with torch.no_grad():
+        assert torch.equal(resumed["model"](points), model(points))
+    assert resumed["history"] == [1.0, 0.5] and resumed["seconds_per_step"] == 0.2
+    assert Trainings(tmp_path, QUICK_NETWORK).get(recipe) is None  # trained under another plan
+    assert Trainings(tmp_path, FULL).get(FULL.candidates()[1]) is None  # never trained
+
+
 @pytest.fixture(scope="module")
 def quick_network_study(tmp_path_factory):
     out = tmp_path_factory.mktemp("network")
@@ -85,7 +132,13 @@ def test_quick_network_study_judges_every_test_shape_and_saves_its_meshes(quick_
     out, output = quick_network_study
     results = json.loads((out / "results.json").read_text())
     names = {f"{family} {TEST_SEED}" for family in QUICK_NETWORK.families}
-    losses = [recipe.name for recipe in QUICK_NETWORK.recipes()]
+    validation = results["validation"]
+    assert validation["chosen"] in QUICK_NETWORK.chamfer_weights
+    assert set(validation["shares"]) == {r.name for r in QUICK_NETWORK.candidates()}
+    assert set(validation["table"]) == {f"{f} {VALIDATION_SEED}" for f in QUICK_NETWORK.families}
+    assert not (out / "checkpoint").exists()  # a finished study removes its checkpoint
+    recipes = QUICK_NETWORK.recipes(validation["chosen"])
+    losses = [recipe.name for recipe in recipes]
     assert results["plan"]["losses"] == losses and len(losses) == 5
     assert set(results["table"]) == names
     for name, rows in results["table"].items():
@@ -98,7 +151,7 @@ def test_quick_network_study_judges_every_test_shape_and_saves_its_meshes(quick_
     for loss in losses[1:]:  # LFD is not asked for in the quick plan
         assert results["beats_chamfer"][loss]["cells"] == len(names) * (len(VISUAL) - 1)
     # every network starts from the same weights: the first objective is the sum of the weights
-    for recipe in QUICK_NETWORK.recipes():
+    for recipe in [*QUICK_NETWORK.fixed(), *QUICK_NETWORK.candidates()]:
         first = results["training"][recipe.name]["objective_first"]
         assert first == pytest.approx(sum(w for w, _ in recipe.terms)), recipe.name
     summary = results["summary"]
@@ -126,11 +179,11 @@ def test_the_combinations_script_retrains_chamfer_exactly_and_adds_two_networks(
     # same weights, batches and draws: the Chamfer network judges exactly as the study's did,
     # so the study's rows stand beside the new ones
     assert results["reproduced"]["exact"] and results["reproduced"]["cells"] > 0
-    three, control = (
-        "pixel MSE + 0.3 x window r0 mean, coarse to fine + 1 x Chamfer",
-        ("pixel MSE + 1 x Chamfer"),
-    )
-    study_losses = [recipe.name for recipe in QUICK_NETWORK.recipes()]
+    committed = json.loads((study / "results.json").read_text())
+    weight = committed["validation"]["chosen"]  # beside Chamfer, as the study's network
+    three = f"pixel MSE + 0.3 x window r0 mean, coarse to fine + {weight:g} x Chamfer"
+    control = f"pixel MSE + {weight:g} x Chamfer"
+    study_losses = committed["plan"]["losses"]
     assert results["losses"] == [*study_losses, three, control]
     for name, rows in results["table"].items():
         assert set(rows) == set(results["losses"])

@@ -3,6 +3,11 @@ sample of their surface points; it is trained once per loss (Chamfer, pixel MSE,
 and its combinations, as the fitting study's loss study chose them) from the same initial
 weights on the same batches, and judged on held-out seeds by metrics no loss computes.
 
+The DR-KFS loss's weight beside Chamfer starts from the fitting study's choice; a network is not
+a mesh fit, so the study trains each of ``NetworkPlan.chamfer_weights`` and keeps the one that
+beats the Chamfer network on the most visual cells of validation shapes (seeds of their own,
+neither trained on nor tested), before any test shape is judged.
+
 The decoder deforms PRIMITIVES icospheres (AtlasNet's idea with closed patches, so the result is
 watertight and has a volume): vertex = anchor_k + RADIUS * u + MLP(code, e_k, u) for each unit
 sphere vertex u of primitive k, with a learned anchor and embedding e_k per primitive.
@@ -13,6 +18,7 @@ from __future__ import annotations
 import json
 import os
 import platform
+import shutil
 import time
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
@@ -34,9 +40,10 @@ from .losses import CHAMFER, PIXEL, Recipe, Terms, alone, with_chamfer, with_pix
 from .mesh_fit import DrkfsTerm, float_tensor
 from .study import chamfer_ratios, column_title, save_mesh, share, slug, summary
 
-# seeds of the shapes the network trains and is tested on: disjoint from the benchmark's
-# (2026-2028), the held-out checks' (3000-3002) and the nets' training data (seeds 0-2)
-TRAIN_SEED, TEST_SEED = 4000, 4500
+# seeds of the shapes the network trains on, chooses its Chamfer weight on and is tested on:
+# disjoint from the benchmark's (2026-2028), the held-out checks' (3000-3002) and the nets'
+# training data (seeds 0-2)
+TRAIN_SEED, VALIDATION_SEED, TEST_SEED = 4000, 4400, 4500
 INPUT_POINTS = 512  # the network's input: surface points of the shape
 PRIMITIVES = 8
 SPHERE_LEVEL = 2  # 162 vertices, 320 faces per primitive: 2,560 faces in all
@@ -54,24 +61,34 @@ class NetworkPlan:
     batch: int
     learning_rate: float
     smoothness: float  # weight of the primitives' Laplacian smoothness beside losses starting at 1
-    # the DR-KFS loss and its weights beside pixel MSE and Chamfer: the fitting study's loss
-    # study's choice (bench/fit/results.json, "loss_study")
+    # the DR-KFS loss and its weight beside pixel MSE: the fitting study's loss study's choice
+    # (bench/fit/results.json, "loss_study"); its weights beside Chamfer: that study's choice
+    # first, then the others the validation shapes decide between
     form: str
     pixel_weight: float
-    chamfer_weight: float
+    chamfer_weights: tuple[float, ...]
+    validation_per_family: int
     judge_config: PipelineConfig  # the paper preset, as a judge
     lfd: bool = True  # judge with LFD where it is installed
     unseen_views: int = UNSEEN_VIEWS  # the silhouette judge's cameras
     seed: int = 0
 
-    def recipes(self) -> list[Recipe]:
+    def fixed(self) -> list[Recipe]:
+        """The losses without a weight to choose."""
         return [
             alone(CHAMFER),
             alone(PIXEL),
             alone(self.form),
             with_pixel(self.form, self.pixel_weight),
-            with_chamfer(self.form, self.chamfer_weight),
         ]
+
+    def candidates(self) -> list[Recipe]:
+        """DR-KFS + w x Chamfer for each candidate weight w."""
+        return [with_chamfer(self.form, w) for w in self.chamfer_weights]
+
+    def recipes(self, chamfer_weight: float) -> list[Recipe]:
+        """The five losses judged on the test shapes, at the chosen Chamfer weight."""
+        return [*self.fixed(), with_chamfer(self.form, chamfer_weight)]
 
 
 FULL = NetworkPlan(
@@ -86,7 +103,8 @@ FULL = NetworkPlan(
     smoothness=10.0,
     form="window r0 mean, coarse to fine",
     pixel_weight=0.3,
-    chamfer_weight=1.0,
+    chamfer_weights=(1.0, 3.0),
+    validation_per_family=4,
     judge_config=PipelineConfig.paper(),
 )
 QUICK_NETWORK = replace(
@@ -94,6 +112,7 @@ QUICK_NETWORK = replace(
     families=("chair", "table"),
     train_per_family=2,
     test_per_family=1,
+    validation_per_family=1,
     steps=2,
     judge_config=PipelineConfig.paper(num_views=2, image_size=64),
     lfd=False,
@@ -224,25 +243,61 @@ def train(plan: NetworkPlan, recipe: Recipe, points: torch.Tensor, shape_terms: 
     return {"model": model, "history": history, "seconds_per_step": seconds}
 
 
+class Trainings:
+    """Finished trainings kept as OUT/checkpoint/<loss>.pt with the plan they were trained under,
+    so a stopped study resumes where it stopped (``train`` seeds each training itself, so a
+    resumed network equals the one a straight run trains); a finished study removes them."""
+
+    def __init__(self, folder: Path, plan: NetworkPlan):
+        self.folder, self.plan = folder, repr(plan)
+
+    def get(self, recipe: Recipe) -> dict | None:
+        path = self.folder / f"{slug(recipe.name)}.pt"
+        saved = torch.load(path, weights_only=True) if path.exists() else None
+        if saved is None or saved["plan"] != self.plan:
+            return None
+        model = Reconstructor()
+        model.load_state_dict(saved["state"])
+        return {"model": model, "history": saved["history"], "seconds_per_step": saved["seconds"]}
+
+    def put(self, recipe: Recipe, result: dict) -> None:
+        self.folder.mkdir(parents=True, exist_ok=True)
+        saved = {"plan": self.plan, "state": result["model"].state_dict(),
+                 "history": result["history"], "seconds": result["seconds_per_step"]}  # fmt: skip
+        scratch = self.folder / f"{slug(recipe.name)}.tmp"  # a kill mid-write leaves no .pt
+        torch.save(saved, scratch)
+        scratch.replace(scratch.with_suffix(".pt"))
+
+    def remove(self) -> None:
+        shutil.rmtree(self.folder, ignore_errors=True)
+
+
 def judge_networks(
-    trained: dict, test_set: list[Shape], faces: np.ndarray, judge: Judge, out: Path, progress
+    trained: dict,
+    test_set: list[Shape],
+    faces: np.ndarray,
+    judge: Judge,
+    out: Path | None,
+    progress,
 ) -> tuple[dict, dict, list]:
-    """Each trained network's reconstruction of each test shape, judged against the shape and
-    saved as OUT/meshes/<shape>/<loss>.ply -> (table: shape -> loss -> judged row, meshes: the
-    saved files relative to OUT, gallery rows)."""
+    """Each trained network's reconstruction of each shape, judged against the shape and, where
+    ``out`` is given, saved as OUT/meshes/<shape>/<loss>.ply -> (table: shape -> loss -> judged
+    row, meshes: the saved files relative to OUT, gallery rows)."""
     table, meshes, gallery = {}, {}, []
     for shape in test_set:
-        folder = out / "meshes" / slug(shape.name)
         target = judge.prepare(shape.verts, shape.faces)
-        rows, row_meshes = {}, [(shape.verts, shape.faces)]
-        meshes[shape.name] = {"target": save_mesh(folder / "target.ply", shape.verts, shape.faces)}
+        rows, row_meshes, saved = {}, [(shape.verts, shape.faces)], {}
+        folder = out / "meshes" / slug(shape.name) if out else None
+        if folder:
+            saved["target"] = save_mesh(folder / "target.ply", shape.verts, shape.faces)
         for name, result in trained.items():
             with torch.no_grad():
                 verts = result["model"](shape.points[None])[0].double().numpy()
             rows[name] = judge.compare(judge.prepare(verts, faces), target)
-            meshes[shape.name][name] = save_mesh(folder / f"{slug(name)}.ply", verts, faces)
+            if folder:
+                saved[name] = save_mesh(folder / f"{slug(name)}.ply", verts, faces)
             row_meshes.append((verts, faces))
-        table[shape.name] = rows
+        table[shape.name], meshes[shape.name] = rows, saved
         gallery.append((shape.name, row_meshes))
         progress(
             f"{shape.name}: " + "; ".join(f"{k} {v['F-score 1%']:.3f}" for k, v in rows.items())
@@ -250,24 +305,53 @@ def judge_networks(
     return table, meshes, gallery
 
 
+def choose_chamfer_weight(plan: NetworkPlan, table: dict) -> dict:
+    """The candidate weight whose network beats the Chamfer network on the most visual cells of
+    the validation ``table`` (a tie goes to the earlier candidate, the fitting study's choice
+    first) -> {"shares", "chamfer_l1_ratio", "chosen"}."""
+    names = [r.name for r in plan.candidates()]
+    shares = {n: share(table, n, CHAMFER, VISUAL)["share"] for n in names}
+    best = max(names, key=lambda n: (shares[n], -names.index(n)))
+    return {
+        "shares": shares,
+        "chamfer_l1_ratio": chamfer_ratios(table, names),
+        "chosen": plan.chamfer_weights[names.index(best)],
+    }
+
+
 def run_network_study(out: Path, quick: bool, threads: int = 2, progress=print) -> dict:
     start = time.perf_counter()
     out.mkdir(parents=True, exist_ok=True)
     plan = QUICK_NETWORK if quick else FULL
     train_set = shapes(plan, TRAIN_SEED, plan.train_per_family)
+    validation_set = shapes(plan, VALIDATION_SEED, plan.validation_per_family)
     test_set = shapes(plan, TEST_SEED, plan.test_per_family)
     _, faces = primitives()
     points = torch.stack([s.points for s in train_set])
-    terms, recipes = Terms(), plan.recipes()
-    trained = {
-        recipe.name: train(plan, recipe, points, targets(recipe, train_set, faces, terms), progress)
-        for recipe in recipes
-    }
+    terms, checkpoint = Terms(), Trainings(out / "checkpoint", plan)
+    trained, resumed = {}, 0
+    for recipe in [*plan.fixed(), *plan.candidates()]:
+        result = checkpoint.get(recipe)
+        resumed += result is not None
+        if result is None:
+            shape_terms = targets(recipe, train_set, faces, terms)
+            result = train(plan, recipe, points, shape_terms, progress)
+            checkpoint.put(recipe, result)
+        trained[recipe.name] = result
     judge = Judge(plan.judge_config, threads, plan.unseen_views, plan.lfd)
     try:
-        table, meshes, gallery = judge_networks(
-            trained, test_set, faces.numpy(), judge, out, progress
+        judging = {r.name: trained[r.name] for r in [alone(CHAMFER), *plan.candidates()]}
+        progress("validation shapes:")
+        validation_table, _, _ = judge_networks(
+            judging, validation_set, faces.numpy(), judge, None, progress
         )
+        choice = choose_chamfer_weight(plan, validation_table)
+        recipes = plan.recipes(choice["chosen"])
+        progress(f"validation chose Chamfer weight {choice['chosen']:g}; test shapes:")
+        table, meshes, gallery = judge_networks(
+            {r.name: trained[r.name] for r in recipes},
+            test_set, faces.numpy(), judge, out, progress,
+        )  # fmt: skip
     finally:
         judge.close()
     columns = ["TARGET", *(column_title(r.name, plan.form) for r in recipes)]
@@ -286,6 +370,7 @@ def run_network_study(out: Path, quick: bool, threads: int = 2, progress=print) 
             "judge_config": plan.judge_config.to_dict(),
             "losses": names,
             "train_seeds": [TRAIN_SEED, TRAIN_SEED + plan.train_per_family - 1],
+            "validation_seeds": [VALIDATION_SEED, VALIDATION_SEED + plan.validation_per_family - 1],
             "test_seeds": [TEST_SEED, TEST_SEED + plan.test_per_family - 1],
             "network": f"PointNet encoder ({INPUT_POINTS} points) -> {PRIMITIVES} deformed "
             f"icospheres (level {SPHERE_LEVEL})",
@@ -294,6 +379,7 @@ def run_network_study(out: Path, quick: bool, threads: int = 2, progress=print) 
         "judged": list(JUDGED),
         "visual": list(VISUAL),
         "higher_is_better": sorted(HIGHER_IS_BETTER & set(JUDGED)),
+        "validation": {**choice, "table": validation_table},
         "table": table,
         "meshes": meshes,
         "training": {
@@ -303,7 +389,7 @@ def run_network_study(out: Path, quick: bool, threads: int = 2, progress=print) 
                 "seconds_per_step": r["seconds_per_step"],
             }
             for name, r in trained.items()
-        },
+        },  # every network trained, the candidate not chosen included
         "beats_chamfer": {n: share(table, n, CHAMFER, VISUAL) for n in names[1:]},
         "beats_pixel_mse": {n: share(table, n, PIXEL, VISUAL) for n in names if n != PIXEL},
         "chamfer_l1_over_chamfer_trained": chamfer_ratios(table, names),
@@ -318,6 +404,8 @@ def run_network_study(out: Path, quick: bool, threads: int = 2, progress=print) 
         },  # fmt: skip
         "summary": summary(table, recipes, plan.form),
     }
+    results["networks_resumed"] = resumed  # from a checkpoint: seconds_total does not count them
     results["seconds_total"] = time.perf_counter() - start
     (out / "results.json").write_text(json.dumps(results, indent=1))
+    checkpoint.remove()
     return results
