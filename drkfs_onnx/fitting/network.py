@@ -311,7 +311,7 @@ def choose_chamfer_weight(plan: NetworkPlan, table: dict) -> dict:
     first) -> {"shares", "chamfer_l1_ratio", "chosen"}."""
     names = [r.name for r in plan.candidates()]
     shares = {n: share(table, n, CHAMFER, VISUAL)["share"] for n in names}
-    best = max(names, key=lambda n: (shares[n], -names.index(n)))
+    best = max(names, key=shares.get)  # max keeps the first of equals
     return {
         "shares": shares,
         "chamfer_l1_ratio": chamfer_ratios(table, names),
