@@ -17,6 +17,7 @@ from drkfs_onnx.cameras import make_cameras
 from drkfs_onnx.cli import app
 from drkfs_onnx.config import PipelineConfig
 from drkfs_onnx.fitting.judges import HIGHER_IS_BETTER, VISUAL, SilhouetteJudge, unseen_cameras
+from drkfs_onnx.fitting.losses import CHAMFER, alone
 from drkfs_onnx.fitting.network import (
     FULL,
     JUDGED,
@@ -29,6 +30,7 @@ from drkfs_onnx.fitting.network import (
     Trainings,
     choose_chamfer_weight,
     make_shape,
+    train,
 )
 from drkfs_onnx.fitting.study import slug
 
@@ -103,6 +105,21 @@ def test_the_chamfer_weight_with_most_validation_wins_is_chosen_and_a_tie_keeps_
         choose_chamfer_weight(FULL, table([True, False], [False, True]))["chosen"]
         == (FULL.chamfer_weights[0])
     )
+
+
+def test_training_runs_on_deterministic_kernels_and_gives_the_callers_setting_back():
+    """Without them, indexing's backward sums in an order that follows thread timing."""
+    seen = []
+
+    def spy(verts: torch.Tensor) -> torch.Tensor:
+        seen.append(torch.are_deterministic_algorithms_enabled())
+        return verts.square().mean()
+
+    points = torch.stack([make_shape("chair", TRAIN_SEED).points])
+    assert not torch.are_deterministic_algorithms_enabled()
+    train(QUICK_NETWORK, alone(CHAMFER), points, [[(1.0, spy)]], lambda _: None)
+    assert seen == [True] * QUICK_NETWORK.steps
+    assert not torch.are_deterministic_algorithms_enabled()
 
 
 def test_a_stopped_study_resumes_with_the_networks_it_had_trained(tmp_path):

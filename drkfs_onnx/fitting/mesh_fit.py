@@ -8,7 +8,8 @@ weight and one learning rate serve losses whose raw scales differ by orders of m
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 import numpy as np
@@ -25,6 +26,22 @@ TARGET_SAMPLES = 5000  # points on the target, drawn once
 
 def float_tensor(array: np.ndarray) -> torch.Tensor:
     return torch.as_tensor(np.asarray(array, dtype=np.float32))
+
+
+@contextmanager
+def deterministic_kernels() -> Iterator[None]:
+    """Run the block on torch's deterministic kernels, then restore the caller's setting.
+
+    Why: the backward of indexing a CPU tensor (``verts[faces]``) accumulates its float sums in
+    an order that follows thread timing, so the same training ends elsewhere from run to run,
+    most of all on a busy machine (docs/fitting.md, "Against Chamfer the answer moves")."""
+    enabled = torch.are_deterministic_algorithms_enabled()
+    warn_only = torch.is_deterministic_algorithms_warn_only_enabled()
+    torch.use_deterministic_algorithms(True)
+    try:
+        yield
+    finally:
+        torch.use_deterministic_algorithms(enabled, warn_only=warn_only)
 
 
 class DrkfsTerm:

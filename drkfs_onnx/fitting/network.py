@@ -37,7 +37,7 @@ from .gallery import write_gallery
 from .geometry import Smoothness
 from .judges import HIGHER_IS_BETTER, SURFACE, UNSEEN_VIEWS, VISUAL, Judge
 from .losses import CHAMFER, PIXEL, Recipe, Terms, alone, with_chamfer, with_pixel
-from .mesh_fit import DrkfsTerm, float_tensor
+from .mesh_fit import DrkfsTerm, deterministic_kernels, float_tensor
 from .study import chamfer_ratios, column_title, save_mesh, share, slug, summary
 
 # seeds of the shapes the network trains on, chooses its Chamfer weight on and is tested on:
@@ -206,11 +206,13 @@ def targets(recipe: Recipe, train: list[Shape], faces: torch.Tensor, terms: Term
     return [[(w, terms.term(t, s.verts, s.faces, faces)) for w, t in recipe.terms] for s in train]
 
 
+@deterministic_kernels()
 def train(plan: NetworkPlan, recipe: Recipe, points: torch.Tensor, shape_terms: list, progress):
     """One network trained with ``recipe`` on the training shapes' input ``points`` (S, N, 3)
     -> {"model", "history", "seconds_per_step"}. Every recipe starts from the same weights and
     sees the same batches (and the same Chamfer draws); each term is divided by its mean over
-    the first batch, so one smoothness weight and one step size serve them all."""
+    the first batch, so one smoothness weight and one step size serve them all. It runs on
+    deterministic kernels, so a rerun ends with the same weights however busy the machine."""
     torch.manual_seed(plan.seed)
     model = Reconstructor()
     smooth = Smoothness(model.spheres().detach(), model.faces)
