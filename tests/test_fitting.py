@@ -103,6 +103,19 @@ def test_a_staged_term_is_told_each_steps_progress_in_the_whole_fit():
     assert max(term.seen) < 0.05  # the probe's five steps are the first 5% of the fit
 
 
+def test_a_fit_runs_on_deterministic_kernels_and_gives_the_callers_setting_back():
+    template, faces = _box(0.6)
+    seen = []
+
+    def spy(verts: torch.Tensor) -> torch.Tensor:
+        seen.append(torch.are_deterministic_algorithms_enabled())
+        return verts.square().mean()
+
+    fit_mesh(Objective([(1.0, spy)], template), template, faces, FitSettings(steps=3))
+    assert seen == [False, True, True, True]  # the scale at the template, then each step
+    assert not torch.are_deterministic_algorithms_enabled()
+
+
 def test_fitting_a_small_box_to_a_large_one_with_chamfer_closes_the_gap():
     template, faces = _box(0.6)
     target_verts, target_faces = _box(1.0)

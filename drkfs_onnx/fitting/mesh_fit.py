@@ -123,6 +123,7 @@ class FitResult:
 Watch = Callable[[int, torch.Tensor, torch.Tensor], None]
 
 
+@deterministic_kernels()
 def fit_mesh(
     objective: Objective,
     template: torch.Tensor,
@@ -135,7 +136,8 @@ def fit_mesh(
     objective + smoothness * Smoothness. ``watch(step, verts (V, 3), delta (V, 3))`` sees each
     step's starting vertices and the move the optimiser made from them. A staged objective is
     told each step's progress, step / ``total_steps`` (default: the settings' steps; the first
-    steps of a longer fit pass its length)."""
+    steps of a longer fit pass its length). It runs on deterministic kernels, so a rerun ends
+    on the same vertices."""
     smooth = Smoothness(template, faces)
     offsets = torch.zeros_like(template, requires_grad=True)
     optimizer = torch.optim.Adam([offsets], lr=settings.learning_rate)
