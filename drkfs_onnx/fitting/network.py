@@ -38,7 +38,15 @@ from .geometry import Smoothness
 from .judges import HIGHER_IS_BETTER, SURFACE, UNSEEN_VIEWS, VISUAL, Judge
 from .losses import CHAMFER, PIXEL, Recipe, Terms, alone, with_chamfer, with_pixel
 from .mesh_fit import DrkfsTerm, deterministic_kernels, float_tensor
-from .study import chamfer_ratios, column_title, save_mesh, share, slug, summary
+from .study import (
+    chamfer_ratios,
+    column_title,
+    metric_means,
+    save_mesh,
+    share,
+    slug,
+    summary,
+)
 
 # seeds of the shapes the network trains on, chooses its Chamfer weight on and is tested on:
 # disjoint from the benchmark's (2026-2028), the held-out checks' (3000-3002) and the nets'
@@ -395,15 +403,7 @@ def run_network_study(out: Path, quick: bool, threads: int = 2, progress=print) 
         "beats_chamfer": {n: share(table, n, CHAMFER, VISUAL) for n in names[1:]},
         "beats_pixel_mse": {n: share(table, n, PIXEL, VISUAL) for n in names if n != PIXEL},
         "chamfer_l1_over_chamfer_trained": chamfer_ratios(table, names),
-        "means": {
-            name: {
-                m: float(np.mean(found))
-                if (found := [r[name][m] for r in table.values() if r[name][m] is not None])
-                else None
-                for m in JUDGED
-            }
-            for name in names
-        },  # fmt: skip
+        "means": metric_means(table, names),
         "summary": summary(table, recipes, plan.form),
     }
     results["networks_resumed"] = resumed  # from a checkpoint: seconds_total does not count them
