@@ -18,6 +18,7 @@ from __future__ import annotations
 import argparse
 import json
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import torch
@@ -61,8 +62,9 @@ def main() -> None:
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
     start = time.perf_counter()
-    plan = QUICK_NETWORK if args.quick else FULL
     study = json.loads(args.study.read_text())
+    # the study's seed: the same initial weights and batches as the networks compared with
+    plan = replace(QUICK_NETWORK if args.quick else FULL, seed=study["plan"]["seed"])
     weight = study["validation"]["chosen"]  # the study's Chamfer weight, chosen on validation
     three = with_both(plan.form, plan.pixel_weight, weight)
     control = pixel_with_chamfer(weight)

@@ -180,16 +180,23 @@ def fit(
     ] = False,
     quick: Annotated[bool, typer.Option(help="A tiny plan that runs in seconds (tests).")] = False,
     threads: Annotated[int, typer.Option(help="Threads for the judge's numpy renderer.")] = 2,
+    seed: Annotated[
+        int, typer.Option(help="With --network: the seed of the initial weights and batch order.")
+    ] = 0,
 ) -> None:
     """Fit templates to targets (or, with --network, train a reconstruction network) with
     DR-KFS, Chamfer and the others; judge every result with metrics independent of the loss.
     Output: runs/fit (runs/fit-network) unless --out says otherwise."""
     progress = lambda line: typer.echo(line, err=True)  # noqa: E731
+    if seed and not network:
+        raise typer.BadParameter(
+            "--seed is for --network: a template fit starts from its template, not random weights"
+        )
     if network:
         from .fitting.network import run_network_study
 
         out = out or RUNS / "fit-network"
-        results = run_network_study(out, quick, threads, progress)
+        results = run_network_study(out, quick, threads, progress, seed)
     else:
         from .fitting.study import run_study
 

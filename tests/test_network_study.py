@@ -4,6 +4,7 @@ silhouettes are judged from, and the quick plan end to end through the CLI."""
 import json
 import subprocess
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -122,6 +123,25 @@ def test_training_runs_on_deterministic_kernels_and_gives_the_callers_setting_ba
     assert not torch.are_deterministic_algorithms_enabled()
 
 
+def test_the_seed_draws_the_initial_weights_and_batches_and_the_same_seed_repeats_them():
+    points = torch.stack([make_shape(f, TRAIN_SEED).points for f in QUICK_NETWORK.families])
+
+    def weights(seed: int) -> torch.Tensor:
+        terms = [[(1.0, lambda verts: verts.square().mean())]] * len(points)
+        plan = replace(QUICK_NETWORK, seed=seed)
+        model = train(plan, alone(CHAMFER), points, terms, lambda _: None)["model"]
+        return torch.cat([p.detach().flatten() for p in model.parameters()])
+
+    assert torch.equal(weights(0), weights(0))
+    assert not torch.equal(weights(0), weights(1))
+
+
+def test_a_seed_is_refused_where_nothing_is_drawn_at_random(tmp_path):
+    result = CliRunner().invoke(app, ["fit", "--quick", "--seed", "1", "--out", str(tmp_path)])
+    assert result.exit_code == 2 and "--seed is for --network" in result.output
+    assert not (tmp_path / "results.json").exists()
+
+
 def test_a_stopped_study_resumes_with_the_networks_it_had_trained(tmp_path):
     torch.manual_seed(3)
     model = Reconstructor()
@@ -140,7 +160,9 @@ def test_a_stopped_study_resumes_with_the_networks_it_had_trained(tmp_path):
 @pytest.fixture(scope="module")
 def quick_network_study(tmp_path_factory):
     out = tmp_path_factory.mktemp("network")
-    result = CliRunner().invoke(app, ["fit", "--network", "--quick", "--out", str(out)])
+    result = CliRunner().invoke(
+        app, ["fit", "--network", "--quick", "--seed", "1", "--out", str(out)]
+    )
     assert result.exit_code == 0, result.output
     return out, result.output
 
@@ -149,6 +171,7 @@ def test_quick_network_study_judges_every_test_shape_and_saves_its_meshes(quick_
     out, output = quick_network_study
     results = json.loads((out / "results.json").read_text())
     names = {f"{family} {TEST_SEED}" for family in QUICK_NETWORK.families}
+    assert results["plan"]["seed"] == 1 and "--seed 1" in results["command"]
     validation = results["validation"]
     assert validation["chosen"] in QUICK_NETWORK.chamfer_weights
     assert set(validation["shares"]) == {r.name for r in QUICK_NETWORK.candidates()}

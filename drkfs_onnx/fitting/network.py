@@ -329,10 +329,15 @@ def choose_chamfer_weight(plan: NetworkPlan, table: dict) -> dict:
     }
 
 
-def run_network_study(out: Path, quick: bool, threads: int = 2, progress=print) -> dict:
+def run_network_study(
+    out: Path, quick: bool, threads: int = 2, progress=print, seed: int = 0
+) -> dict:
+    """The study at the plan's size; ``seed`` draws every network's initial weights and batch
+    order (the shapes, validation and test sets stay the plan's), so runs at several seeds show
+    how far one run's shares can be trusted."""
     start = time.perf_counter()
     out.mkdir(parents=True, exist_ok=True)
-    plan = QUICK_NETWORK if quick else FULL
+    plan = replace(QUICK_NETWORK if quick else FULL, seed=seed)
     train_set = shapes(plan, TRAIN_SEED, plan.train_per_family)
     validation_set = shapes(plan, VALIDATION_SEED, plan.validation_per_family)
     test_set = shapes(plan, TEST_SEED, plan.test_per_family)
@@ -368,7 +373,9 @@ def run_network_study(out: Path, quick: bool, threads: int = 2, progress=print) 
     write_gallery(out / "gallery.png", columns, gallery)
     names = [r.name for r in recipes]
     results = {
-        "command": f"drkfs fit --network{' --quick' if quick else ''} --out {out}",
+        "command": f"drkfs fit --network{' --quick' if quick else ''}"
+        + (f" --seed {seed}" if seed else "")
+        + f" --out {out}",
         "quick": quick,
         "cpu_count": os.cpu_count(),
         "torch_threads": torch.get_num_threads(),
