@@ -9,9 +9,10 @@ tests at a size where the dense one runs, in the same run.
 
 The training step: one DR-KFS step of the network study's prediction (8 deformed icospheres,
 2,560 faces) against a prepared synthetic chair, render + features + match + backward: at each
-stage of the loss (``drkfs_onnx.loss.DrkfsLoss``: its coarse stage and the loss preset
-``PipelineConfig.loss()``, goal 0.5 s) and at the first studies' ``PipelineConfig.training()``,
-the last with and without the BatchNorm folding, in the same process.
+stage of the loss (``drkfs_onnx.loss.DrkfsLoss.pretrained()``: its coarse stage and the loss
+preset ``PipelineConfig.loss()``, with its soft match at the stage's end, goal 0.5 s) and at
+the first studies' ``PipelineConfig.training()``, the last with and without the BatchNorm
+folding, in the same process.
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ import subprocess
 import sys
 import time
 import warnings
+from dataclasses import asdict
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -163,6 +165,7 @@ def run_training_step(repeats: int) -> dict:
         "target": shape.name,
         "loss": {
             "stages": [{"config": s.config.to_dict(), "until": s.until} for s in loss.stages],
+            "soft_match": None if loss.soft is None else asdict(loss.soft),
             "step_s": stages,
             "goal_s": 0.5,
             "profile_top_ops_loss_preset": [

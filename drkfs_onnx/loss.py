@@ -1,4 +1,5 @@
-"""DR-KFS as a training loss: the loss preset (``PipelineConfig.loss()``) run coarse to fine.
+"""DR-KFS as a training loss: the loss preset (``PipelineConfig.loss()``) run coarse to fine,
+with a soft best match.
 
     loss = DrkfsLoss.pretrained()
     target = loss.target(truth_verts, truth_faces)  # once per ground truth, no autograd
@@ -6,8 +7,9 @@
 
 Early in training (``progress`` below a stage's ``until``) the views are fewer pixels, more
 cameras and a softer renderer, so a patch sees a larger part of the shape and a silhouette
-reaches further; then the loss preset itself. The fitting study measured what each stage
-brings (docs/fitting.md).
+reaches further; then the loss preset itself. Throughout, a patch's distance is a softmin over
+its candidates whose temperature falls as training goes (``SoftMatch``), so the match does not
+jump from one patch to another. The fitting study measured what each brings (docs/fitting.md).
 """
 
 from __future__ import annotations
@@ -66,7 +68,7 @@ class DrkfsLoss:
     def pretrained(
         cls,
         stages: tuple[Stage, ...] = COARSE_TO_FINE,
-        soft: SoftMatch | None = None,
+        soft: SoftMatch | None = SoftMatch(),
         normalization: str = "joint",
     ) -> DrkfsLoss:
         """The shipped nets at each stage's config (``DRKFS.pretrained``)."""
@@ -75,7 +77,10 @@ class DrkfsLoss:
 
     @classmethod
     def from_nets(
-        cls, nets: DRKFS, stages: tuple[Stage, ...] = COARSE_TO_FINE, soft: SoftMatch | None = None
+        cls,
+        nets: DRKFS,
+        stages: tuple[Stage, ...] = COARSE_TO_FINE,
+        soft: SoftMatch | None = SoftMatch(),
     ) -> DrkfsLoss:
         """Copies of ``nets``' detector and HardNet at each stage's config: nets of one's own
         (fine-tuned for the loss, say) in place of the shipped ones."""

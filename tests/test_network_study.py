@@ -221,7 +221,7 @@ def test_the_combinations_script_retrains_chamfer_exactly_and_adds_two_networks(
     assert results["reproduced"]["exact"] and results["reproduced"]["cells"] > 0
     committed = json.loads((study / "results.json").read_text())
     weight = committed["validation"]["chosen"]  # beside Chamfer, as the study's network
-    three = f"pixel MSE + 0.3 x window r0 mean, coarse to fine + {weight:g} x Chamfer"
+    three = f"pixel MSE + 0.3 x {QUICK_NETWORK.form} + {weight:g} x Chamfer"
     control = f"pixel MSE + {weight:g} x Chamfer"
     study_losses = committed["plan"]["losses"]
     assert results["losses"] == [*study_losses, three, control]

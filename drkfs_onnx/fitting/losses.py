@@ -33,14 +33,15 @@ def _coarse_to_fine(**changes) -> tuple[Stage, ...]:
     return (coarse, *_fine(**changes))
 
 
-# name -> (stages, soft match or None)
+# name -> (stages, soft match or None); each form names its window, so the forms stay what the
+# study measured whatever the preset (``PipelineConfig.loss()``, the study's choice) becomes
 FORMS: dict[str, tuple[tuple[Stage, ...], SoftMatch | None]] = {
     SCORING: ((Stage(PipelineConfig.training(), 1.0),), None),
-    "window r0 mean": (_fine(), None),
-    "window r0 power 2": (_fine(reduction="power", power=2.0), None),
+    "window r0 mean": (_fine(window=0), None),
+    "window r0 power 2": (_fine(window=0, reduction="power", power=2.0), None),
     "window r1 mean": (_fine(window=1), None),
     "soft match, window r1": (_fine(window=1), SoftMatch()),
-    "window r0 mean, coarse to fine": (_coarse_to_fine(), None),
+    "window r0 mean, coarse to fine": (_coarse_to_fine(window=0), None),
     "soft match, window r1, coarse to fine": (_coarse_to_fine(window=1), SoftMatch()),
 }
 
