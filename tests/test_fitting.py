@@ -3,6 +3,7 @@ study end to end (quick plan, through the CLI), and the README's training-loop e
 
 import json
 import re
+import shutil
 import struct
 from pathlib import Path
 
@@ -14,7 +15,7 @@ from typer.testing import CliRunner
 
 from drkfs_onnx.cli import app
 from drkfs_onnx.fitting.geometry import Smoothness, chamfer, surface_points
-from drkfs_onnx.fitting.judges import METRICS, VISUAL
+from drkfs_onnx.fitting.judges import METRICS, VISUAL, Judge
 from drkfs_onnx.fitting.landscape import AGREEMENT, CHECKS, probe
 from drkfs_onnx.fitting.losses import pixel_with_chamfer, with_both, with_chamfer, with_pixel
 from drkfs_onnx.fitting.mesh_fit import (
@@ -31,10 +32,14 @@ from drkfs_onnx.fitting.study import (
     QUICK_STUDY,
     RANK_NOISE,
     Checkpoint,
+    Fitter,
     first_within_noise,
+    fitting_study,
+    intact,
     mean_ranks,
     share,
     slug,
+    study_recipes,
 )
 from drkfs_onnx.synthetic.shapes import Part, assemble, random_shape
 
@@ -224,6 +229,43 @@ def test_quick_study_chooses_a_loss_form_then_its_weights_on_its_own_problems(qu
         if row["recipe"][-1][1] != "Chamfer":
             assert row["landscape"]["as_fitted"]["monotone_share"] in (0.0, 1.0)  # one check
     assert f"loss study: {study['forms']['chosen']}" in output
+
+
+def test_a_resumed_study_fits_again_only_the_fit_whose_file_changed(quick_study, tmp_path):
+    out = tmp_path / "fit"
+    shutil.copytree(quick_study[0], out)
+    results = json.loads((out / "results.json").read_text())
+    checkpoint = Checkpoint(out / "checkpoint.json", QUICK_STUDY)  # the finished run, resumable
+    for problem, rows in results["table"].items():
+        probed = results["landscape"]["problems"][problem]
+        for loss in results["losses"]:
+            fit = results["fits"][problem][loss]
+            checkpoint.put(f"{problem}/{loss}", {
+                "judged": rows[loss], "fit": fit, "landscape": probed.get(loss),
+            })  # fmt: skip
+    changed = out / results["fits"]["woody"]["Chamfer"]["mesh"]
+    mesh = trimesh.load(changed, process=False)
+    mesh.apply_scale(2.0)
+    mesh.export(changed)  # another run's file in its place
+
+    class CountingFitter(Fitter):
+        fitted: list[str] = []
+
+        def fit(self, recipe, problem):
+            self.fitted.append(f"{problem.name}/{recipe.name}")
+            return super().fit(recipe, problem)
+
+    study = results["loss_study"]
+    recipes, form = study_recipes(study), study["forms"]["chosen"]
+    judge = Judge(QUICK_STUDY.judge_config, 1, QUICK_STUDY.unseen_views, lfd=False)
+    try:
+        fitter = CountingFitter(QUICK_STUDY, judge)
+        fitting_study(QUICK_STUDY, fitter, recipes, form, out, checkpoint, lambda _: None)
+    finally:
+        judge.close()
+    assert fitter.fitted == ["woody/Chamfer"]
+    assert intact(out, checkpoint.get("woody/Chamfer")["fit"])
+    assert not intact(out, {"mesh": results["fits"]["woody"]["Chamfer"]["mesh"]})  # no hash
 
 
 def test_quick_study_writes_the_table_the_shares_and_the_summary(quick_study):

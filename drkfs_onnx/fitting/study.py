@@ -13,7 +13,8 @@ Two parts, one run:
    loss and pixel MSE. Every fitted mesh is saved as PLY beside results.json, and the gallery
    drawn from them; ``summary`` holds the done-means numbers of the best DR-KFS-containing loss.
 
-Each finished fit is kept in OUT/checkpoint.json, so a stopped run resumes where it stopped.
+Each finished fit is kept in OUT/checkpoint.json with its PLY's hash, so a stopped run resumes
+where it stopped and fits again any whose file has changed since.
 
 The judge renders at the paper's config (other cameras than the losses saw) and adds silhouettes
 from cameras below the horizon and LFD where it is installed.
@@ -35,6 +36,7 @@ import trimesh
 
 from ..config import PipelineConfig
 from ..synthetic.shapes import FAMILIES
+from ..training.run import sha256
 from .gallery import write_gallery
 from .judges import HIGHER_IS_BETTER, METRICS, SURFACE, UNSEEN_VIEWS, VISUAL, Judge, better
 from .landscape import CHECKS, probe
@@ -197,6 +199,14 @@ def save_mesh(path: Path, verts, faces) -> str:
     path.parent.mkdir(parents=True, exist_ok=True)
     trimesh.Trimesh(verts, faces, process=False).export(path)
     return str(path.relative_to(path.parents[2]))
+
+
+def intact(out: Path, fit: dict) -> bool:
+    """Whether a checkpointed fit's PLY is still the file it saved: a resumed run reports the
+    checkpoint's judged row beside that file, so a file removed or rewritten since (another
+    run's output, a ``git checkout``) is fitted again rather than paired with the wrong row."""
+    path = out / fit["mesh"]
+    return path.exists() and sha256(path) == fit.get("sha256")
 
 
 def converged(history: list[float]) -> float:
@@ -501,13 +511,16 @@ def fitting_study(
         landscapes[problem.name] = {}
         for recipe in recipes:
             key = f"{problem.name}/{recipe.name}"
-            if checkpoint.get(key) is None:
+            saved = checkpoint.get(key)
+            if saved is None or not intact(out, saved["fit"]):
                 result = fitter.fit(recipe, problem)
                 path = folder / f"{slug(recipe.name)}.ply"
+                mesh = save_mesh(path, result.verts, problem.template_faces)
                 checkpoint.put(key, {
                     "judged": fitter.judged(problem, result.verts),
                     "fit": {
-                        "mesh": save_mesh(path, result.verts, problem.template_faces),
+                        "mesh": mesh,
+                        "sha256": sha256(path),
                         "objective_first": result.objective[0],
                         "objective_last": result.objective[-1],
                         "fall_over_last_tenth": converged(result.objective),
