@@ -51,6 +51,10 @@ class SoftMatch:
         return self.start * (self.end / self.start) ** min(max(progress, 0.0), 1.0)
 
 
+# the loss preset's match: the loss study's choice, a softmin annealed from 0.1 to 0.01
+PRESET_SOFT_MATCH = SoftMatch()
+
+
 class DrkfsLoss:
     """DR-KFS of a prediction against a prepared ground truth, stage by stage.
 
@@ -68,7 +72,7 @@ class DrkfsLoss:
     def pretrained(
         cls,
         stages: tuple[Stage, ...] = COARSE_TO_FINE,
-        soft: SoftMatch | None = SoftMatch(),
+        soft: SoftMatch | None = PRESET_SOFT_MATCH,
         normalization: str = "joint",
     ) -> DrkfsLoss:
         """The shipped nets at each stage's config (``DRKFS.pretrained``)."""
@@ -80,7 +84,7 @@ class DrkfsLoss:
         cls,
         nets: DRKFS,
         stages: tuple[Stage, ...] = COARSE_TO_FINE,
-        soft: SoftMatch | None = SoftMatch(),
+        soft: SoftMatch | None = PRESET_SOFT_MATCH,
     ) -> DrkfsLoss:
         """Copies of ``nets``' detector and HardNet at each stage's config: nets of one's own
         (fine-tuned for the loss, say) in place of the shipped ones."""

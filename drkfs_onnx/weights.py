@@ -7,11 +7,17 @@ import hashlib
 import io
 import json
 from importlib import resources
+from pathlib import Path
 
 from .config import PipelineConfig
 
 RANDOM_SEED = 0
 MANIFEST = "manifest.json"
+
+
+def sha256(path: Path) -> str:
+    """A file's sha256, as the manifest records it."""
+    return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
 def models_dir():

@@ -36,7 +36,7 @@ import trimesh
 
 from ..config import PipelineConfig
 from ..synthetic.shapes import FAMILIES
-from ..training.run import sha256
+from ..weights import sha256
 from .gallery import write_gallery
 from .judges import HIGHER_IS_BETTER, METRICS, SURFACE, UNSEEN_VIEWS, VISUAL, Judge, better
 from .landscape import CHECKS, probe

@@ -22,7 +22,7 @@ from ..detector import PoIDetector
 from ..hardnet import HardNet
 from ..metric import DRKFS, with_nets
 from ..synthetic.shapes import FAMILIES
-from ..weights import MANIFEST
+from ..weights import MANIFEST, sha256
 from .data import ViewPairs, render_pairs, sample_matches
 from .metric_stage import (
     ACCURACY_TOLERANCE,
@@ -104,10 +104,6 @@ QUICK_TRAIN = TrainPlan(
         config=PipelineConfig.structure(num_views=2, image_size=64).to_dict(),
     ),
 )
-
-
-def sha256(path: Path) -> str:
-    return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
 def plan_key(plan) -> str:
