@@ -65,8 +65,9 @@ def main() -> None:
     study = json.loads(args.study.read_text())
     # the study's seed: the same initial weights and batches as the networks compared with
     plan = replace(QUICK_NETWORK if args.quick else FULL, seed=study["plan"]["seed"])
-    weight = study["validation"]["chosen"]  # the study's Chamfer weight, chosen on validation
-    three = with_both(plan.form, plan.pixel_weight, weight)
+    # the study's DR-KFS form and Chamfer weight, chosen on its validation shapes
+    form, weight = study["validation"]["form"], study["validation"]["chamfer_weight"]
+    three = with_both(form, plan.pixel_weight, weight)
     control = pixel_with_chamfer(weight)
     train_set = shapes(plan, TRAIN_SEED, plan.train_per_family)
     test_set = shapes(plan, TEST_SEED, plan.test_per_family)

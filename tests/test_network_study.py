@@ -29,17 +29,19 @@ from drkfs_onnx.fitting.network import (
     VALIDATION_SEED,
     Reconstructor,
     Trainings,
-    choose_chamfer_weight,
+    choose_loss,
     make_shape,
     train,
 )
 from drkfs_onnx.fitting.study import slug
 
 
-def test_the_full_plan_trains_with_the_committed_loss_studys_choice():
+def test_the_full_plan_chooses_between_the_committed_loss_studys_two_best_forms():
     results = Path(__file__).parents[1] / "bench" / "fit" / "results.json"
     study = json.loads(results.read_text())["loss_study"]
-    assert FULL.form == study["forms"]["chosen"]
+    ranks = study["forms"]["mean_rank"]
+    assert FULL.forms[0] == study["forms"]["chosen"]
+    assert set(FULL.forms) == set(sorted(ranks, key=ranks.get)[:2])
     assert FULL.pixel_weight == study["pixel_weight"]["chosen"]
     assert FULL.chamfer_weights[0] == study["chamfer_weight"]["chosen"]  # the others: validation
 
@@ -83,8 +85,9 @@ def test_silhouette_cameras_are_none_of_the_losses_and_half_look_from_below():
     assert iou(smaller, mask) == pytest.approx(0.25, abs=0.05)  # areas scale by 1/4
 
 
-def test_the_chamfer_weight_with_most_validation_wins_is_chosen_and_a_tie_keeps_the_first():
-    first, second = (r.name for r in FULL.candidates())
+def test_the_form_and_weight_with_most_validation_wins_are_chosen_and_a_tie_keeps_the_first():
+    candidates = [r.name for r in FULL.candidates()]
+    assert len(candidates) == len(FULL.forms) * len(FULL.chamfer_weights)
 
     def row(win: bool) -> dict:
         """Beats (or loses to) a Chamfer row of ones on every visual metric."""
@@ -92,20 +95,21 @@ def test_the_chamfer_weight_with_most_validation_wins_is_chosen_and_a_tie_keeps_
             "Chamfer-L1": 1.0
         }
 
-    def table(wins_first: list[bool], wins_second: list[bool]) -> dict:
+    def table(wins: dict[str, list[bool]]) -> dict:
+        """Two shapes; each candidate wins on the shapes ``wins`` says, else loses."""
         ones = {m: 1.0 for m in [*VISUAL, "Chamfer-L1"]}
         return {
-            f"shape {i}": {"Chamfer": ones, first: row(a), second: row(b)}
-            for i, (a, b) in enumerate(zip(wins_first, wins_second, strict=True))
+            f"shape {i}": {"Chamfer": ones}
+            | {name: row(wins.get(name, [False, False])[i]) for name in candidates}
+            for i in range(2)
         }
 
-    chosen = choose_chamfer_weight(FULL, table([True, False], [True, True]))
-    assert chosen["chosen"] == FULL.chamfer_weights[1]
-    assert chosen["shares"] == {first: 0.5, second: 1.0}
-    assert (
-        choose_chamfer_weight(FULL, table([True, False], [False, True]))["chosen"]
-        == (FULL.chamfer_weights[0])
-    )
+    last = candidates[-1]  # the second form at the last weight
+    chosen = choose_loss(FULL, table({candidates[0]: [True, False], last: [True, True]}))
+    assert (chosen["form"], chosen["chamfer_weight"]) == (FULL.forms[1], FULL.chamfer_weights[-1])
+    assert chosen["shares"][candidates[0]] == 0.5 and chosen["shares"][last] == 1.0
+    tie = choose_loss(FULL, table({candidates[0]: [True, False], last: [False, True]}))
+    assert (tie["form"], tie["chamfer_weight"]) == (FULL.forms[0], FULL.chamfer_weights[0])
 
 
 def test_training_runs_on_deterministic_kernels_and_gives_the_callers_setting_back():
@@ -173,11 +177,12 @@ def test_quick_network_study_judges_every_test_shape_and_saves_its_meshes(quick_
     names = {f"{family} {TEST_SEED}" for family in QUICK_NETWORK.families}
     assert results["plan"]["seed"] == 1 and "--seed 1" in results["command"]
     validation = results["validation"]
-    assert validation["chosen"] in QUICK_NETWORK.chamfer_weights
+    assert validation["form"] in QUICK_NETWORK.forms
+    assert validation["chamfer_weight"] in QUICK_NETWORK.chamfer_weights
     assert set(validation["shares"]) == {r.name for r in QUICK_NETWORK.candidates()}
     assert set(validation["table"]) == {f"{f} {VALIDATION_SEED}" for f in QUICK_NETWORK.families}
     assert not (out / "checkpoint").exists()  # a finished study removes its checkpoint
-    recipes = QUICK_NETWORK.recipes(validation["chosen"])
+    recipes = QUICK_NETWORK.recipes(validation["form"], validation["chamfer_weight"])
     losses = [recipe.name for recipe in recipes]
     assert results["plan"]["losses"] == losses and len(losses) == 5
     assert set(results["table"]) == names
@@ -190,8 +195,11 @@ def test_quick_network_study_judges_every_test_shape_and_saves_its_meshes(quick_
             assert results["meshes"][name][loss] == f"meshes/{slug(name)}/{slug(loss)}.ply"
     for loss in losses[1:]:  # LFD is not asked for in the quick plan
         assert results["beats_chamfer"][loss]["cells"] == len(names) * (len(VISUAL) - 1)
+    # the candidates and the chosen form's losses are trained, no other form's
+    trained = [*recipes, *QUICK_NETWORK.candidates()]
+    assert set(results["training"]) == {recipe.name for recipe in trained}
     # every network starts from the same weights: the first objective is the sum of the weights
-    for recipe in [*QUICK_NETWORK.fixed(), *QUICK_NETWORK.candidates()]:
+    for recipe in trained:
         first = results["training"][recipe.name]["objective_first"]
         assert first == pytest.approx(sum(w for w, _ in recipe.terms)), recipe.name
     summary = results["summary"]
@@ -220,8 +228,9 @@ def test_the_combinations_script_retrains_chamfer_exactly_and_adds_two_networks(
     # so the study's rows stand beside the new ones
     assert results["reproduced"]["exact"] and results["reproduced"]["cells"] > 0
     committed = json.loads((study / "results.json").read_text())
-    weight = committed["validation"]["chosen"]  # beside Chamfer, as the study's network
-    three = f"pixel MSE + 0.3 x {QUICK_NETWORK.form} + {weight:g} x Chamfer"
+    # the form and the weight beside Chamfer of the study's chosen network
+    form, weight = committed["validation"]["form"], committed["validation"]["chamfer_weight"]
+    three = f"pixel MSE + 0.3 x {form} + {weight:g} x Chamfer"
     control = f"pixel MSE + {weight:g} x Chamfer"
     study_losses = committed["plan"]["losses"]
     assert results["losses"] == [*study_losses, three, control]
