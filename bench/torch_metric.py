@@ -110,22 +110,33 @@ def run_case(mesh_name: str, width: float, repeats: int, profile: bool) -> dict:
     return result
 
 
-def run_training_step(repeats: int) -> dict:
-    """One training step of the network study's prediction against a prepared target."""
+def training_pair():
+    """The network study's prediction at its start (8 spheres, 2,560 faces, nudged off them as
+    in training) and the synthetic chair it is trained towards -> (prediction (V, 3), its faces,
+    the chair's (verts, faces), the chair's name)."""
     import torch
 
-    from drkfs_onnx import DRKFS, PipelineConfig
     from drkfs_onnx.fitting.mesh_fit import float_tensor
     from drkfs_onnx.fitting.network import Reconstructor, make_shape
-    from drkfs_onnx.loss import DrkfsLoss
 
     torch.manual_seed(0)
     shape = make_shape("chair", 4000)
     model = Reconstructor()
     with torch.no_grad():
         prediction = model(shape.points[None])[0]
-        prediction += 0.02 * torch.randn(prediction.shape)  # off the spheres, as in training
+        prediction += 0.02 * torch.randn(prediction.shape)
     truth = float_tensor(shape.verts), torch.as_tensor(shape.faces)
+    return prediction, model.faces, truth, shape.name
+
+
+def run_training_step(repeats: int) -> dict:
+    """One training step of the network study's prediction against a prepared target."""
+    import torch
+
+    from drkfs_onnx import DRKFS, PipelineConfig
+    from drkfs_onnx.loss import DrkfsLoss
+
+    prediction, faces, truth, name = training_pair()
 
     def timed_step(loss_of) -> float:
         def step():
@@ -139,30 +150,30 @@ def run_training_step(repeats: int) -> dict:
     target = loss.target(*truth)
     stages = {
         f"stage {i} (until {stage.until:g})": timed_step(
-            lambda v, p=stage.until - 1e-9: loss(v, model.faces, target, p)
+            lambda v, p=stage.until - 1e-9: loss(v, faces, target, p)
         )
         for i, stage in enumerate(loss.stages)
     }
     metric = DRKFS.pretrained(PipelineConfig.training())
     with torch.no_grad():
         first = metric.target(*truth)
-    folded = timed_step(lambda v: metric.score_to(v, model.faces, first))
+    folded = timed_step(lambda v: metric.score_to(v, faces, first))
     # the baseline: the layers one by one, as before the folding (an instance attribute shadows
     # the method; nn.Module's own __setattr__ would file the Sequential as a submodule instead)
     descriptor = metric.descriptor
     object.__setattr__(descriptor, "_folded", descriptor.features)
-    layered = timed_step(lambda v: metric.score_to(v, model.faces, first))
+    layered = timed_step(lambda v: metric.score_to(v, faces, first))
     del descriptor.__dict__["_folded"]
     from torch.profiler import profile as torch_profile
 
     verts = prediction.clone().requires_grad_(True)
     with torch_profile() as prof:
-        loss(verts, model.faces, target, 1.0).backward()
+        loss(verts, faces, target, 1.0).backward()
     events = sorted(prof.key_averages(), key=lambda e: e.self_cpu_time_total, reverse=True)
     total = sum(e.self_cpu_time_total for e in events)
     return {
-        "prediction_faces": len(model.faces),
-        "target": shape.name,
+        "prediction_faces": len(faces),
+        "target": name,
         "loss": {
             "stages": [{"config": s.config.to_dict(), "until": s.until} for s in loss.stages],
             "soft_match": None if loss.soft is None else asdict(loss.soft),

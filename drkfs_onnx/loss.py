@@ -60,7 +60,8 @@ class DrkfsLoss:
 
     ``target(verts (V, 3), faces (F, 3)) -> [Target]`` (one per stage) and ``__call__(verts,
     faces, target, progress) -> ()``, differentiable with respect to ``verts``; ``progress`` in
-    [0, 1] is how far training has come (1: the last stage).
+    [0, 1] is how far training has come (1: the last stage). ``to(device)`` moves the nets, as
+    ``nn.Module.to`` does; a target lives on the device of the mesh it was prepared from.
     """
 
     def __init__(self, metrics: list[DRKFS], stages: tuple[Stage, ...], soft: SoftMatch | None):
@@ -90,6 +91,11 @@ class DrkfsLoss:
         (fine-tuned for the loss, say) in place of the shipped ones."""
         metrics = [with_nets(s.config, nets.detector, nets.descriptor) for s in stages]
         return cls(metrics, stages, soft)
+
+    def to(self, device: torch.device | str) -> DrkfsLoss:
+        for metric in self.metrics:
+            metric.to(device)
+        return self
 
     def stage(self, progress: float) -> int:
         return next(i for i, s in enumerate(self.stages) if progress < s.until or s.until >= 1.0)
