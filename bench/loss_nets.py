@@ -7,7 +7,7 @@
    the scoring default's (metric) and the fine-tuned ones.
 2. The correspondence nets fine-tuned with ``graded_monotone`` on series of other bases (work
    folder ``--work``, resumable).
-3. The loss study's fits (``drkfs fit``'s tuning problems, plan and judges) of the chosen loss
+3. The loss study's fits (``drkfs fit``'s tuning problems, plan and judges) of the shipped loss
    form with the shipped and with the fine-tuned nets, with their landscape probes.
 """
 
@@ -102,9 +102,9 @@ def main() -> None:
         print(f"{name}: {stats['all']}", flush=True)
     plan = QUICK_STUDY if args.quick else FULL
     chosen = "window r0 mean"
-    if not args.quick:  # the loss study's choice, as drkfs fit made it
-        committed = json.loads(Path("bench/fit/results.json").read_text())
-        chosen = committed["loss_study"]["forms"]["chosen"]
+    if not args.quick:  # the shipped loss's form, as drkfs fit --network chose it
+        committed = json.loads(Path("bench/fit-network/results.json").read_text())
+        chosen = committed["validation"]["form"]
     results = {
         "command": f"python bench/loss_nets.py --out {args.out}{' --quick' if args.quick else ''}",
         "torch_threads": torch.get_num_threads(),

@@ -10,9 +10,9 @@ tests at a size where the dense one runs, in the same run.
 The training step: one DR-KFS step of the network study's prediction (8 deformed icospheres,
 2,560 faces) against a prepared synthetic chair, render + features + match + backward: at each
 stage of the loss (``drkfs_onnx.loss.DrkfsLoss.pretrained()``: its coarse stage and the loss
-preset ``PipelineConfig.loss()``, with its soft match at the stage's end, goal 0.5 s) and at
-the first studies' ``PipelineConfig.training()``, the last with and without the BatchNorm
-folding, in the same process.
+preset ``PipelineConfig.loss()``, goal 0.5 s) and at the first studies'
+``PipelineConfig.training()``, the last with and without the BatchNorm folding, in the same
+process.
 """
 
 from __future__ import annotations

@@ -163,13 +163,14 @@ class PipelineConfig:
     @classmethod
     def loss(cls, **changes: Any) -> PipelineConfig:
         """DR-KFS as a training loss: the training renderer, and each patch compared with the
-        other mesh's patches at and next to its position (window r1), the squared best-match
-        distances averaged. The perceptual-loss form: every region of every view says where it
-        differs, so the gradient tells each part of the surface where to go, where the scoring
-        default's global best match jumps between patches and its power mean listens to the
-        worst few (``drkfs fit``'s loss study, docs/fitting.md). ``drkfs_onnx.loss.DrkfsLoss``
-        runs it coarse to fine with a soft best match."""
-        return cls.training(**{"matching": "window", "window": 1, "reduction": "mean", **changes})
+        other mesh's patch at the same place (window r0), the squared distances averaged. The
+        perceptual-loss form: every region of every view says where it differs, so the gradient
+        tells each part of the surface where to go, where the scoring default's global best
+        match jumps between patches and its power mean listens to the worst few.
+        ``drkfs_onnx.loss.DrkfsLoss`` runs it coarse to fine. The network study chose it on its
+        validation shapes over the loss study's first form, a soft match over window r1
+        (``drkfs fit``, docs/fitting.md)."""
+        return cls.training(**{"matching": "window", "window": 0, "reduction": "mean", **changes})
 
     def features_part(self) -> PipelineConfig:
         """This config with the match settings at their defaults: what shapes the descriptors."""

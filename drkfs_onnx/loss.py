@@ -1,15 +1,15 @@
-"""DR-KFS as a training loss: the loss preset (``PipelineConfig.loss()``) run coarse to fine,
-with a soft best match.
+"""DR-KFS as a training loss: the loss preset (``PipelineConfig.loss()``) run coarse to fine.
 
-    loss = DrkfsLoss.pretrained()
+    loss = DrkfsLoss.pretrained()  # .to("cuda") moves its nets to a GPU
     target = loss.target(truth_verts, truth_faces)  # once per ground truth, no autograd
     value = loss(pred_verts, pred_faces, target, progress=step / steps)
 
 Early in training (``progress`` below a stage's ``until``) the views are fewer pixels, more
 cameras and a softer renderer, so a patch sees a larger part of the shape and a silhouette
-reaches further; then the loss preset itself. Throughout, a patch's distance is a softmin over
-its candidates whose temperature falls as training goes (``SoftMatch``), so the match does not
-jump from one patch to another. The fitting study measured what each brings (docs/fitting.md).
+reaches further; then the loss preset itself. A soft best match (``SoftMatch``: a softmin over a
+patch's candidates whose temperature falls as training goes) is an option for windows of r1 or
+more, not the preset: fitting one mesh it ranked first, training networks it did far worse than
+the preset (docs/fitting.md).
 """
 
 from __future__ import annotations
@@ -51,10 +51,6 @@ class SoftMatch:
         return self.start * (self.end / self.start) ** min(max(progress, 0.0), 1.0)
 
 
-# the loss preset's match: the loss study's choice, a softmin annealed from 0.1 to 0.01
-PRESET_SOFT_MATCH = SoftMatch()
-
-
 class DrkfsLoss:
     """DR-KFS of a prediction against a prepared ground truth, stage by stage.
 
@@ -73,7 +69,7 @@ class DrkfsLoss:
     def pretrained(
         cls,
         stages: tuple[Stage, ...] = COARSE_TO_FINE,
-        soft: SoftMatch | None = PRESET_SOFT_MATCH,
+        soft: SoftMatch | None = None,
         normalization: str = "joint",
     ) -> DrkfsLoss:
         """The shipped nets at each stage's config (``DRKFS.pretrained``)."""
@@ -85,7 +81,7 @@ class DrkfsLoss:
         cls,
         nets: DRKFS,
         stages: tuple[Stage, ...] = COARSE_TO_FINE,
-        soft: SoftMatch | None = PRESET_SOFT_MATCH,
+        soft: SoftMatch | None = None,
     ) -> DrkfsLoss:
         """Copies of ``nets``' detector and HardNet at each stage's config: nets of one's own
         (fine-tuned for the loss, say) in place of the shipped ones."""
