@@ -3,7 +3,7 @@
     python bench/torch_cuda.py [--out bench/results/torch_cuda.json] [--threads 2] [--meshes DIR]
 
 Timed on both: the shipped loss's training step at each of its stages (the network study's
-prediction, 2,560 faces, against a synthetic chair: ``torch_metric.training_pair``), and the
+prediction, 2,560 faces, against a synthetic chair: ``network.loss_step_case``), and the
 scoring metric at the paper preset (25 views, 256 px), forward and forward+backward, on the shared
 cow (~5k faces) and rocker-arm (~20k). Beside each time, how far the device's numbers are from
 the CPU's: the relative difference of the value and the cosine between the two gradients (the
@@ -17,17 +17,17 @@ import argparse
 import json
 import platform
 import sys
-import time
 from pathlib import Path
 
 import torch
 
 from drkfs_onnx import DRKFS, PipelineConfig, load_mesh
+from drkfs_onnx.fitting.network import loss_step_case
 from drkfs_onnx.loss import DrkfsLoss
 from drkfs_onnx.mesh import normalize_pair
 
 sys.path.insert(0, str(Path(__file__).parent))
-from torch_metric import MESHES, training_pair  # noqa: E402
+from torch_metric import MESHES, _timed  # noqa: E402
 
 SCORED = {"5k": "cow.obj", "20k": "rocker-arm.obj"}
 
@@ -39,14 +39,14 @@ def synchronize(device: str) -> None:
 
 def timed(fn, device: str, repeats: int) -> tuple[float, object]:
     """(best seconds over ``repeats`` after a warm-up call, the last call's output)."""
-    times, output = [], fn()
-    for _ in range(repeats):
-        synchronize(device)
-        start = time.perf_counter()
+
+    def call():
         output = fn()
         synchronize(device)
-        times.append(time.perf_counter() - start)
-    return min(times), output
+        return output
+
+    call()  # warm-up, which also leaves the device idle before the first clock
+    return _timed(call, repeats)
 
 
 def value_and_gradient(score, verts: torch.Tensor, device: str):
@@ -68,7 +68,7 @@ def agreement(cpu: tuple[float, torch.Tensor], cuda: tuple[float, torch.Tensor])
 
 
 def loss_steps(repeats: int) -> dict:
-    prediction, faces, truth, name = training_pair()
+    prediction, faces, truth, name = loss_step_case()
 
     def on(device: str) -> dict:
         """Each stage's (seconds, (value, gradient)) on ``device``."""

@@ -110,33 +110,15 @@ def run_case(mesh_name: str, width: float, repeats: int, profile: bool) -> dict:
     return result
 
 
-def training_pair():
-    """The network study's prediction at its start (8 spheres, 2,560 faces, nudged off them as
-    in training) and the synthetic chair it is trained towards -> (prediction (V, 3), its faces,
-    the chair's (verts, faces), the chair's name)."""
-    import torch
-
-    from drkfs_onnx.fitting.mesh_fit import float_tensor
-    from drkfs_onnx.fitting.network import Reconstructor, make_shape
-
-    torch.manual_seed(0)
-    shape = make_shape("chair", 4000)
-    model = Reconstructor()
-    with torch.no_grad():
-        prediction = model(shape.points[None])[0]
-        prediction += 0.02 * torch.randn(prediction.shape)
-    truth = float_tensor(shape.verts), torch.as_tensor(shape.faces)
-    return prediction, model.faces, truth, shape.name
-
-
 def run_training_step(repeats: int) -> dict:
     """One training step of the network study's prediction against a prepared target."""
     import torch
 
     from drkfs_onnx import DRKFS, PipelineConfig
+    from drkfs_onnx.fitting.network import loss_step_case
     from drkfs_onnx.loss import DrkfsLoss
 
-    prediction, faces, truth, name = training_pair()
+    prediction, faces, truth, name = loss_step_case()
 
     def timed_step(loss_of) -> float:
         def step():

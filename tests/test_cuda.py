@@ -5,22 +5,10 @@ import pytest
 import torch
 
 from drkfs_onnx import DRKFS, PipelineConfig
-from drkfs_onnx.fitting.mesh_fit import float_tensor
-from drkfs_onnx.fitting.network import Reconstructor, make_shape
+from drkfs_onnx.fitting.network import loss_step_case
 from drkfs_onnx.loss import DrkfsLoss
 
 pytestmark = pytest.mark.skipif(not torch.cuda.is_available(), reason="no CUDA device")
-
-
-def _pair() -> tuple[torch.Tensor, torch.Tensor, tuple[torch.Tensor, torch.Tensor]]:
-    """A network's first prediction (8 spheres, nudged) and the chair it is trained towards."""
-    torch.manual_seed(0)
-    shape = make_shape("chair", 4000)
-    model = Reconstructor()
-    with torch.no_grad():
-        prediction = model(shape.points[None])[0]
-        prediction += 0.02 * torch.randn(prediction.shape)
-    return prediction, model.faces, (float_tensor(shape.verts), torch.as_tensor(shape.faces))
 
 
 def _value_and_gradient(score, verts: torch.Tensor, device: str):
@@ -41,7 +29,7 @@ def _assert_agree(cpu, cuda):
 
 @pytest.mark.parametrize("progress", [0.0, 1.0])  # the coarse stage and the loss preset
 def test_the_loss_runs_on_cuda_and_agrees_with_the_cpu(progress):
-    prediction, faces, truth = _pair()
+    prediction, faces, truth, _ = loss_step_case()
 
     def on(device: str):
         loss = DrkfsLoss.pretrained().to(device)
@@ -53,7 +41,7 @@ def test_the_loss_runs_on_cuda_and_agrees_with_the_cpu(progress):
 
 
 def test_the_scoring_metric_runs_on_cuda_and_agrees_with_the_cpu():
-    prediction, faces, truth = _pair()
+    prediction, faces, truth, _ = loss_step_case()
     metric = DRKFS.pretrained(PipelineConfig.paper(num_views=6, image_size=128))
 
     def on(device: str):

@@ -213,6 +213,20 @@ class Reconstructor(nn.Module):
         return verts.reshape(b, k * v, 3)
 
 
+def loss_step_case() -> tuple[torch.Tensor, torch.Tensor, tuple[torch.Tensor, torch.Tensor], str]:
+    """The case a loss step is timed and checked on: a fresh network's prediction (8 spheres,
+    2,560 faces, nudged off them as training soon moves it) and the first training chair ->
+    (prediction (V, 3), its faces (F, 3), the chair's (verts, faces), the chair's name)."""
+    torch.manual_seed(0)
+    shape = make_shape("chair", TRAIN_SEED)
+    model = Reconstructor()
+    with torch.no_grad():
+        prediction = model(shape.points[None])[0]
+        prediction += 0.02 * torch.randn(prediction.shape)
+    truth = float_tensor(shape.verts), torch.as_tensor(shape.faces)
+    return prediction, model.faces, truth, shape.name
+
+
 def targets(recipe: Recipe, train: list[Shape], faces: torch.Tensor, terms: Terms) -> list:
     """Each training shape's (weight, term) pairs of ``recipe``, its targets prepared once."""
     return [[(w, terms.term(t, s.verts, s.faces, faces)) for w, t in recipe.terms] for s in train]
