@@ -101,10 +101,6 @@ def main() -> None:
     for name, stats in growth.items():
         print(f"{name}: {stats['all']}", flush=True)
     plan = QUICK_STUDY if args.quick else FULL
-    chosen = "window r0 mean"
-    if not args.quick:  # the shipped loss's form, as drkfs fit --network chose it
-        committed = json.loads(Path("bench/fit-network/results.json").read_text())
-        chosen = committed["validation"]["form"]
     results = {
         "command": f"python bench/loss_nets.py --out {args.out}{' --quick' if args.quick else ''}",
         "torch_threads": torch.get_num_threads(),
@@ -122,7 +118,7 @@ def main() -> None:
         },  # fmt: skip
         "fine_tuning": {"steps": steps, "learning_rate": LEARNING_RATE, "seconds": tuning_seconds},
         "growth_heldout": growth,
-        "fits": fits(plan, chosen, {SHIPPED: None, TUNED: tuned}, args.threads),
+        "fits": fits(plan, plan.form, {SHIPPED: None, TUNED: tuned}, args.threads),
     }
     results["seconds"] = time.perf_counter() - start
     args.out.parent.mkdir(parents=True, exist_ok=True)

@@ -205,8 +205,8 @@ def fit(
         study = results["loss_study"]
         weights = study["pixel_weight"]["chosen"], study["chamfer_weight"]["chosen"]
         typer.echo(
-            f"loss study: {study['forms']['chosen']}; beside pixel MSE at weight "
-            f"{weights[0]:g}, beside Chamfer at {weights[1]:g}"
+            f"loss study: {study['forms']['chosen']} ranks first; {study['form']} beside pixel "
+            f"MSE at weight {weights[0]:g}, beside Chamfer at {weights[1]:g}"
         )
     for against, key in (("Chamfer", "beats_chamfer"), ("pixel MSE", "beats_pixel_mse")):
         for loss, row in results[key].items():

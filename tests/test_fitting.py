@@ -5,6 +5,7 @@ import json
 import re
 import shutil
 import struct
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -17,7 +18,14 @@ from drkfs_onnx.cli import app
 from drkfs_onnx.fitting.geometry import Smoothness, chamfer, surface_points
 from drkfs_onnx.fitting.judges import METRICS, VISUAL, Judge
 from drkfs_onnx.fitting.landscape import AGREEMENT, CHECKS, probe
-from drkfs_onnx.fitting.losses import pixel_with_chamfer, with_both, with_chamfer, with_pixel
+from drkfs_onnx.fitting.losses import (
+    FORMS,
+    SHIPPED,
+    pixel_with_chamfer,
+    with_both,
+    with_chamfer,
+    with_pixel,
+)
 from drkfs_onnx.fitting.mesh_fit import (
     ChamferLoss,
     DrkfsTerm,
@@ -199,6 +207,12 @@ def test_a_checkpoint_keeps_finished_fits_for_the_same_plan_only(tmp_path):
     assert not path.exists()
 
 
+def test_the_full_study_fits_the_shipped_form_and_a_plan_cannot_fit_a_form_it_does_not_compare():
+    assert FULL.form == SHIPPED and set(FULL.forms) == set(FORMS)
+    with pytest.raises(ValueError, match="not among the compared forms"):
+        replace(QUICK_STUDY, form=SHIPPED)  # the quick plan leaves the coarse stage out
+
+
 def test_the_control_is_the_three_term_loss_without_its_drkfs_term():
     three = with_both("window r0 mean", 0.3, 1.0)
     assert three.terms == ((1.0, "pixel MSE"), (0.3, "window r0 mean"), (1.0, "Chamfer"))
@@ -223,12 +237,15 @@ def test_quick_study_chooses_a_loss_form_then_its_weights_on_its_own_problems(qu
     ranks = study["forms"]["mean_rank"]
     assert set(ranks) == set(QUICK_STUDY.forms)
     assert study["forms"]["chosen"] == first_within_noise(ranks)
+    assert study["form"] == QUICK_STUDY.form  # the weights are the plan's form's, whoever ranks
+    for weights in ("pixel_weight", "chamfer_weight"):
+        assert all(QUICK_STUDY.form in name for name in study[weights]["mean_rank"])
     assert study["pixel_weight"]["chosen"] in QUICK_STUDY.pixel_weights
     assert study["chamfer_weight"]["chosen"] in QUICK_STUDY.chamfer_weights
     for row in study["rows"].values():  # every rendered form probed on every problem
         if row["recipe"][-1][1] != "Chamfer":
             assert row["landscape"]["as_fitted"]["monotone_share"] in (0.0, 1.0)  # one check
-    assert f"loss study: {study['forms']['chosen']}" in output
+    assert f"loss study: {study['forms']['chosen']} ranks first; {study['form']}" in output
 
 
 def test_a_resumed_study_fits_again_only_the_fit_whose_file_changed(quick_study, tmp_path):
@@ -256,7 +273,7 @@ def test_a_resumed_study_fits_again_only_the_fit_whose_file_changed(quick_study,
             return super().fit(recipe, problem)
 
     study = results["loss_study"]
-    recipes, form = study_recipes(study), study["forms"]["chosen"]
+    recipes, form = study_recipes(study), study["form"]
     judge = Judge(QUICK_STUDY.judge_config, 1, QUICK_STUDY.unseen_views, lfd=False)
     try:
         fitter = CountingFitter(QUICK_STUDY, judge)
@@ -274,7 +291,7 @@ def test_quick_study_writes_the_table_the_shares_and_the_summary(quick_study):
     names = {"chair 3", "woody"}
     assert set(results["table"]) == names and len(QUICK_STUDY.problems) == 2
     study = results["loss_study"]
-    chosen = study["forms"]["chosen"]
+    chosen = study["form"]
     pixel_weight = study["pixel_weight"]["chosen"]
     chamfer_weight = study["chamfer_weight"]["chosen"]
     three = with_both(chosen, pixel_weight, chamfer_weight).name

@@ -5,9 +5,11 @@ Two parts, one run:
 
 1. **The loss study**, on problems of their own (``StudyPlan.tuning``): every DR-KFS loss form
    (``losses.FORMS``: each idea alone and combined) fits each problem, is judged, and its
-   gradient is probed (``landscape.probe``); the form with the best mean rank (a tie within
-   RANK_NOISE going to the simpler form) is "the DR-KFS loss". Its weight beside pixel MSE and
-   beside Chamfer is chosen the same way.
+   gradient is probed (``landscape.probe``); the forms are ranked by mean rank (a tie within
+   RANK_NOISE going to the simpler form), and the two best go to the network study, whose
+   validation shapes choose the shipped form (``losses.SHIPPED``). The plan's form
+   (``StudyPlan.form``: the shipped one) is "the DR-KFS loss"; its weight beside pixel MSE and
+   beside Chamfer is chosen here the same way.
 2. **The fitting study**: Chamfer, pixel MSE, the DR-KFS loss, its two pairs, all three terms
    and the control (pixel MSE + Chamfer) on ``StudyPlan.problems``, with the probe on the DR-KFS
    loss and pixel MSE. Every fitted mesh is saved as PLY beside results.json, and the gallery
@@ -45,6 +47,7 @@ from .losses import (
     FORMS,
     PIXEL,
     SCORING,
+    SHIPPED,
     Recipe,
     Terms,
     alone,
@@ -74,6 +77,7 @@ class StudyPlan:
     problems: tuple[str, ...]  # "family:seed" (synthetic) or a shared mesh's name
     tuning: tuple[str, ...]  # the loss study's problems (none of ``problems``)
     forms: tuple[str, ...]  # the DR-KFS loss forms the loss study compares
+    form: str  # the DR-KFS loss form the study fits (one of ``forms``), and weighs beside others
     pixel_weights: tuple[float, ...]  # candidate weights of DR-KFS beside pixel MSE
     chamfer_weights: tuple[float, ...]  # candidate weights of Chamfer beside DR-KFS
     probe_checks: int = CHECKS  # gradient checks per probe
@@ -84,6 +88,10 @@ class StudyPlan:
     chamfer_rate: float = 0.001
     rendered_rate: float = 0.003
     smoothness: float = 10.0
+
+    def __post_init__(self):
+        if self.form not in self.forms:
+            raise ValueError(f"the fitted form {self.form!r} is not among the compared forms")
 
     def settings(self, recipe: Recipe) -> FitSettings:
         rate = self.chamfer_rate if recipe.terms == ((1.0, CHAMFER),) else self.rendered_rate
@@ -96,6 +104,7 @@ FULL = StudyPlan(
     problems=("chair:3", "table:3", "airplane:3", "cow", "homer", "fandisk"),
     tuning=("sofa:3", "cheburashka"),
     forms=tuple(FORMS),
+    form=SHIPPED,
     pixel_weights=(0.3, 1.0),
     chamfer_weights=(1.0, 10.0),
 )
@@ -105,6 +114,7 @@ QUICK_STUDY = StudyPlan(
     problems=("chair:3", "woody"),
     tuning=("table:3",),
     forms=(SCORING, "window r0 mean"),  # a coarse stage's soft renders cost seconds a step
+    form="window r0 mean",
     pixel_weights=(1.0,),
     chamfer_weights=(10.0,),
     probe_checks=1,
@@ -310,9 +320,11 @@ def first_within_noise(ranks: dict[str, float]) -> str:
 
 
 def loss_study(plan: StudyPlan, fitter: Fitter, checkpoint: Checkpoint, progress) -> dict:
-    """Every DR-KFS form on the tuning problems, then the chosen form's weight beside pixel MSE
+    """Every DR-KFS form on the tuning problems, then the plan's form's weight beside pixel MSE
     and beside Chamfer: each choice by the lowest mean rank over every judged metric, averaged
-    over the tuning problems, a tie within RANK_NOISE going to the earlier candidate."""
+    over the tuning problems, a tie within RANK_NOISE going to the earlier candidate. The
+    forms' choice is the loss study's own (the network study compares its two best); the
+    weights are chosen for ``plan.form``, the form the fitting study fits."""
     problems = [load_problem(spec) for spec in plan.tuning]
     report: dict = {"problems": {p.name: p.description for p in problems}, "rows": {}}
 
@@ -347,11 +359,12 @@ def loss_study(plan: StudyPlan, fitter: Fitter, checkpoint: Checkpoint, progress
     ranks = run([alone(form) for form in plan.forms])
     chosen = first_within_noise(ranks)
     report["forms"] = {"mean_rank": ranks, "chosen": chosen}
-    pixel = {with_pixel(chosen, w).name: w for w in plan.pixel_weights}
-    ranks = run([with_pixel(chosen, w) for w in plan.pixel_weights])
+    report["form"] = form = plan.form
+    pixel = {with_pixel(form, w).name: w for w in plan.pixel_weights}
+    ranks = run([with_pixel(form, w) for w in plan.pixel_weights])
     report["pixel_weight"] = {"mean_rank": ranks, "chosen": pixel[first_within_noise(ranks)]}
-    chamfer = {with_chamfer(chosen, w).name: w for w in plan.chamfer_weights}
-    ranks = run([with_chamfer(chosen, w) for w in plan.chamfer_weights])
+    chamfer = {with_chamfer(form, w).name: w for w in plan.chamfer_weights}
+    ranks = run([with_chamfer(form, w) for w in plan.chamfer_weights])
     report["chamfer_weight"] = {"mean_rank": ranks, "chosen": chamfer[first_within_noise(ranks)]}
     return report
 
@@ -361,11 +374,11 @@ def _brief_judged(row: dict) -> str:
 
 
 def study_recipes(choice: dict) -> list[Recipe]:
-    """The fitting study's losses: Chamfer, pixel MSE, the chosen DR-KFS loss, its two pairs at
-    the chosen weights, all three terms at those weights, and the control (the three-term loss
-    without its DR-KFS term), so one run tells what the DR-KFS term adds (the first studies'
-    DR-KFS, the scoring match, is in the loss study)."""
-    form = choice["forms"]["chosen"]
+    """The fitting study's losses: Chamfer, pixel MSE, the loss study's ``form`` (the DR-KFS
+    loss), its two pairs at the chosen weights, all three terms at those weights, and the
+    control (the three-term loss without its DR-KFS term), so one run tells what the DR-KFS
+    term adds (the first studies' DR-KFS, the scoring match, is in the loss study)."""
+    form = choice["form"]
     pixel_weight = choice["pixel_weight"]["chosen"]
     chamfer_weight = choice["chamfer_weight"]["chosen"]
     return [
@@ -432,7 +445,7 @@ def run_study(out: Path, quick: bool, threads: int = 2, progress=print) -> dict:
     try:
         choice = loss_study(plan, fitter, checkpoint, progress)
         recipes = study_recipes(choice)
-        form = choice["forms"]["chosen"]
+        form = choice["form"]
         results = fitting_study(plan, fitter, recipes, form, out, checkpoint, progress)
     finally:
         judge.close()
@@ -455,7 +468,7 @@ def run_study(out: Path, quick: bool, threads: int = 2, progress=print) -> dict:
         "loss_study": choice,
         **results,
     }
-    results["summary"] = summary(results["table"], recipes, choice["forms"]["chosen"])
+    results["summary"] = summary(results["table"], recipes, choice["form"])
     results["fits_resumed"] = resumed  # from a checkpoint: seconds_total does not count them
     results["seconds_total"] = time.perf_counter() - start
     (out / "results.json").write_text(json.dumps(results, indent=1))
@@ -468,7 +481,7 @@ def draw_gallery(out: Path) -> None:
     """OUT/gallery.png from a finished study's results.json and saved meshes: per problem the
     target, the template and each loss's fit, from the same two cameras."""
     results = json.loads((out / "results.json").read_text())
-    form = results["loss_study"]["forms"]["chosen"]
+    form = results["loss_study"]["form"]
     rows = []
     for spec in (QUICK_STUDY if results["quick"] else FULL).problems:
         problem = load_problem(spec)
