@@ -408,6 +408,7 @@ def run_network_study(
         "cpu_count": os.cpu_count(),
         "torch_threads": torch.get_num_threads(),
         "platform": platform.platform(),
+        "torch": torch.__version__,  # fits repeat bit for bit only on one build
         "device": "cpu",
         "lfd": judge.lfd_note,
         "plan": {

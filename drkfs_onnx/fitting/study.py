@@ -455,6 +455,7 @@ def run_study(out: Path, quick: bool, threads: int = 2, progress=print) -> dict:
         "cpu_count": os.cpu_count(),
         "torch_threads": torch.get_num_threads(),
         "platform": platform.platform(),
+        "torch": torch.__version__,  # fits repeat bit for bit only on one build
         "judge_config": plan.judge_config.to_dict(),
         "lfd": judge.lfd_note,
         "plan": {k: v for k, v in asdict(plan).items() if k != "judge_config"},
