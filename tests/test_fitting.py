@@ -213,6 +213,13 @@ def test_the_full_study_fits_the_shipped_form_and_a_plan_cannot_fit_a_form_it_do
         replace(QUICK_STUDY, form=SHIPPED)  # the quick plan leaves the coarse stage out
 
 
+def test_the_committed_fitting_study_fitted_the_shipped_form_on_the_pinned_build():
+    results = json.loads((ROOT / "bench" / "fit" / "results.json").read_text())
+    assert results["loss_study"]["form"] == results["summary"]["drkfs_loss_alone"] == SHIPPED
+    pinned = re.search(r"torch==([\d.]+)", (ROOT / ".ci" / "run").read_text()).group(1)
+    assert results["torch"] == f"{pinned}+cpu"  # CI's build: on it the fits repeat bit for bit
+
+
 def test_the_control_is_the_three_term_loss_without_its_drkfs_term():
     three = with_both("window r0 mean", 0.3, 1.0)
     assert three.terms == ((1.0, "pixel MSE"), (0.3, "window r0 mean"), (1.0, "Chamfer"))
