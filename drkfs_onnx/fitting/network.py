@@ -20,8 +20,6 @@ sphere vertex u of primitive k, with a learned anchor and embedding e_k per prim
 from __future__ import annotations
 
 import json
-import os
-import platform
 import shutil
 import time
 from dataclasses import asdict, dataclass, replace
@@ -45,6 +43,7 @@ from .mesh_fit import DrkfsTerm, deterministic_kernels, float_tensor
 from .study import (
     chamfer_ratios,
     column_title,
+    machine,
     metric_means,
     save_mesh,
     share,
@@ -405,10 +404,7 @@ def run_network_study(
         + (f" --seed {seed}" if seed else "")
         + f" --out {out}",
         "quick": quick,
-        "cpu_count": os.cpu_count(),
-        "torch_threads": torch.get_num_threads(),
-        "platform": platform.platform(),
-        "torch": torch.__version__,  # fits repeat bit for bit only on one build
+        **machine(),
         "device": "cpu",
         "lfd": judge.lfd_note,
         "plan": {

@@ -123,6 +123,16 @@ QUICK_STUDY = StudyPlan(
 )
 
 
+def machine() -> dict:
+    """Where a study ran: its fits repeat bit for bit only on one torch build and thread count."""
+    return {
+        "cpu_count": os.cpu_count(),
+        "torch_threads": torch.get_num_threads(),
+        "platform": platform.platform(),
+        "torch": torch.__version__,
+    }
+
+
 def load_problem(spec: str) -> Problem:
     family, _, seed = spec.partition(":")
     return synthetic(family, int(seed)) if family in FAMILIES else shared(spec)
@@ -452,10 +462,7 @@ def run_study(out: Path, quick: bool, threads: int = 2, progress=print) -> dict:
     results = {
         "command": f"drkfs fit{' --quick' if quick else ''} --out {out}",
         "quick": quick,
-        "cpu_count": os.cpu_count(),
-        "torch_threads": torch.get_num_threads(),
-        "platform": platform.platform(),
-        "torch": torch.__version__,  # fits repeat bit for bit only on one build
+        **machine(),
         "judge_config": plan.judge_config.to_dict(),
         "lfd": judge.lfd_note,
         "plan": {k: v for k, v in asdict(plan).items() if k != "judge_config"},
