@@ -36,7 +36,13 @@ from drkfs_onnx.fitting.network import (
     targets,
     train,
 )
-from drkfs_onnx.fitting.study import average_ranks, chamfer_ratios, metric_means, pair_shares
+from drkfs_onnx.fitting.study import (
+    average_ranks,
+    chamfer_ratios,
+    machine,
+    metric_means,
+    pair_shares,
+)
 
 
 def reproduction(new: dict, committed: dict) -> dict:
@@ -106,7 +112,7 @@ def main() -> None:
     results = {
         "command": f"python bench/network_combinations.py --out {args.out}"
         + (" --quick" if args.quick else ""),
-        "torch_threads": torch.get_num_threads(),
+        **machine(),
         "lfd": judge.lfd_note,
         "study": str(args.study),
         "reproduced": reproduced,

@@ -227,6 +227,7 @@ def test_the_combinations_script_retrains_chamfer_exactly_and_adds_two_networks(
     # same weights, batches and draws: the Chamfer network judges exactly as the study's did,
     # so the study's rows stand beside the new ones
     assert results["reproduced"]["exact"] and results["reproduced"]["cells"] > 0
+    assert results["torch"] == torch.__version__  # a rerun repeats bit for bit on one build
     committed = json.loads((study / "results.json").read_text())
     # the form and the weight beside Chamfer of the study's chosen network
     form, weight = committed["validation"]["form"], committed["validation"]["chamfer_weight"]
