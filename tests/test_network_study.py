@@ -195,6 +195,22 @@ def test_quick_network_study_judges_every_test_shape_and_saves_its_meshes(quick_
             assert results["meshes"][name][loss] == f"meshes/{slug(name)}/{slug(loss)}.ply"
     for loss in losses[1:]:  # LFD is not asked for in the quick plan
         assert results["beats_chamfer"][loss]["cells"] == len(names) * (len(VISUAL) - 1)
+    # every candidate is judged on the test shapes too, the chosen one in the study's table
+    # and the others beside it, so a run tells how much validation's choice mattered
+    on_test = results["candidates_on_test"]
+    chosen = recipes[-1].name
+    others = {r.name for r in QUICK_NETWORK.candidates()} - {chosen}
+    assert {name: set(rows) for name, rows in on_test["table"].items()} == {
+        name: others for name in names
+    }
+    assert set(on_test["shares"]) == {r.name for r in QUICK_NETWORK.candidates()}
+    assert on_test["shares"][chosen]["beats_chamfer"] == {
+        k: results["beats_chamfer"][chosen][k] for k in ("wins", "cells", "share")
+    }
+    assert (
+        on_test["shares"][chosen]["chamfer_l1_ratio"]
+        == (results["chamfer_l1_over_chamfer_trained"][chosen])
+    )
     # the candidates and the chosen form's losses are trained, no other form's
     trained = [*recipes, *QUICK_NETWORK.candidates()]
     assert set(results["training"]) == {recipe.name for recipe in trained}

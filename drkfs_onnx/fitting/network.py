@@ -10,7 +10,8 @@ docs/fitting.md). So the study trains DR-KFS + w x Chamfer for each of ``Network
 (the loss study's two best) and each of ``NetworkPlan.chamfer_weights``, keeps the pair that
 beats the Chamfer network on the most visual cells of validation shapes (seeds of their own,
 neither trained on nor tested), then trains the chosen form alone and beside pixel MSE, before
-any test shape is judged.
+any test shape is judged. The candidates it passed over are judged on the test shapes too
+(``candidates_on_test``): a report of how much the choice mattered, never an input to it.
 
 The decoder deforms PRIMITIVES icospheres (AtlasNet's idea with closed patches, so the result is
 watertight and has a volume): vertex = anchor_k + RADIUS * u + MLP(code, e_k, u) for each unit
@@ -348,6 +349,21 @@ def choose_loss(plan: NetworkPlan, table: dict) -> dict:
     }
 
 
+def candidates_on_test(plan: NetworkPlan, table: dict) -> dict:
+    """Each candidate's visual cells won against the Chamfer and pixel MSE networks on the test
+    ``table`` (shape -> loss -> judged row, every candidate in it), and its Chamfer-L1 ratio: not
+    a choice (validation made it), but how much the choice mattered on the shapes judged."""
+    brief = ("wins", "cells", "share")
+    return {
+        r.name: {
+            "beats_chamfer": {k: share(table, r.name, CHAMFER, VISUAL)[k] for k in brief},
+            "beats_pixel_mse": {k: share(table, r.name, PIXEL, VISUAL)[k] for k in brief},
+            "chamfer_l1_ratio": chamfer_ratios(table, [r.name])[r.name],
+        }
+        for r in plan.candidates()
+    }
+
+
 def run_network_study(
     out: Path, quick: bool, threads: int = 2, progress=print, seed: int = 0
 ) -> dict:
@@ -394,6 +410,10 @@ def run_network_study(
             {r.name: trained[r.name] for r in recipes},
             test_set, faces.numpy(), judge, out, progress,
         )  # fmt: skip
+        # the candidates validation passed over, judged on the same test shapes (not saved)
+        others = {r.name: trained[r.name] for r in plan.candidates() if r not in recipes}
+        progress("test shapes, the other candidates:")
+        others_table, _, _ = judge_networks(others, test_set, faces.numpy(), judge, None, progress)
     finally:
         judge.close()
     columns = ["TARGET", *(column_title(r.name, form) for r in recipes)]
@@ -423,6 +443,12 @@ def run_network_study(
         "higher_is_better": sorted(HIGHER_IS_BETTER & set(JUDGED)),
         "validation": {**choice, "table": validation_table},
         "table": table,
+        "candidates_on_test": {
+            "table": others_table,
+            "shares": candidates_on_test(
+                plan, {s: {**rows, **others_table[s]} for s, rows in table.items()}
+            ),
+        },
         "meshes": meshes,
         "training": {
             name: {
