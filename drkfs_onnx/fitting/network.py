@@ -42,6 +42,7 @@ from .judges import HIGHER_IS_BETTER, SURFACE, UNSEEN_VIEWS, VISUAL, Judge
 from .losses import CHAMFER, PIXEL, Recipe, Terms, alone, with_chamfer, with_pixel
 from .mesh_fit import DrkfsTerm, deterministic_kernels, float_tensor
 from .study import (
+    brief_share,
     chamfer_ratios,
     column_title,
     machine,
@@ -353,14 +354,15 @@ def candidates_on_test(plan: NetworkPlan, table: dict) -> dict:
     """Each candidate's visual cells won against the Chamfer and pixel MSE networks on the test
     ``table`` (shape -> loss -> judged row, every candidate in it), and its Chamfer-L1 ratio: not
     a choice (validation made it), but how much the choice mattered on the shapes judged."""
-    brief = ("wins", "cells", "share")
+    names = [r.name for r in plan.candidates()]
+    ratios = chamfer_ratios(table, names)
     return {
-        r.name: {
-            "beats_chamfer": {k: share(table, r.name, CHAMFER, VISUAL)[k] for k in brief},
-            "beats_pixel_mse": {k: share(table, r.name, PIXEL, VISUAL)[k] for k in brief},
-            "chamfer_l1_ratio": chamfer_ratios(table, [r.name])[r.name],
+        n: {
+            "beats_chamfer": brief_share(table, n, CHAMFER, VISUAL),
+            "beats_pixel_mse": brief_share(table, n, PIXEL, VISUAL),
+            "chamfer_l1_ratio": ratios[n],
         }
-        for r in plan.candidates()
+        for n in names
     }
 
 

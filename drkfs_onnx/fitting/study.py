@@ -172,12 +172,17 @@ def share(table: dict, challenger: str, against: str, metrics: tuple[str, ...]) 
     return {"wins": wins, "cells": len(cells), "share": wins / len(cells), "cell_wins": cells}
 
 
+def brief_share(table: dict, challenger: str, against: str, metrics: tuple[str, ...]) -> dict:
+    """``share`` without its cell list: {"wins", "cells", "share"}."""
+    return {k: v for k, v in share(table, challenger, against, metrics).items() if k != "cell_wins"}
+
+
 def pair_shares(table: dict, pairs: dict[str, tuple[str, str]]) -> dict:
     """For each named (challenger, rival) pair, the shares of visual and of surface cells the
-    challenger wins (``share`` without its cell list)."""
+    challenger wins (``brief_share``)."""
     return {
         name: {
-            kind: {k: v for k, v in share(table, a, b, metrics).items() if k != "cell_wins"}
+            kind: brief_share(table, a, b, metrics)
             for kind, metrics in (("visual", VISUAL), ("surface", SURFACE))
         }
         for name, (a, b) in pairs.items()
