@@ -18,24 +18,12 @@ from __future__ import annotations
 import argparse
 import json
 import time
-from dataclasses import replace
 from pathlib import Path
 
 import torch
 
-from drkfs_onnx.fitting.judges import METRICS, Judge
-from drkfs_onnx.fitting.losses import CHAMFER, PIXEL, Terms, alone, pixel_with_chamfer, with_both
-from drkfs_onnx.fitting.network import (
-    FULL,
-    QUICK_NETWORK,
-    TEST_SEED,
-    TRAIN_SEED,
-    judge_networks,
-    primitives,
-    shapes,
-    targets,
-    train,
-)
+from drkfs_onnx.fitting.losses import CHAMFER, PIXEL, pixel_with_chamfer, with_both
+from drkfs_onnx.fitting.network import retrained_beside
 from drkfs_onnx.fitting.study import (
     average_ranks,
     chamfer_ratios,
@@ -43,17 +31,6 @@ from drkfs_onnx.fitting.study import (
     metric_means,
     pair_shares,
 )
-
-
-def reproduction(new: dict, committed: dict) -> dict:
-    """The largest absolute difference between two tables' judged values, cell by cell."""
-    gaps = [
-        abs(row[m] - committed[shape][m])
-        for shape, row in new.items()
-        for m in METRICS
-        if row.get(m) is not None and committed[shape].get(m) is not None
-    ]
-    return {"cells": len(gaps), "max_abs_difference": max(gaps), "exact": max(gaps) == 0.0}
 
 
 def main() -> None:
@@ -69,36 +46,14 @@ def main() -> None:
     torch.set_num_threads(args.threads)
     start = time.perf_counter()
     study = json.loads(args.study.read_text())
-    # the study's seed: the same initial weights and batches as the networks compared with
-    plan = replace(QUICK_NETWORK if args.quick else FULL, seed=study["plan"]["seed"])
     # the study's DR-KFS form and Chamfer weight, chosen on its validation shapes
     form, weight = study["validation"]["form"], study["validation"]["chamfer_weight"]
-    three = with_both(form, plan.pixel_weight, weight)
+    three = with_both(form, study["plan"]["pixel_weight"], weight)
     control = pixel_with_chamfer(weight)
-    train_set = shapes(plan, TRAIN_SEED, plan.train_per_family)
-    test_set = shapes(plan, TEST_SEED, plan.test_per_family)
-    _, faces = primitives()
-    points = torch.stack([s.points for s in train_set])
-    terms = Terms()
-    trained = {
-        r.name: train(plan, r, points, targets(r, train_set, faces, terms), print)
-        for r in (alone(CHAMFER), three, control)
-    }
-    judge = Judge(plan.judge_config, args.threads, plan.unseen_views, plan.lfd)
-    try:
-        new, meshes, _ = judge_networks(
-            trained, test_set, faces.numpy(), judge, args.out.parent, print
-        )
-    finally:
-        judge.close()
-    committed = study["table"]
-    reproduced = reproduction({s: rows[CHAMFER] for s, rows in new.items()},
-                              {s: rows[CHAMFER] for s, rows in committed.items()})  # fmt: skip
-    # the committed rows beside the new networks (the committed Chamfer row, as the check proved)
-    table = {
-        shape: {**committed[shape], three.name: rows[three.name], control.name: rows[control.name]}
-        for shape, rows in new.items()
-    }
+    new = retrained_beside(
+        study, [three, control], args.quick, args.threads, args.out.parent, print
+    )
+    table = new["table"]
     names = [*study["plan"]["losses"], three.name, control.name]
     drkfs_with_chamfer = study["plan"]["losses"][-1]
     pairs = {
@@ -113,17 +68,17 @@ def main() -> None:
         "command": f"python bench/network_combinations.py --out {args.out}"
         + (" --quick" if args.quick else ""),
         **machine(),
-        "lfd": judge.lfd_note,
+        "lfd": new["lfd"],
         "study": str(args.study),
-        "reproduced": reproduced,
+        "reproduced": new["reproduced"],
         "losses": names,
         "table": table,
-        "meshes": {s: {n: m[n] for n in (three.name, control.name)} for s, m in meshes.items()},
+        "meshes": new["meshes"],
         "means": metric_means(table, names),
         "mean_rank": average_ranks(table, names),
         "comparisons": pair_shares(table, pairs),
         "chamfer_l1_over_chamfer_trained": chamfer_ratios(table, names),
-        "seconds_per_step": {n: r["seconds_per_step"] for n, r in trained.items()},
+        "seconds_per_step": new["seconds_per_step"],
         "seconds": time.perf_counter() - start,
     }
     args.out.parent.mkdir(parents=True, exist_ok=True)

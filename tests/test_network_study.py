@@ -258,3 +258,32 @@ def test_the_combinations_script_retrains_chamfer_exactly_and_adds_two_networks(
     assert sum(results["mean_rank"].values()) == pytest.approx(28.0)  # seven ranked 1 to 7
     drkfs_term = results["comparisons"][f"{three} vs {control}"]["visual"]
     assert drkfs_term["cells"] == len(QUICK_NETWORK.families) * (len(VISUAL) - 1)
+
+
+def test_a_candidate_retrained_at_the_studys_seed_scores_as_the_study_judged_it(
+    quick_network_study, tmp_path
+):
+    study, _ = quick_network_study
+    committed = json.loads((study / "results.json").read_text())
+    passed_over = [
+        r for r in QUICK_NETWORK.candidates() if r.name not in committed["plan"]["losses"]
+    ][0]
+    (_, form), (weight, _) = passed_over.terms
+    out = tmp_path / "candidate.json"
+    done = subprocess.run(
+        [sys.executable, "bench/network_candidate.py", "--quick", "--study",
+         str(study / "results.json"), "--form", form, "--chamfer-weight", str(weight),
+         "--out", str(out), "--threads", str(torch.get_num_threads())],
+        cwd=Path(__file__).resolve().parents[1], capture_output=True, text=True, timeout=600,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr[-2000:]
+    results = json.loads(out.read_text())
+    assert results["reproduced"]["exact"] and results["seed"] == 1
+    assert results["candidate"] == passed_over.name and not results["chosen_by_validation"]
+    # trained again from the same weights and batches, the candidate judges exactly as the
+    # study judged it on the test shapes among the candidates validation passed over
+    on_test = committed["candidates_on_test"]["shares"][passed_over.name]
+    for against in ("beats_chamfer", "beats_pixel_mse"):
+        assert {k: results[against][k] for k in ("wins", "cells", "share")} == on_test[against]
+    assert results["chamfer_l1_over_chamfer_trained"] == on_test["chamfer_l1_ratio"]
+    assert not (tmp_path / "meshes").exists()  # the candidate's meshes are not saved

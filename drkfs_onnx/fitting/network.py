@@ -366,6 +366,58 @@ def candidates_on_test(plan: NetworkPlan, table: dict) -> dict:
     }
 
 
+def reproduction(new: dict, committed: dict) -> dict:
+    """The largest absolute difference between two tables' judged values (shape -> judged row),
+    cell by cell."""
+    gaps = [
+        abs(row[m] - committed[shape][m])
+        for shape, row in new.items()
+        for m in JUDGED
+        if row.get(m) is not None and committed[shape].get(m) is not None
+    ]
+    return {"cells": len(gaps), "max_abs_difference": max(gaps), "exact": max(gaps) == 0.0}
+
+
+def retrained_beside(
+    study: dict, recipes: list[Recipe], quick: bool, threads: int, out: Path | None, progress
+) -> dict:
+    """``recipes`` trained as a committed network study (``study``, its results.json) trained its
+    own networks, judged on its test shapes beside them. ``train`` seeds the initial weights, the
+    batches and the Chamfer draws from the plan and its seed, so the Chamfer network is trained
+    again as the proof: at the same thread count and torch build its judged rows must equal the
+    committed ones (``reproduced``), and then the committed rows stand beside the new ones.
+    The new networks' reconstructions are saved under OUT/meshes/<shape>/ where ``out`` is given
+    -> {"lfd", "reproduced", "table": the committed rows with the new networks', "meshes" (none
+    without ``out``), "seconds_per_step"}."""
+    plan = replace(QUICK_NETWORK if quick else FULL, seed=study["plan"]["seed"])
+    train_set = shapes(plan, TRAIN_SEED, plan.train_per_family)
+    test_set = shapes(plan, TEST_SEED, plan.test_per_family)
+    _, faces = primitives()
+    points = torch.stack([s.points for s in train_set])
+    terms = Terms()
+    trained = {
+        r.name: train(plan, r, points, targets(r, train_set, faces, terms), progress)
+        for r in (alone(CHAMFER), *recipes)
+    }
+    judge = Judge(plan.judge_config, threads, plan.unseen_views, plan.lfd)
+    try:
+        new, meshes, _ = judge_networks(trained, test_set, faces.numpy(), judge, out, progress)
+    finally:
+        judge.close()
+    committed = study["table"]
+    names = [r.name for r in recipes]
+    return {
+        "lfd": judge.lfd_note,
+        "reproduced": reproduction(
+            {s: rows[CHAMFER] for s, rows in new.items()},
+            {s: rows[CHAMFER] for s, rows in committed.items()},
+        ),
+        "table": {s: {**committed[s], **{n: rows[n] for n in names}} for s, rows in new.items()},
+        "meshes": {s: {n: m[n] for n in names} for s, m in meshes.items()} if out else {},
+        "seconds_per_step": {n: r["seconds_per_step"] for n, r in trained.items()},
+    }
+
+
 def run_network_study(
     out: Path, quick: bool, threads: int = 2, progress=print, seed: int = 0
 ) -> dict:
