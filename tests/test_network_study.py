@@ -18,7 +18,7 @@ from drkfs_onnx.cameras import make_cameras
 from drkfs_onnx.cli import app
 from drkfs_onnx.config import PipelineConfig
 from drkfs_onnx.fitting.judges import HIGHER_IS_BETTER, VISUAL, SilhouetteJudge, unseen_cameras
-from drkfs_onnx.fitting.losses import CHAMFER, alone
+from drkfs_onnx.fitting.losses import CHAMFER, PIXEL, alone
 from drkfs_onnx.fitting.network import (
     FULL,
     JUDGED,
@@ -33,7 +33,7 @@ from drkfs_onnx.fitting.network import (
     make_shape,
     train,
 )
-from drkfs_onnx.fitting.study import slug
+from drkfs_onnx.fitting.study import chamfer_ratios, share, slug
 
 
 def test_the_full_plan_chooses_between_the_committed_loss_studys_two_best_forms():
@@ -287,3 +287,28 @@ def test_a_candidate_retrained_at_the_studys_seed_scores_as_the_study_judged_it(
         assert {k: results[against][k] for k in ("wins", "cells", "share")} == on_test[against]
     assert results["chamfer_l1_over_chamfer_trained"] == on_test["chamfer_l1_ratio"]
     assert not (tmp_path / "meshes").exists()  # the candidate's meshes are not saved
+
+
+@pytest.mark.parametrize(
+    "path",
+    sorted((Path(__file__).resolve().parents[1] / "bench/fit-network/candidates").glob("*.json")),
+    ids=lambda p: p.stem,
+)
+def test_each_committed_candidate_stands_beside_its_study(path):
+    """The shares the docs quote from a committed candidate hold: its Chamfer network came out
+    as its study's, its Chamfer and pixel MSE rows are the study's, and its shares and ratio
+    recompute from its table."""
+    root = Path(__file__).resolve().parents[1]
+    results = json.loads(path.read_text())
+    study = json.loads((root / results["study"]).read_text())
+    name = results["candidate"]
+    assert results["reproduced"]["exact"] and results["seed"] == study["plan"]["seed"]
+    assert name in study["validation"]["shares"] and not results["chosen_by_validation"]
+    assert set(results["table"]) == set(study["table"])
+    for shape, rows in results["table"].items():
+        for committed in (CHAMFER, PIXEL):
+            assert rows[committed] == study["table"][shape][committed]
+    assert results["beats_chamfer"] == share(results["table"], name, CHAMFER, VISUAL)
+    assert results["beats_pixel_mse"] == share(results["table"], name, PIXEL, VISUAL)
+    ratio = chamfer_ratios(results["table"], [name])[name]
+    assert results["chamfer_l1_over_chamfer_trained"] == ratio
