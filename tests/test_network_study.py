@@ -35,9 +35,11 @@ from drkfs_onnx.fitting.network import (
 )
 from drkfs_onnx.fitting.study import chamfer_ratios, share, slug
 
+ROOT = Path(__file__).resolve().parents[1]
+
 
 def test_the_full_plan_chooses_between_the_committed_loss_studys_two_best_forms():
-    results = Path(__file__).parents[1] / "bench" / "fit" / "results.json"
+    results = ROOT / "bench" / "fit" / "results.json"
     study = json.loads(results.read_text())["loss_study"]
     ranks = study["forms"]["mean_rank"]
     assert FULL.forms[0] == study["forms"]["chosen"]
@@ -236,7 +238,7 @@ def test_the_combinations_script_retrains_chamfer_exactly_and_adds_two_networks(
     done = subprocess.run(
         [sys.executable, "bench/network_combinations.py", "--quick", "--out", str(out),
          "--study", str(study / "results.json"), "--threads", str(torch.get_num_threads())],
-        cwd=Path(__file__).resolve().parents[1], capture_output=True, text=True, timeout=600,
+        cwd=ROOT, capture_output=True, text=True, timeout=600,
     )  # fmt: skip
     assert done.returncode == 0, done.stderr[-2000:]
     results = json.loads(out.read_text())
@@ -274,7 +276,7 @@ def test_a_candidate_retrained_at_the_studys_seed_scores_as_the_study_judged_it(
         [sys.executable, "bench/network_candidate.py", "--quick", "--study",
          str(study / "results.json"), "--form", form, "--chamfer-weight", str(weight),
          "--out", str(out), "--threads", str(torch.get_num_threads())],
-        cwd=Path(__file__).resolve().parents[1], capture_output=True, text=True, timeout=600,
+        cwd=ROOT, capture_output=True, text=True, timeout=600,
     )  # fmt: skip
     assert done.returncode == 0, done.stderr[-2000:]
     results = json.loads(out.read_text())
@@ -291,16 +293,15 @@ def test_a_candidate_retrained_at_the_studys_seed_scores_as_the_study_judged_it(
 
 @pytest.mark.parametrize(
     "path",
-    sorted((Path(__file__).resolve().parents[1] / "bench/fit-network/candidates").glob("*.json")),
+    sorted((ROOT / "bench/fit-network/candidates").glob("*.json")),
     ids=lambda p: p.stem,
 )
 def test_each_committed_candidate_stands_beside_its_study(path):
     """The shares the docs quote from a committed candidate hold: its Chamfer network came out
     as its study's, its Chamfer and pixel MSE rows are the study's, and its shares and ratio
     recompute from its table."""
-    root = Path(__file__).resolve().parents[1]
     results = json.loads(path.read_text())
-    study = json.loads((root / results["study"]).read_text())
+    study = json.loads((ROOT / results["study"]).read_text())
     name = results["candidate"]
     assert results["reproduced"]["exact"] and results["seed"] == study["plan"]["seed"]
     assert name in study["validation"]["shares"] and not results["chosen_by_validation"]
