@@ -207,6 +207,13 @@ def test_a_checkpoint_keeps_finished_fits_for_the_same_plan_only(tmp_path):
     assert not path.exists()
 
 
+def test_a_checkpoint_made_on_another_torch_build_starts_afresh(tmp_path, monkeypatch):
+    path = tmp_path / "checkpoint.json"
+    Checkpoint(path, QUICK_STUDY).put("chair 3/Chamfer", {"F-score 1%": 0.5})
+    monkeypatch.setattr(torch, "__version__", "0.0.0+other")  # its float sums differ
+    assert Checkpoint(path, QUICK_STUDY).get("chair 3/Chamfer") is None
+
+
 def test_the_full_study_fits_the_shipped_form_and_a_plan_cannot_fit_a_form_it_does_not_compare():
     assert FULL.form == SHIPPED and set(FULL.forms) == set(FORMS)
     with pytest.raises(ValueError, match="not among the compared forms"):

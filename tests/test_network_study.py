@@ -163,6 +163,21 @@ def test_a_stopped_study_resumes_with_the_networks_it_had_trained(tmp_path):
     assert Trainings(tmp_path, FULL).get(FULL.candidates()[1]) is None  # never trained
 
 
+def test_a_network_trained_on_another_torch_build_or_thread_count_is_trained_again(
+    tmp_path, monkeypatch
+):
+    recipe = FULL.candidates()[0]
+    result = {"model": Reconstructor(), "history": [1.0], "seconds_per_step": 0.2}
+    Trainings(tmp_path, FULL).put(recipe, result)
+    threads = torch.get_num_threads()
+    monkeypatch.setattr(torch, "get_num_threads", lambda: threads + 1)
+    assert Trainings(tmp_path, FULL).get(recipe) is None
+    monkeypatch.setattr(torch, "get_num_threads", lambda: threads)
+    assert Trainings(tmp_path, FULL).get(recipe) is not None
+    monkeypatch.setattr(torch, "__version__", "0.0.0+other")
+    assert Trainings(tmp_path, FULL).get(recipe) is None
+
+
 @pytest.fixture(scope="module")
 def quick_network_study(tmp_path_factory):
     out = tmp_path_factory.mktemp("network")

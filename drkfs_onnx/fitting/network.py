@@ -47,6 +47,7 @@ from .study import (
     column_title,
     machine,
     metric_means,
+    resume_key,
     save_mesh,
     share,
     slug,
@@ -275,10 +276,11 @@ def train(plan: NetworkPlan, recipe: Recipe, points: torch.Tensor, shape_terms: 
 class Trainings:
     """Finished trainings kept as OUT/checkpoint/<loss>.pt with the plan they were trained under,
     so a stopped study resumes where it stopped (``train`` seeds each training itself, so a
-    resumed network equals the one a straight run trains); a finished study removes them."""
+    resumed network equals the one a straight run trains, under the same ``resume_key``); a
+    finished study removes them."""
 
     def __init__(self, folder: Path, plan: NetworkPlan):
-        self.folder, self.plan = folder, repr(plan)
+        self.folder, self.plan = folder, resume_key(plan)
 
     def get(self, recipe: Recipe) -> dict | None:
         path = self.folder / f"{slug(recipe.name)}.pt"

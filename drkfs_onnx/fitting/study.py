@@ -133,6 +133,13 @@ def machine() -> dict:
     }
 
 
+def resume_key(plan) -> str:
+    """What a finished fit or training must share with the run that would resume it: the plan,
+    and the torch build and thread count its float sums depend on (a resumed result made under
+    others would sit beside fresh ones that differ from a straight run's)."""
+    return f"{plan!r} on torch {torch.__version__}, {torch.get_num_threads()} threads"
+
+
 def load_problem(spec: str) -> Problem:
     family, _, seed = spec.partition(":")
     return synthetic(family, int(seed)) if family in FAMILIES else shared(spec)
@@ -242,11 +249,11 @@ def converged(history: list[float]) -> float:
 
 class Checkpoint:
     """The finished fits of a run, rewritten to OUT/checkpoint.json after each one, so that a run
-    that was stopped resumes where it stopped; a checkpoint of another plan is ignored, and a
-    finished run removes it."""
+    that was stopped resumes where it stopped; a checkpoint of another ``resume_key`` is ignored,
+    and a finished run removes it."""
 
     def __init__(self, path: Path, plan: StudyPlan):
-        self.path, self.plan = path, repr(plan)
+        self.path, self.plan = path, resume_key(plan)
         saved = json.loads(path.read_text()) if path.exists() else {}
         self.done: dict[str, dict] = saved["done"] if saved.get("plan") == self.plan else {}
 
@@ -481,7 +488,6 @@ def run_study(out: Path, quick: bool, threads: int = 2, progress=print) -> dict:
         "loss_study": choice,
         **results,
     }
-    results["summary"] = summary(results["table"], recipes, choice["form"])
     results["fits_resumed"] = resumed  # from a checkpoint: seconds_total does not count them
     results["seconds_total"] = time.perf_counter() - start
     (out / "results.json").write_text(json.dumps(results, indent=1))
@@ -564,7 +570,8 @@ def fitting_study(
                 landscapes[problem.name][recipe.name] = done["landscape"]
             progress(f"{problem.name}: {recipe.name}: {_brief(rows[recipe.name])}")
         table[problem.name] = rows
-    best = summary(table, recipes, form)["best_drkfs_loss"]
+    done_means = summary(table, recipes, form)
+    best = done_means["best_drkfs_loss"]
     for problem in problems:  # the name outside judges look for
         folder = out / "meshes" / slug(problem.name)
         shutil.copy(folder / f"{slug(best)}.ply", folder / "best_drkfs.ply")
@@ -594,6 +601,7 @@ def fitting_study(
             },
         },
         "seconds_per_step": seconds_per_step(plan, fitter, recipes, problems[0]),
+        "summary": done_means,
     }
 
 
