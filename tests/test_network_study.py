@@ -18,7 +18,7 @@ from drkfs_onnx.cameras import make_cameras
 from drkfs_onnx.cli import app
 from drkfs_onnx.config import PipelineConfig
 from drkfs_onnx.fitting.judges import HIGHER_IS_BETTER, VISUAL, SilhouetteJudge, unseen_cameras
-from drkfs_onnx.fitting.losses import CHAMFER, PIXEL, alone
+from drkfs_onnx.fitting.losses import CHAMFER, PIXEL, alone, with_chamfer
 from drkfs_onnx.fitting.network import (
     FULL,
     JUDGED,
@@ -33,7 +33,7 @@ from drkfs_onnx.fitting.network import (
     make_shape,
     train,
 )
-from drkfs_onnx.fitting.study import chamfer_ratios, share, slug
+from drkfs_onnx.fitting.study import brief_share, chamfer_ratios, share, slug
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -328,3 +328,32 @@ def test_each_committed_candidate_stands_beside_its_study(path):
     assert results["beats_pixel_mse"] == share(results["table"], name, PIXEL, VISUAL)
     ratio = chamfer_ratios(results["table"], [name])[name]
     assert results["chamfer_l1_over_chamfer_trained"] == ratio
+
+
+@pytest.mark.parametrize(
+    "path",
+    [
+        ROOT / "bench/fit-network/results.json",
+        *sorted((ROOT / "bench/fit-network").glob("seed*.json")),
+    ],
+    ids=lambda p: p.stem,
+)
+def test_each_committed_network_studys_shares_recompute_from_its_tables(path):
+    """The per-seed shares the docs pool hold: the summary's loss is validation's choice, and its
+    shares, its Chamfer-L1 ratio and every passed-over candidate's shares (where the run kept
+    them) recompute from the committed tables."""
+    results = json.loads(path.read_text())
+    table, done = results["table"], results["summary"]
+    choice = results["validation"]
+    best = with_chamfer(choice["form"], choice["chamfer_weight"]).name
+    assert done["best_drkfs_loss"] == best
+    assert done["share_beats_chamfer"] == share(table, best, CHAMFER, VISUAL)["share"]
+    assert done["share_beats_pixel_mse"] == share(table, best, PIXEL, VISUAL)["share"]
+    assert done["chamfer_l1_ratio"] == chamfer_ratios(table, [best])[best]
+    if "candidates_on_test" in results:  # runs before it judged only validation's choice
+        others = results["candidates_on_test"]
+        merged = {shape: {**rows, **others["table"][shape]} for shape, rows in table.items()}
+        assert set(others["shares"]) == set(choice["shares"])
+        for name, got in others["shares"].items():
+            for key, against in (("beats_chamfer", CHAMFER), ("beats_pixel_mse", PIXEL)):
+                assert got[key] == brief_share(merged, name, against, VISUAL)
