@@ -274,18 +274,18 @@ def train(plan: NetworkPlan, recipe: Recipe, points: torch.Tensor, shape_terms: 
 
 
 class Trainings:
-    """Finished trainings kept as OUT/checkpoint/<loss>.pt with the plan they were trained under,
-    so a stopped study resumes where it stopped (``train`` seeds each training itself, so a
-    resumed network equals the one a straight run trains, under the same ``resume_key``); a
-    finished study removes them."""
+    """Finished trainings kept as OUT/checkpoint/<loss>.pt with the ``resume_key`` (plan, torch
+    build, threads) they were trained under, so a stopped study resumes where it stopped
+    (``train`` seeds each training itself, so a resumed network equals the one a straight run
+    trains); a finished study removes them."""
 
     def __init__(self, folder: Path, plan: NetworkPlan):
-        self.folder, self.plan = folder, resume_key(plan)
+        self.folder, self.key = folder, resume_key(plan)
 
     def get(self, recipe: Recipe) -> dict | None:
         path = self.folder / f"{slug(recipe.name)}.pt"
         saved = torch.load(path, weights_only=True) if path.exists() else None
-        if saved is None or saved["plan"] != self.plan:
+        if saved is None or saved.get("key") != self.key:
             return None
         model = Reconstructor()
         model.load_state_dict(saved["state"])
@@ -293,7 +293,7 @@ class Trainings:
 
     def put(self, recipe: Recipe, result: dict) -> None:
         self.folder.mkdir(parents=True, exist_ok=True)
-        saved = {"plan": self.plan, "state": result["model"].state_dict(),
+        saved = {"key": self.key, "state": result["model"].state_dict(),
                  "history": result["history"], "seconds": result["seconds_per_step"]}  # fmt: skip
         scratch = self.folder / f"{slug(recipe.name)}.tmp"  # a kill mid-write leaves no .pt
         torch.save(saved, scratch)

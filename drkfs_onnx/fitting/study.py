@@ -253,9 +253,9 @@ class Checkpoint:
     and a finished run removes it."""
 
     def __init__(self, path: Path, plan: StudyPlan):
-        self.path, self.plan = path, resume_key(plan)
+        self.path, self.key = path, resume_key(plan)
         saved = json.loads(path.read_text()) if path.exists() else {}
-        self.done: dict[str, dict] = saved["done"] if saved.get("plan") == self.plan else {}
+        self.done: dict[str, dict] = saved["done"] if saved.get("key") == self.key else {}
 
     def get(self, key: str) -> dict | None:
         return self.done.get(key)
@@ -263,7 +263,7 @@ class Checkpoint:
     def put(self, key: str, value: dict) -> None:
         self.done[key] = value
         scratch = self.path.with_suffix(".tmp")  # a kill mid-write leaves the last one whole
-        scratch.write_text(json.dumps({"plan": self.plan, "done": self.done}))
+        scratch.write_text(json.dumps({"key": self.key, "done": self.done}))
         scratch.replace(self.path)
 
     def remove(self) -> None:
