@@ -22,6 +22,7 @@ from pathlib import Path
 import torch
 
 from drkfs_onnx import DRKFS, PipelineConfig, load_mesh
+from drkfs_onnx.benchmark.torch_checks import agreement, value_and_gradient
 from drkfs_onnx.fitting.network import loss_step_case
 from drkfs_onnx.loss import DrkfsLoss
 from drkfs_onnx.mesh import normalize_pair
@@ -47,24 +48,6 @@ def timed(fn, device: str, repeats: int) -> tuple[float, object]:
 
     call()  # warm-up, which also leaves the device idle before the first clock
     return _timed(call, repeats)
-
-
-def value_and_gradient(score, verts: torch.Tensor, device: str):
-    """``score(verts on device)`` and its gradient with respect to ``verts``, on the CPU."""
-
-    def step():
-        moved = verts.detach().to(device, copy=True).requires_grad_(True)
-        value = score(moved)
-        value.backward()
-        return float(value.detach()), moved.grad.cpu()
-
-    return step
-
-
-def agreement(cpu: tuple[float, torch.Tensor], cuda: tuple[float, torch.Tensor]) -> dict:
-    (a, grad_a), (b, grad_b) = cpu, cuda
-    cosine = torch.nn.functional.cosine_similarity(grad_a.flatten(), grad_b.flatten(), dim=0)
-    return {"value_relative_difference": abs(b - a) / abs(a), "gradient_cosine": float(cosine)}
 
 
 def loss_steps(repeats: int) -> dict:

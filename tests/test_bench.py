@@ -17,6 +17,7 @@ from drkfs_onnx.benchmark.chart import pareto_front, write_chart
 from drkfs_onnx.benchmark.methods import DrkfsOnnx, Placed
 from drkfs_onnx.benchmark.run import TIER_PAIRS, run_bench, tier_accuracy
 from drkfs_onnx.benchmark.sets import STABILITY, _box_with_cavity
+from drkfs_onnx.benchmark.torch_checks import agreement, value_and_gradient
 from drkfs_onnx.config import PipelineConfig
 from drkfs_onnx.mesh import frame_of, load_mesh, place
 from drkfs_onnx.synthetic.shapes import (
@@ -231,6 +232,21 @@ def test_quick_bench_torch_and_onnx_agree(quick):
     scale = max(torch_.values())  # near-zero scores differ by float rounding of that scale
     for key, value in onnx.items():
         assert value == pytest.approx(torch_[key], rel=2e-3, abs=2e-3 * scale), key
+
+
+def test_a_devices_step_is_compared_with_the_cpus_by_value_and_gradient_direction():
+    verts = torch.tensor([[1.0, -2.0, 0.5]])
+    step = value_and_gradient(lambda v: (v**2).sum(), verts, "cpu")
+    value, gradient = step()
+    assert value == 5.25 and torch.equal(gradient, 2 * verts)
+    assert verts.grad is None  # the caller's tensor is left alone, so the step can repeat
+    assert agreement((value, gradient), step()) == {
+        "value_relative_difference": 0.0,
+        "gradient_cosine": pytest.approx(1.0),
+    }
+    off = agreement((value, gradient), (1.01 * value, -3 * gradient))
+    assert off["value_relative_difference"] == pytest.approx(0.01)
+    assert off["gradient_cosine"] == pytest.approx(-1.0)  # direction only, not length
 
 
 def test_quick_bench_stability_rows_and_torch_checks(quick):

@@ -5,26 +5,30 @@ import pytest
 import torch
 
 from drkfs_onnx import DRKFS, PipelineConfig
+from drkfs_onnx.benchmark.torch_checks import agreement, value_and_gradient
 from drkfs_onnx.fitting.network import loss_step_case
 from drkfs_onnx.loss import DrkfsLoss
 
 pytestmark = pytest.mark.skipif(not torch.cuda.is_available(), reason="no CUDA device")
 
 
-def _value_and_gradient(score, verts: torch.Tensor, device: str):
-    moved = verts.detach().to(device, copy=True).requires_grad_(True)
-    value = score(moved)
-    value.backward()
-    assert value.device.type == device
-    return float(value.detach()), moved.grad.cpu()
+def _assert_agree(on, prediction: torch.Tensor) -> None:
+    """``on(device)``: the score of vertices on that device. Its value and gradient on CUDA must
+    be computed there and agree with the CPU's."""
 
+    def scored_on(device: str):
+        score = on(device)
 
-def _assert_agree(cpu, cuda):
-    (a, grad_a), (b, grad_b) = cpu, cuda
-    assert b == pytest.approx(a, rel=1e-3)
-    # TF32 convolutions on the device: the gradient's direction, not every digit
-    cosine = torch.nn.functional.cosine_similarity(grad_a.flatten(), grad_b.flatten(), dim=0)
-    assert cosine > 0.999
+        def checked(verts: torch.Tensor) -> torch.Tensor:
+            value = score(verts)
+            assert value.device.type == device
+            return value
+
+        return value_and_gradient(checked, prediction, device)()
+
+    found = agreement(scored_on("cpu"), scored_on("cuda"))
+    assert found["value_relative_difference"] < 1e-3
+    assert found["gradient_cosine"] > 0.999
 
 
 @pytest.mark.parametrize("progress", [0.0, 1.0])  # the coarse stage and the loss preset
@@ -35,9 +39,9 @@ def test_the_loss_runs_on_cuda_and_agrees_with_the_cpu(progress):
         loss = DrkfsLoss.pretrained().to(device)
         target = loss.target(*(t.to(device) for t in truth))
         moved = faces.to(device)
-        return _value_and_gradient(lambda v: loss(v, moved, target, progress), prediction, device)
+        return lambda v: loss(v, moved, target, progress)
 
-    _assert_agree(on("cpu"), on("cuda"))
+    _assert_agree(on, prediction)
 
 
 def test_the_scoring_metric_runs_on_cuda_and_agrees_with_the_cpu():
@@ -47,8 +51,6 @@ def test_the_scoring_metric_runs_on_cuda_and_agrees_with_the_cpu():
     def on(device: str):
         metric.to(device)
         moved, (verts, truth_faces) = faces.to(device), (t.to(device) for t in truth)
-        return _value_and_gradient(
-            lambda v: metric(v, moved, verts, truth_faces), prediction, device
-        )
+        return lambda v: metric(v, moved, verts, truth_faces)
 
-    _assert_agree(on("cpu"), on("cuda"))
+    _assert_agree(on, prediction)

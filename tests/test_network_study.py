@@ -2,6 +2,7 @@
 silhouettes are judged from, and the quick plan end to end through the CLI."""
 
 import json
+import struct
 import subprocess
 import sys
 from dataclasses import replace
@@ -30,6 +31,7 @@ from drkfs_onnx.fitting.network import (
     Reconstructor,
     Trainings,
     choose_loss,
+    draw_gallery,
     make_shape,
     train,
 )
@@ -241,8 +243,19 @@ def test_quick_network_study_judges_every_test_shape_and_saves_its_meshes(quick_
         summary["share_beats_pixel_mse"]
         == (results["beats_pixel_mse"][summary["best_drkfs_loss"]]["share"])
     )
-    assert (out / "gallery.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert "beats Chamfer on" in output and "best DR-KFS loss:" in output
+
+
+def test_the_network_gallery_is_drawn_from_the_saved_meshes_alone(quick_network_study):
+    out, _ = quick_network_study
+    drawn = (out / "gallery.png").read_bytes()
+    assert drawn[:8] == b"\x89PNG\r\n\x1a\n"
+    width, height = struct.unpack(">II", drawn[16:24])
+    shapes = len(QUICK_NETWORK.families) * QUICK_NETWORK.test_per_family
+    assert width > 6 * 128 and height > shapes * 2 * 128  # target + 5 losses; 2 views a shape
+    (out / "gallery.png").unlink()
+    draw_gallery(out)  # from results.json and the PLY files: no network, no judge
+    assert (out / "gallery.png").read_bytes() == drawn
 
 
 def test_the_combinations_script_retrains_chamfer_exactly_and_adds_two_networks(

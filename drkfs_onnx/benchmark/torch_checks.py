@@ -1,5 +1,6 @@
 """Checks only the differentiable torch path can answer: finite gradients on every stability
-case, a score that changes smoothly as a part slides, and zero for a shape against itself."""
+case, a score that changes smoothly as a part slides, zero for a shape against itself, and how
+far a device's value and gradient are from the CPU's."""
 
 from __future__ import annotations
 
@@ -26,6 +27,28 @@ def gradient_check(metric: DRKFS, a: tuple, b: tuple) -> dict:
     finite = bool(torch.isfinite(verts.grad).all()) and bool(torch.isfinite(score))
     return {"score": score.item(), "gradient_finite": finite,
             "gradient_norm": float(verts.grad.norm())}  # fmt: skip
+
+
+def value_and_gradient(score, verts: torch.Tensor, device: str):
+    """-> one step to call (or time): ``score`` of a copy of ``verts`` moved to ``device``,
+    returning (the value, its gradient with respect to that copy, back on the CPU)."""
+
+    def step() -> tuple[float, torch.Tensor]:
+        moved = verts.detach().to(device, copy=True).requires_grad_(True)
+        value = score(moved)
+        value.backward()
+        return float(value.detach()), moved.grad.cpu()
+
+    return step
+
+
+def agreement(cpu: tuple[float, torch.Tensor], other: tuple[float, torch.Tensor]) -> dict:
+    """How far another device's (value, gradient) is from the CPU's: the value's relative
+    difference and the cosine between the gradients (a GPU may convolve in TF32, so the
+    gradient's direction is what can be asked of it, not every digit)."""
+    (a, grad_a), (b, grad_b) = cpu, other
+    cosine = torch.nn.functional.cosine_similarity(grad_a.flatten(), grad_b.flatten(), dim=0)
+    return {"value_relative_difference": abs(b - a) / abs(a), "gradient_cosine": float(cosine)}
 
 
 def self_score(metric: DRKFS, mesh: tuple) -> float:

@@ -310,14 +310,14 @@ def judge_networks(
     judge: Judge,
     out: Path | None,
     progress,
-) -> tuple[dict, dict, list]:
+) -> tuple[dict, dict]:
     """Each trained network's reconstruction of each shape, judged against the shape and, where
     ``out`` is given, saved as OUT/meshes/<shape>/<loss>.ply -> (table: shape -> loss -> judged
-    row, meshes: the saved files relative to OUT, gallery rows)."""
-    table, meshes, gallery = {}, {}, []
+    row, meshes: the saved files relative to OUT)."""
+    table, meshes = {}, {}
     for shape in test_set:
         target = judge.prepare(shape.verts, shape.faces)
-        rows, row_meshes, saved = {}, [(shape.verts, shape.faces)], {}
+        rows, saved = {}, {}
         folder = out / "meshes" / slug(shape.name) if out else None
         if folder:
             saved["target"] = save_mesh(folder / "target.ply", shape.verts, shape.faces)
@@ -327,13 +327,11 @@ def judge_networks(
             rows[name] = judge.compare(judge.prepare(verts, faces), target)
             if folder:
                 saved[name] = save_mesh(folder / f"{slug(name)}.ply", verts, faces)
-            row_meshes.append((verts, faces))
         table[shape.name], meshes[shape.name] = rows, saved
-        gallery.append((shape.name, row_meshes))
         progress(
             f"{shape.name}: " + "; ".join(f"{k} {v['F-score 1%']:.3f}" for k, v in rows.items())
         )
-    return table, meshes, gallery
+    return table, meshes
 
 
 def choose_loss(plan: NetworkPlan, table: dict) -> dict:
@@ -403,7 +401,7 @@ def retrained_beside(
     }
     judge = Judge(plan.judge_config, threads, plan.unseen_views, plan.lfd)
     try:
-        new, meshes, _ = judge_networks(trained, test_set, faces.numpy(), judge, out, progress)
+        new, meshes = judge_networks(trained, test_set, faces.numpy(), judge, out, progress)
     finally:
         judge.close()
     committed = study["table"]
@@ -453,7 +451,7 @@ def run_network_study(
     try:
         judging = {r.name: trained[r.name] for r in [alone(CHAMFER), *plan.candidates()]}
         progress("validation shapes:")
-        validation_table, _, _ = judge_networks(
+        validation_table, _ = judge_networks(
             judging, validation_set, faces.numpy(), judge, None, progress
         )
         choice = choose_loss(plan, validation_table)
@@ -462,18 +460,16 @@ def run_network_study(
         progress(f"validation chose {form} at Chamfer weight {choice['chamfer_weight']:g}")
         train_all([r for r in recipes if r.name not in trained])
         progress("test shapes:")
-        table, meshes, gallery = judge_networks(
+        table, meshes = judge_networks(
             {r.name: trained[r.name] for r in recipes},
             test_set, faces.numpy(), judge, out, progress,
         )  # fmt: skip
         # the candidates validation passed over, judged on the same test shapes (not saved)
         others = {r.name: trained[r.name] for r in plan.candidates() if r not in recipes}
         progress("test shapes, the other candidates:")
-        others_table, _, _ = judge_networks(others, test_set, faces.numpy(), judge, None, progress)
+        others_table, _ = judge_networks(others, test_set, faces.numpy(), judge, None, progress)
     finally:
         judge.close()
-    columns = ["TARGET", *(column_title(r.name, form) for r in recipes)]
-    write_gallery(out / "gallery.png", columns, gallery)
     names = [r.name for r in recipes]
     results = {
         "command": f"drkfs fit --network{' --quick' if quick else ''}"
@@ -523,5 +519,19 @@ def run_network_study(
     results["networks_resumed"] = resumed  # from a checkpoint: seconds_total does not count them
     results["seconds_total"] = time.perf_counter() - start
     (out / "results.json").write_text(json.dumps(results, indent=1))
+    draw_gallery(out)
     checkpoint.remove()
     return results
+
+
+def draw_gallery(out: Path) -> None:
+    """OUT/gallery.png from a finished network study's results.json and saved meshes: per test
+    shape the target and each network's reconstruction, from the same two cameras."""
+    results = json.loads((out / "results.json").read_text())
+    losses = results["plan"]["losses"]
+    rows = []
+    for shape, saved in results["meshes"].items():
+        loaded = [trimesh.load(out / saved[n], process=False) for n in ("target", *losses)]
+        rows.append((shape, [(np.asarray(m.vertices), np.asarray(m.faces)) for m in loaded]))
+    form = results["validation"]["form"]
+    write_gallery(out / "gallery.png", ["TARGET", *(column_title(n, form) for n in losses)], rows)
