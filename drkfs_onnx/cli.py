@@ -224,6 +224,57 @@ def fit(
     typer.echo(f"{out / 'results.json'}, {out / 'gallery.png'} in {results['seconds_total']:.0f} s")
 
 
+@app.command("choose-loss")
+def choose_loss_command(
+    reconstructions: Annotated[
+        Path,
+        typer.Argument(
+            help="CSV: a 'target' column of held-out shapes, then one column per loss (the "
+            "baseline first) with that loss's network's reconstruction of the shape."
+        ),
+    ],
+    baseline: Annotated[
+        str | None, typer.Option(help="The loss column to beat (default: the first after target).")
+    ] = None,
+    out: Annotated[
+        Path | None, typer.Option(help="Write the judged table and the choice as JSON here.")
+    ] = None,
+    threads: Annotated[int, typer.Option(help="Threads for the judge's numpy renderer.")] = 2,
+    lfd: Annotated[bool, typer.Option(help="Judge with LFD too, where it is installed.")] = True,
+) -> None:
+    """Choose the loss whose reconstructions beat the baseline's on the most visual cells of
+    your held-out shapes (the network study's rule; docs/fitting.md)."""
+    from .fitting.choice import JUDGE_CONFIG, judge_and_choose, read_reconstructions
+    from .fitting.judges import Judge
+
+    progress = lambda line: typer.echo(line, err=True)  # noqa: E731
+    try:
+        if out and not out.parent.is_dir():
+            raise ValueError(f"{out}: its folder does not exist")
+        listed = read_reconstructions(reconstructions, baseline)
+        judge = Judge(JUDGE_CONFIG, threads, lfd=lfd)
+        try:
+            result = judge_and_choose(listed, judge, progress)
+        finally:
+            judge.close()
+    except ValueError as exc:
+        typer.echo(f"error: {exc}", err=True)
+        raise typer.Exit(2) from exc
+    base = result["baseline"]
+    for name, won in result["shares"].items():
+        ratio = result["chamfer_l1_ratio"][name]
+        typer.echo(
+            f"{name} beats {base} on {won['wins']}/{won['cells']} visual cells "
+            f"({won['share']:.0%}) at {_fmt(ratio)} x its Chamfer-L1"
+        )
+    typer.echo(f"chosen: {result['chosen']} ({len(result['table'])} shapes; {result['lfd']})")
+    if result["skipped"]:
+        typer.echo(f"{len(result['skipped'])} rows skipped (see above)", err=True)
+    if out:
+        out.write_text(json.dumps(result, indent=1))
+        typer.echo(str(out))
+
+
 def _fmt(value: float | None) -> str:
     return "n/a" if value is None else f"{value:.3f}"
 

@@ -352,14 +352,18 @@ def test_each_committed_candidate_stands_beside_its_study(path):
     ids=lambda p: p.stem,
 )
 def test_each_committed_network_studys_shares_recompute_from_its_tables(path):
-    """The per-seed shares the docs pool hold: the summary's loss is validation's choice, and its
-    shares, its Chamfer-L1 ratio and every passed-over candidate's shares (where the run kept
-    them) recompute from the committed tables."""
+    """The per-seed shares the docs pool hold: the summary's loss is validation's choice (the
+    shared rule picks it again from the validation table), and its shares, its Chamfer-L1
+    ratio and every passed-over candidate's shares (where the run kept them) recompute from
+    the committed tables."""
     results = json.loads(path.read_text())
     table, done = results["table"], results["summary"]
     choice = results["validation"]
     best = with_chamfer(choice["form"], choice["chamfer_weight"]).name
     assert done["best_drkfs_loss"] == best
+    # the rule drkfs choose-loss applies picks the same loss from the validation table
+    again = choose_loss(FULL, choice["table"])
+    assert (again["form"], again["chamfer_weight"]) == (choice["form"], choice["chamfer_weight"])
     assert done["share_beats_chamfer"] == share(table, best, CHAMFER, VISUAL)["share"]
     assert done["share_beats_pixel_mse"] == share(table, best, PIXEL, VISUAL)["share"]
     assert done["chamfer_l1_ratio"] == chamfer_ratios(table, [best])[best]

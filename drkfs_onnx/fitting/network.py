@@ -44,6 +44,7 @@ from .mesh_fit import DrkfsTerm, deterministic_kernels, float_tensor
 from .study import (
     brief_share,
     chamfer_ratios,
+    choose,
     column_title,
     machine,
     metric_means,
@@ -338,13 +339,12 @@ def choose_loss(plan: NetworkPlan, table: dict) -> dict:
     """The candidate (form, Chamfer weight) whose network beats the Chamfer network on the most
     visual cells of the validation ``table`` (a tie goes to the earlier candidate: the loss
     study's choices first) -> {"shares", "chamfer_l1_ratio", "form", "chamfer_weight"}."""
-    candidates = plan.candidates()
-    shares = {r.name: share(table, r.name, CHAMFER, VISUAL)["share"] for r in candidates}
-    best = max(candidates, key=lambda r: shares[r.name])  # max keeps the first of equals
-    (_, form), (weight, _) = best.terms
+    candidates = {r.name: r for r in plan.candidates()}
+    choice = choose(table, list(candidates), CHAMFER)
+    (_, form), (weight, _) = candidates[choice["chosen"]].terms
     return {
-        "shares": shares,
-        "chamfer_l1_ratio": chamfer_ratios(table, list(shares)),
+        "shares": {name: won["share"] for name, won in choice["shares"].items()},
+        "chamfer_l1_ratio": choice["chamfer_l1_ratio"],
         "form": form,
         "chamfer_weight": weight,
     }

@@ -208,15 +208,31 @@ def metric_means(table: dict, names) -> dict[str, dict[str, float]]:
     }
 
 
-def chamfer_ratios(table: dict, losses) -> dict[str, float]:
-    """Each loss's Chamfer-L1 over the Chamfer result's, averaged over the table's rows."""
+def chamfer_ratios(table: dict, losses, against: str = CHAMFER) -> dict[str, float | None]:
+    """Each loss's Chamfer-L1 over ``against``'s (the Chamfer result's), averaged over the
+    table's rows; None where ``against`` matches some row's target exactly."""
+    if any(rows[against]["Chamfer-L1"] == 0 for rows in table.values()):
+        return dict.fromkeys(losses)
     return {
         loss: float(
             np.mean(
-                [rows[loss]["Chamfer-L1"] / rows[CHAMFER]["Chamfer-L1"] for rows in table.values()]
+                [rows[loss]["Chamfer-L1"] / rows[against]["Chamfer-L1"] for rows in table.values()]
             )
         )
         for loss in losses
+    }
+
+
+def choose(table: dict, candidates: list[str], baseline: str) -> dict:
+    """The network study's rule for a loss: of ``candidates``, the one whose results beat
+    ``baseline``'s on the most visual cells of ``table`` (shape -> loss -> judged row); a tie
+    goes to the earlier candidate -> {"chosen", "shares": candidate -> {"wins", "cells",
+    "share"}, "chamfer_l1_ratio": candidate -> its Chamfer-L1 over the baseline's}."""
+    shares = {name: brief_share(table, name, baseline, VISUAL) for name in candidates}
+    return {
+        "chosen": max(candidates, key=lambda n: shares[n]["share"]),  # max keeps the first
+        "shares": shares,
+        "chamfer_l1_ratio": chamfer_ratios(table, candidates, baseline),
     }
 
 

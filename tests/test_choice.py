@@ -1,0 +1,132 @@
+"""``drkfs choose-loss``: the network study's rule for a loss, run on reconstructions a user
+lists in a CSV (a target column, then one column per loss)."""
+
+import json
+from pathlib import Path
+
+import pytest
+import trimesh
+from typer.testing import CliRunner
+
+from drkfs_onnx.cli import app
+from drkfs_onnx.fitting.choice import judge_and_choose, read_reconstructions
+from drkfs_onnx.fitting.judges import VISUAL, Judge
+from drkfs_onnx.fitting.network import QUICK_NETWORK
+from drkfs_onnx.fitting.study import choose
+from drkfs_onnx.synthetic.examples import write_examples
+
+
+@pytest.fixture(scope="module")
+def meshes(tmp_path_factory) -> Path:
+    """The example chairs, and the reference chair 1.5 x larger about its centre."""
+    folder = tmp_path_factory.mktemp("reconstructions")
+    write_examples(folder)
+    chair = trimesh.load(folder / "chair.obj", process=False)
+    centre = chair.bounds.mean(0)
+    larger = (chair.vertices - centre) * 1.5 + centre
+    trimesh.Trimesh(larger, chair.faces, process=False).export(folder / "larger.ply")
+    return folder
+
+
+@pytest.fixture(scope="module")
+def quick_judge():
+    judge = Judge(QUICK_NETWORK.judge_config, unseen_views=2, lfd=False)
+    yield judge
+    judge.close()
+
+
+def write_csv(path: Path, lines: list[str]) -> Path:
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+@pytest.mark.parametrize(
+    ("header", "reason"),
+    [
+        ("pred,chamfer,ours", "must name a 'target' column"),
+        ("target,chamfer", "at least one candidate"),
+        ("target,chamfer,chamfer", "each once"),
+        ("target,chamfer,,ours", "each once"),
+    ],
+)
+def test_a_header_that_does_not_list_a_target_and_two_losses_is_refused_naming_the_file(
+    tmp_path, header, reason
+):
+    path = write_csv(tmp_path / "val.csv", [header, "a.obj,b.obj,c.obj"])
+    with pytest.raises(ValueError, match=reason) as error:
+        read_reconstructions(path)
+    assert str(path) in str(error.value)
+
+
+def test_the_baseline_is_the_first_loss_unless_named_and_must_be_a_column(tmp_path):
+    path = write_csv(tmp_path / "val.csv", ["target,chamfer,ours,theirs", "t.obj,c.obj,o.obj"])
+    listed = read_reconstructions(path)
+    assert (listed.baseline, listed.candidates) == ("chamfer", ["ours", "theirs"])
+    assert listed.rows[0].reconstructions == {"chamfer": "c.obj", "ours": "o.obj", "theirs": ""}
+    named = read_reconstructions(path, "ours")
+    assert (named.baseline, named.candidates) == ("ours", ["chamfer", "theirs"])
+    with pytest.raises(ValueError, match="no column named 'mse'"):
+        read_reconstructions(path, "mse")
+
+
+def test_the_loss_that_beats_the_baseline_most_often_is_chosen_judged_in_the_targets_frame(
+    tmp_path, meshes, quick_judge
+):
+    """The larger chair would equal the target in a frame of its own; in the target's frame it
+    loses to the exact copy, which wins every visual cell. A row with a missing file is skipped
+    with its reason, and the other row still counts."""
+    m = meshes
+    path = write_csv(
+        tmp_path / "val.csv",
+        [
+            "target,chamfer,larger,copy",
+            f"{m / 'chair.obj'},{m / 'chair_no_leg.obj'},{m / 'larger.ply'},{m / 'chair.obj'}",
+            f"{m / 'chair.obj'},{m / 'absent.obj'},{m / 'larger.ply'},{m / 'chair.obj'}",
+        ],
+    )
+    result = judge_and_choose(read_reconstructions(path), quick_judge, lambda _: None)
+    assert result["chosen"] == "copy"
+    assert result["shares"]["copy"] == {"wins": 4, "cells": 4, "share": 1.0}  # VISUAL less LFD
+    assert result["shares"]["larger"]["wins"] < 4
+    assert result["chamfer_l1_ratio"]["copy"] == 0.0
+    assert list(result["table"]) == [str(m / "chair.obj")]
+    assert result["skipped"] == [{"line": 3, "reason": f"{m / 'absent.obj'}: no such file"}]
+    # against an exact baseline no ratio can be formed, and no candidate wins a cell
+    exact = choose(result["table"], ["chamfer", "larger"], "copy")
+    assert exact["chamfer_l1_ratio"] == {"chamfer": None, "larger": None}
+    assert all(won["wins"] == 0 for won in exact["shares"].values())
+    assert set(result["table"][str(m / "chair.obj")]["copy"]) >= set(VISUAL)
+
+
+def test_a_file_where_no_row_can_be_judged_is_an_error(tmp_path, meshes, quick_judge):
+    path = write_csv(
+        tmp_path / "val.csv",
+        ["target,chamfer,ours", f"{meshes / 'chair.obj'},{meshes / 'chair.obj'},"],
+    )
+    with pytest.raises(ValueError, match="no row could be judged"):
+        judge_and_choose(read_reconstructions(path), quick_judge, lambda _: None)
+
+
+def test_the_command_prints_each_candidates_cells_and_the_choice_and_writes_json(tmp_path, meshes):
+    m = meshes
+    path = write_csv(
+        tmp_path / "val.csv",
+        [
+            "target,chamfer,no back,retessellated",
+            f"{m / 'chair.obj'},{m / 'chair_no_leg.obj'},{m / 'chair_no_back.obj'},"
+            f"{m / 'chair_retessellated.obj'}",
+        ],
+    )
+    out = tmp_path / "choice.json"
+    command = ["choose-loss", str(path), "--no-lfd", "--out", str(out)]
+    result = CliRunner().invoke(app, command)
+    assert result.exit_code == 0, result.output
+    assert "chosen: retessellated (1 shapes; LFD not asked for)" in result.output
+    assert "retessellated beats chamfer on 4/4 visual cells" in result.output
+    assert json.loads(out.read_text())["chosen"] == "retessellated"
+
+
+def test_the_command_refuses_a_bad_file_before_judging(tmp_path):
+    result = CliRunner().invoke(app, ["choose-loss", str(tmp_path / "val.csv")])
+    assert result.exit_code == 2
+    assert "no such reconstructions file" in result.output
