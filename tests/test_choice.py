@@ -2,6 +2,7 @@
 lists in a CSV (a target column, then one column per loss)."""
 
 import json
+import subprocess
 from pathlib import Path
 
 import pytest
@@ -130,3 +131,40 @@ def test_the_command_refuses_a_bad_file_before_judging(tmp_path):
     result = CliRunner().invoke(app, ["choose-loss", str(tmp_path / "val.csv")])
     assert result.exit_code == 2
     assert "no such reconstructions file" in result.output
+
+
+class FailingLightField:
+    """A judge whose LFD program fails on one mesh file and judges the others alike."""
+
+    lfd_note, config = "LFD by a stub", QUICK_NETWORK.judge_config
+
+    def __init__(self, failing_faces: int):
+        self.failing_faces = failing_faces
+
+    def prepare(self, verts, faces):
+        if len(faces) == self.failing_faces:
+            raise subprocess.CalledProcessError(139, ["./3DAlignment", "mesh3"])
+        return len(faces)
+
+    def compare(self, prediction, target):
+        return {"Chamfer-L1": 1.0, **{metric: float(prediction) for metric in VISUAL}}
+
+
+def test_a_line_whose_mesh_lfd_cannot_describe_is_skipped_and_the_others_still_count(
+    tmp_path, meshes
+):
+    m = meshes
+    retessellated = trimesh.load(m / "chair_retessellated.obj", process=False)
+    path = write_csv(
+        tmp_path / "val.csv",
+        [
+            "target,chamfer,ours",
+            f"{m / 'chair.obj'},{m / 'chair_retessellated.obj'},{m / 'chair_no_leg.obj'}",
+            f"{m / 'chair_no_back.obj'},{m / 'chair.obj'},{m / 'chair_no_leg.obj'}",
+        ],
+    )
+    judge = FailingLightField(len(retessellated.faces))
+    result = judge_and_choose(read_reconstructions(path), judge, lambda _: None)
+    assert list(result["table"]) == [str(m / "chair_no_back.obj")]
+    assert result["skipped"][0]["line"] == 2
+    assert result["skipped"][0]["reason"].startswith("LFD failed (Command '['./3DAlignment'")

@@ -13,6 +13,7 @@ study's.
 from __future__ import annotations
 
 import csv
+import subprocess
 from pathlib import Path
 from typing import NamedTuple
 
@@ -94,9 +95,11 @@ def judge_and_choose(reconstructions: Reconstructions, judge: Judge, progress=pr
         name = row.target if row.target not in table else f"{row.target} (line {row.line})"
         try:
             table[name] = judge_row(row, judge)
-        except MeshError as exc:
-            skipped.append({"line": row.line, "reason": str(exc)})
-            progress(f"skipped line {row.line}: {exc}")
+        except (MeshError, subprocess.CalledProcessError) as exc:
+            # CalledProcessError: LFD's 3DAlignment failed on one of the line's meshes
+            reason = str(exc) if isinstance(exc, MeshError) else f"LFD failed ({exc})"
+            skipped.append({"line": row.line, "reason": reason})
+            progress(f"skipped line {row.line}: {reason}")
             continue
         progress(f"judged line {row.line}: {row.target}")
     if not table:
@@ -104,7 +107,7 @@ def judge_and_choose(reconstructions: Reconstructions, judge: Judge, progress=pr
     return {
         "baseline": reconstructions.baseline,
         "candidates": reconstructions.candidates,
-        "judge_config": judge.metric.config.to_dict(),
+        "judge_config": judge.config.to_dict(),
         "lfd": judge.lfd_note,
         "table": table,
         "skipped": skipped,

@@ -86,6 +86,7 @@ class Judge:
         unseen_views: int = UNSEEN_VIEWS,
         lfd: bool = True,
     ):
+        self.config = config
         self.metric = DRKFS.pretrained(config)
         renderer = NumpyRenderer(config, threads=threads)
         self.visual = [
