@@ -1,6 +1,7 @@
 """``drkfs choose-loss``: the network study's rule for a loss, run on reconstructions a user
 lists in a CSV (a target column, then one column per loss)."""
 
+import csv
 import json
 import subprocess
 from pathlib import Path
@@ -10,11 +11,13 @@ import trimesh
 from typer.testing import CliRunner
 
 from drkfs_onnx.cli import app
-from drkfs_onnx.fitting.choice import judge_and_choose, read_reconstructions
+from drkfs_onnx.fitting.choice import JUDGE_CONFIG, judge_and_choose, read_reconstructions
 from drkfs_onnx.fitting.judges import VISUAL, Judge
 from drkfs_onnx.fitting.network import QUICK_NETWORK
 from drkfs_onnx.fitting.study import choose
 from drkfs_onnx.synthetic.examples import write_examples
+
+ROOT = Path(__file__).resolve().parents[1]
 
 
 @pytest.fixture(scope="module")
@@ -168,3 +171,26 @@ def test_a_line_whose_mesh_lfd_cannot_describe_is_skipped_and_the_others_still_c
     assert list(result["table"]) == [str(m / "chair_no_back.obj")]
     assert result["skipped"][0]["line"] == 2
     assert result["skipped"][0]["reason"].startswith("LFD failed (Command '['./3DAlignment'")
+
+
+def test_the_committed_study_reconstructions_judge_as_the_study_judged_them(tmp_path):
+    """One test shape of bench/fit-network: its saved target and reconstructions, listed in a
+    CSV and judged by the study's judge (LFD aside), give the study's committed values."""
+    study_folder = ROOT / "bench" / "fit-network"
+    study = json.loads((study_folder / "results.json").read_text())
+    shape, losses = "table 4500", study["plan"]["losses"]
+    saved = study["meshes"][shape]
+    files = [str(study_folder / saved[name]) for name in ("target", *losses)]
+    path = tmp_path / "val.csv"
+    with open(path, "w", newline="") as handle:  # the loss names hold commas
+        csv.writer(handle).writerows([["target", *losses], files])
+    judge = Judge(JUDGE_CONFIG, lfd=False)
+    try:
+        result = judge_and_choose(read_reconstructions(path), judge, lambda _: None)
+    finally:
+        judge.close()
+    (judged,) = result["table"].values()
+    for name in losses:
+        committed = {m: v for m, v in study["table"][shape][name].items() if m != "LFD"}
+        assert judged[name].pop("LFD") is None  # judged without LFD here
+        assert judged[name] == pytest.approx(committed, rel=1e-4), name
