@@ -1,5 +1,6 @@
 """``drkfs choose-loss``: the network study's rule for choosing a loss, on your own held-out
-shapes (docs/fitting.md, "Five seeds": no fixed loss won at every seed, the rule did).
+shapes (docs/fitting.md, "Six seeds": pooled over the seeds, choosing per run beat every
+fixed loss).
 
 Train a network with the baseline loss (Chamfer, say) and with each candidate, reconstruct the
 same held-out shapes with each, and list them in a CSV: a ``target`` column (the true shape),
