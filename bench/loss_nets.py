@@ -27,21 +27,8 @@ from drkfs_onnx.fitting.study import FULL, QUICK_STUDY, Fitter, average_ranks, l
 from drkfs_onnx.metric import DRKFS
 from drkfs_onnx.synthetic.shapes import FAMILIES
 from drkfs_onnx.training import graded
-from drkfs_onnx.training.run import train_steps
 
-STEPS, LEARNING_RATE = 200, 1e-4
-TRAIN_SHAPES, HELDOUT_SHAPES = 2, 1  # bases per family
 SHIPPED, TUNED = "shipped nets", "fine-tuned for the loss"
-
-
-def fine_tune(data: graded.GradedViews, steps: int, work: Path) -> DRKFS:
-    """The loss's shipped nets after ``steps`` of ``graded_monotone`` (checkpointed in work)."""
-    metric = DRKFS.pretrained(PipelineConfig.loss())
-    metric.detector.requires_grad_(True)
-    metric.descriptor.requires_grad_(True)
-    loss_fn = graded.graded_monotone(data, graded.TRAIN_SEED)
-    train_steps(metric, loss_fn, steps, LEARNING_RATE, work / "loss_nets.pt", 20)
-    return metric.requires_grad_(False)
 
 
 def fits(plan, form: str, nets: dict[str, DRKFS | None], threads: int) -> dict:
@@ -83,13 +70,15 @@ def main() -> None:
     start = time.perf_counter()
     config = PipelineConfig.loss()
     families = ["chair"] if args.quick else list(FAMILIES)
-    steps = 2 if args.quick else STEPS
+    steps = 2 if args.quick else graded.FINE_TUNE_STEPS
     work = args.work / ("quick" if args.quick else "full")
     work.mkdir(parents=True, exist_ok=True)
-    heldout = graded.render_graded_views(config, families, HELDOUT_SHAPES, graded.HELDOUT_SEED)
-    train = graded.render_graded_views(config, families, TRAIN_SHAPES, graded.TRAIN_SEED)
+    heldout = graded.render_graded_views(
+        config, families, graded.HELDOUT_SHAPES, graded.HELDOUT_SEED
+    )
+    train = graded.render_graded_views(config, families, graded.TRAIN_SHAPES, graded.TRAIN_SEED)
     began = time.perf_counter()
-    tuned = fine_tune(train, steps, work)
+    tuned = graded.fine_tune(train, steps, work / "loss_nets.pt")
     tuning_seconds = time.perf_counter() - began
     growth = {
         "correspondence nets (the loss's)": graded.grade_stats(DRKFS.pretrained(config), heldout),
@@ -109,14 +98,22 @@ def main() -> None:
         "elasticity_asked": graded.ELASTICITY,
         "bases": {
             "families": families,
-            "train": {"seed": graded.TRAIN_SEED, "per_family": TRAIN_SHAPES, "series": len(train)},
+            "train": {
+                "seed": graded.TRAIN_SEED,
+                "per_family": graded.TRAIN_SHAPES,
+                "series": len(train),
+            },
             "heldout": {
                 "seed": graded.HELDOUT_SEED,
-                "per_family": HELDOUT_SHAPES,
+                "per_family": graded.HELDOUT_SHAPES,
                 "series": len(heldout),
             },
         },  # fmt: skip
-        "fine_tuning": {"steps": steps, "learning_rate": LEARNING_RATE, "seconds": tuning_seconds},
+        "fine_tuning": {
+            "steps": steps,
+            "learning_rate": graded.FINE_TUNE_RATE,
+            "seconds": tuning_seconds,
+        },
         "growth_heldout": growth,
         "fits": fits(plan, plan.form, {SHIPPED: None, TUNED: tuned}, args.threads),
     }

@@ -5,6 +5,8 @@ import json
 import re
 import shutil
 import struct
+import subprocess
+import sys
 from dataclasses import replace
 from pathlib import Path
 
@@ -377,6 +379,46 @@ def test_quick_study_gallery_is_a_png_with_a_cell_per_mesh(quick_study):
     assert data[:8] == b"\x89PNG\r\n\x1a\n"
     width, height = struct.unpack(">II", data[16:24])
     assert width > 9 * 128 and height > 2 * 2 * 128  # 9 columns, 2 problems of 2 views
+
+
+def test_each_ideas_three_term_fit_is_judged_beside_the_studys_reproduced_rows(
+    quick_study, tmp_path
+):
+    """bench/fit_ideas.py: pixel MSE and the control fitted again equal the study's rows, so the
+    ideas' recipes (each form in the study's three-term recipe) stand beside its table."""
+    out, _ = quick_study
+    ideas_out = tmp_path / "ideas.json"
+    done = subprocess.run(
+        [sys.executable, "bench/fit_ideas.py", "--study", str(out / "results.json"),
+         "--out", str(ideas_out), "--work", str(tmp_path / "work"),
+         "--threads", str(torch.get_num_threads())],
+        cwd=ROOT, capture_output=True, text=True, timeout=600,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr[-2000:]
+    study = json.loads((out / "results.json").read_text())
+    results = json.loads(ideas_out.read_text())
+    assert set(results["reproduced"]) == {"pixel MSE", "pixel MSE + 10 x Chamfer"}
+    assert all(check["exact"] and check["cells"] > 0 for check in results["reproduced"].values())
+    ideas = results["ideas"]
+    assert ideas["soft best match, coarse to fine"] == {
+        "recipe": "pixel MSE + 1 x soft match, window r1, coarse to fine + 10 x Chamfer",
+        "nets": "shipped",
+    }
+    assert ideas["nets fine-tuned for the loss"]["nets"] == "fine-tuned nets"
+    choice = study["loss_study"]
+    weights = choice["pixel_weight"]["chosen"], choice["chamfer_weight"]["chosen"]
+    three = with_both(choice["form"], *weights).name
+    for problem, rows in results["table"].items():
+        assert set(rows) == {"template", *study["losses"], *ideas}
+        assert all(rows[name] == study["table"][problem][name] for name in study["losses"])
+        for idea in ideas:
+            assert 0.0 <= rows[idea]["F-score 1%"] <= 1.0
+    for idea in (three, *ideas):
+        against_pixel = results["shares"][idea]["pixel MSE"]["visual"]
+        recomputed = share(results["table"], idea, "pixel MSE", VISUAL)
+        assert against_pixel == {k: recomputed[k] for k in ("wins", "cells", "share")}
+    shipped = results["shares"][three]["pixel MSE"]["visual"]["share"]
+    assert shipped == study["beats_pixel_mse"][three]["share"]
 
 
 def test_readme_training_loop_example_runs(monkeypatch):

@@ -13,6 +13,7 @@ as the patch's pixel change, and the loss's score should grow from one grade to 
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from pathlib import Path
 
 import numpy as np
 import torch
@@ -27,10 +28,13 @@ from ..render import Renderer
 from ..synthetic.shapes import Part, assemble, random_shape
 from ..synthetic.variants import diagonal, shifted, thickened, without
 from .metric_losses import LossFn, ranking_loss
+from .run import train_steps
 
 # seeds of the bases: disjoint from the nets' other stages (0-2), the fitting problems (3), the
 # benchmark (2026-2028), the held-out checks (3000-3002) and the network study (4000+)
 TRAIN_SEED, HELDOUT_SEED = 6, 7
+TRAIN_SHAPES, HELDOUT_SHAPES = 2, 1  # bases per family
+FINE_TUNE_STEPS, FINE_TUNE_RATE = 200, 1e-4  # Adam on the loss's nets
 # each series' strengths, weakest first, from what a fit's last steps leave to what its first
 # steps face: shift (share of the diagonal), thickening (factor), shrinking (the part's size
 # factor; 0: removed), normal noise (share of the diagonal)
@@ -189,6 +193,17 @@ def graded_monotone(data: GradedViews, seed: int) -> LossFn:
         return series_loss(metric, data.images[int(rng.integers(len(data)))])
 
     return loss_fn
+
+
+def fine_tune(data: GradedViews, steps: int, checkpoint: Path) -> DRKFS:
+    """The loss's shipped nets (``PipelineConfig.loss()``) after ``steps`` of ``graded_monotone``
+    on ``data``, resumable from ``checkpoint``."""
+    metric = DRKFS.pretrained(PipelineConfig.loss())
+    metric.detector.requires_grad_(True)
+    metric.descriptor.requires_grad_(True)
+    loss_fn = graded_monotone(data, TRAIN_SEED)
+    train_steps(metric, loss_fn, steps, FINE_TUNE_RATE, checkpoint, 20)
+    return metric.requires_grad_(False)
 
 
 @torch.no_grad()
