@@ -12,9 +12,13 @@ other ideas' best forms take the shipped form's place in that recipe, at the stu
   fine``, the loss study's first form);
 - nets fine-tuned for the loss (``graded.fine_tune``) in the study's form.
 
-Pixel MSE and the control (pixel MSE + w_c x Chamfer) are fitted again as the proof that the
-committed rows are comparable (``reproduced``: on the same torch build and thread count they
-must equal the study's). The fits are judged by the study's judges; their meshes are not saved.
+Pixel MSE, the control (pixel MSE + w_c x Chamfer) and the shipped form's three terms are
+fitted again on this machine (``here``). On the study's machine, torch build and thread count
+they equal the study's rows (``reproduced``); on another CPU the float sums differ and the fits
+drift, so the ideas are also compared with these refitted rivals (``shares_here``), like with
+like. ``--ideas-from`` takes the ideas' judged rows from an earlier output made on the same
+machine, build and thread count instead of fitting them again. The fits are judged by the
+study's judges; their meshes are not saved.
 """
 
 from __future__ import annotations
@@ -72,6 +76,7 @@ def main() -> None:
     parser.add_argument("--out", type=Path, required=True)
     parser.add_argument("--work", type=Path, default=Path(".drkfs-train/loss-nets"))
     parser.add_argument("--threads", type=int, default=2)
+    parser.add_argument("--ideas-from", type=Path, help="an earlier output made here: its ideas")
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
     start = time.perf_counter()
@@ -84,10 +89,12 @@ def main() -> None:
     chamfer_weight = choice["chamfer_weight"]["chosen"]
     shipped = with_both(form, pixel_weight, chamfer_weight).name
     control = pixel_with_chamfer(chamfer_weight)
-    nets = {
-        None: Terms(),
-        TUNED: Terms(tuned_nets(quick, args.work / ("quick" if quick else "full"))),
-    }
+    earlier = json.loads(args.ideas_from.read_text()) if args.ideas_from else None
+    if earlier is not None and any(earlier[k] != v for k, v in machine().items()):
+        raise SystemExit(f"{args.ideas_from}: made on another machine, torch build or threads")
+    nets = {None: Terms()}
+    if earlier is None:
+        nets[TUNED] = Terms(tuned_nets(quick, args.work / ("quick" if quick else "full")))
     judge = Judge(plan.judge_config, args.threads, plan.unseen_views, plan.lfd)
     committed = study["table"]
     refitted, table = {}, {}
@@ -97,11 +104,14 @@ def main() -> None:
             problem = load_problem(spec)
             rows = committed[problem.name]
             refitted[problem.name] = {}
-            for recipe in (alone(PIXEL), control):
+            for recipe in (alone(PIXEL), control, with_both(form, pixel_weight, chamfer_weight)):
                 fit = fitters[None].fit(recipe, problem)
                 refitted[problem.name][recipe.name] = fitters[None].judged(problem, fit.verts)
             new = {}
             for idea, (idea_form, idea_nets) in ideas(form).items():
+                if earlier is not None:
+                    new[idea] = earlier["table"][problem.name][idea]
+                    continue
                 recipe = with_both(idea_form, pixel_weight, chamfer_weight)
                 fit = fitters[idea_nets].fit(recipe, problem)
                 new[idea] = fitters[idea_nets].judged(problem, fit.verts)
@@ -110,10 +120,12 @@ def main() -> None:
     finally:
         judge.close()
     names = [*study["losses"], *ideas(form)]
+    here = {p: {**rows, **{i: table[p][i] for i in ideas(form)}} for p, rows in refitted.items()}
     against = {"pixel MSE": PIXEL, "Chamfer": CHAMFER, "the control": control.name}
     against["the shipped form's three terms"] = shipped
     results = {
-        "command": f"python bench/fit_ideas.py --study {args.study} --out {args.out}",
+        "command": f"python bench/fit_ideas.py --study {args.study} --out {args.out}"
+        + (f" --ideas-from {args.ideas_from}" if args.ideas_from else ""),
         **machine(),
         "lfd": judge.lfd_note,
         "study": str(args.study),
@@ -130,9 +142,10 @@ def main() -> None:
                 {p: rows[name] for p, rows in refitted.items()},
                 {p: committed[p][name] for p in refitted},
             )
-            for name in (PIXEL, control.name)
+            for name in (PIXEL, control.name, shipped)
         },
         "table": table,
+        "here": refitted,
         "shares": {
             idea: {
                 label: {
@@ -142,6 +155,17 @@ def main() -> None:
                 for label, rival in against.items()
             }
             for idea in (shipped, *ideas(form))
+        },
+        "shares_here": {
+            idea: {
+                label: {
+                    kind: brief_share(here, idea, rival, metrics)
+                    for kind, metrics in (("visual", VISUAL), ("surface", SURFACE))
+                }
+                for label, rival in against.items()
+                if rival != CHAMFER  # Chamfer is not fitted again
+            }
+            for idea in ideas(form)
         },
         "mean_rank": average_ranks(table, names),
         "chamfer_l1_over_chamfer_fit": chamfer_ratios(table, [shipped, *ideas(form)]),

@@ -419,6 +419,26 @@ def test_each_ideas_three_term_fit_is_judged_beside_the_studys_reproduced_rows(
         assert against_pixel == {k: recomputed[k] for k in ("wins", "cells", "share")}
     shipped = results["shares"][three]["pixel MSE"]["visual"]["share"]
     assert shipped == study["beats_pixel_mse"][three]["share"]
+    # refitted on the study's own machine, the rivals are the study's rows, so the like-with-like
+    # shares are the committed-row ones
+    assert set(results["reproduced"]) == set(next(iter(results["here"].values())))
+    for idea in ideas:
+        for label, here in results["shares_here"][idea].items():
+            assert here == results["shares"][idea][label]
+
+
+def test_the_committed_ideas_recompute_from_their_rows():
+    """bench/fit/ideas.json: its study rows are the study's, and its ideas' shares against pixel
+    MSE follow from its table."""
+    study = json.loads((ROOT / "bench" / "fit" / "results.json").read_text())
+    results = json.loads((ROOT / "bench" / "fit" / "ideas.json").read_text())
+    assert results["torch"] == study["torch"]
+    for problem, rows in results["table"].items():
+        assert all(rows[name] == study["table"][problem][name] for name in study["losses"])
+    for idea in results["ideas"]:
+        found = results["shares"][idea]["pixel MSE"]["visual"]
+        recomputed = share(results["table"], idea, "pixel MSE", VISUAL)
+        assert found == {k: recomputed[k] for k in ("wins", "cells", "share")}
 
 
 def test_readme_training_loop_example_runs(monkeypatch):
