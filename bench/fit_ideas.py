@@ -31,7 +31,7 @@ from pathlib import Path
 import torch
 
 from drkfs_onnx.config import PipelineConfig
-from drkfs_onnx.fitting.judges import SURFACE, VISUAL, Judge
+from drkfs_onnx.fitting.judges import Judge
 from drkfs_onnx.fitting.losses import CHAMFER, PIXEL, Terms, alone, pixel_with_chamfer, with_both
 from drkfs_onnx.fitting.network import reproduction
 from drkfs_onnx.fitting.study import (
@@ -39,10 +39,10 @@ from drkfs_onnx.fitting.study import (
     QUICK_STUDY,
     Fitter,
     average_ranks,
-    brief_share,
     chamfer_ratios,
     load_problem,
     machine,
+    pair_shares,
 )
 from drkfs_onnx.synthetic.shapes import FAMILIES
 from drkfs_onnx.training import graded
@@ -147,24 +147,13 @@ def main() -> None:
         "table": table,
         "here": refitted,
         "shares": {
-            idea: {
-                label: {
-                    kind: brief_share(table, idea, rival, metrics)
-                    for kind, metrics in (("visual", VISUAL), ("surface", SURFACE))
-                }
-                for label, rival in against.items()
-            }
+            idea: pair_shares(table, {label: (idea, rival) for label, rival in against.items()})
             for idea in (shipped, *ideas(form))
         },
-        "shares_here": {
-            idea: {
-                label: {
-                    kind: brief_share(here, idea, rival, metrics)
-                    for kind, metrics in (("visual", VISUAL), ("surface", SURFACE))
-                }
-                for label, rival in against.items()
-                if rival != CHAMFER  # Chamfer is not fitted again
-            }
+        "shares_here": {  # Chamfer is not fitted again
+            idea: pair_shares(
+                here, {label: (idea, rival) for label, rival in against.items() if rival != CHAMFER}
+            )
             for idea in ideas(form)
         },
         "mean_rank": average_ranks(table, names),
