@@ -31,6 +31,7 @@ from drkfs_onnx.fitting.losses import (
 from drkfs_onnx.fitting.mesh_fit import (
     ChamferLoss,
     DrkfsTerm,
+    Fade,
     FitSettings,
     Objective,
     fit_mesh,
@@ -95,6 +96,25 @@ def test_an_objective_starts_at_the_sum_of_its_weights():
     loss = ChamferLoss(target[0].double().numpy(), target[1].numpy(), faces)
     objective = Objective([(1.0, loss), (2.5, lambda v: (v * v).sum())], template)
     assert objective(template).item() == pytest.approx(3.5, rel=0.1)  # Chamfer is resampled
+
+
+def test_a_faded_term_weighs_fully_before_its_fade_half_midway_and_is_not_computed_after():
+    template, _ = _box(0.8)
+    calls = []
+
+    def counted(verts: torch.Tensor) -> torch.Tensor:
+        calls.append(1)
+        return (verts * verts).sum()
+
+    fade = Fade(0.5, 0.8)
+    objective = Objective(
+        [(1.0, lambda v: v.sum() * 0 + 1.0), (2.0, counted)], template, [None, fade]
+    )
+    for progress, expected in ((0.2, 3.0), (0.5, 3.0), (0.65, 2.0), (0.8, 1.0), (0.95, 1.0)):
+        objective.at(progress)
+        calls.clear()
+        assert objective(template).item() == pytest.approx(expected)
+        assert len(calls) == (0 if progress >= fade.end else 1)
 
 
 class _Staged(DrkfsTerm):
@@ -405,8 +425,12 @@ def test_each_ideas_three_term_fit_is_judged_beside_the_studys_reproduced_rows(
     assert ideas["soft best match, coarse to fine"] == {
         "recipe": "pixel MSE + 1 x soft match, window r1, coarse to fine + 10 x Chamfer",
         "nets": "shipped",
+        "reused": False,
     }
     assert ideas["nets fine-tuned for the loss"]["nets"] == "fine-tuned nets"
+    assert ideas["structure first, pixel MSE last"]["recipe"] == (
+        "pixel MSE + 1 x window r0 mean + 10 x Chamfer, pixel MSE alone from 0.8"
+    )
     choice = study["loss_study"]
     weights = choice["pixel_weight"]["chosen"], choice["chamfer_weight"]["chosen"]
     three = with_both(choice["form"], *weights).name
@@ -427,6 +451,18 @@ def test_each_ideas_three_term_fit_is_judged_beside_the_studys_reproduced_rows(
     for idea in ideas:
         for label, here in results["shares_here"][idea].items():
             assert here == results["shares"][idea][label]
+    # --ideas-from takes the ideas' rows from an earlier output and fits only the rivals again
+    again = tmp_path / "again.json"
+    done = subprocess.run(
+        [sys.executable, "bench/fit_ideas.py", "--study", str(out / "results.json"),
+         "--out", str(again), "--ideas-from", str(ideas_out),
+         "--threads", str(torch.get_num_threads())],
+        cwd=ROOT, capture_output=True, text=True, timeout=600,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr[-2000:]
+    reran = json.loads(again.read_text())
+    assert all(idea["reused"] for idea in reran["ideas"].values())
+    assert reran["table"] == results["table"] and reran["here"] == results["here"]
 
 
 def test_the_committed_ideas_recompute_from_their_rows():

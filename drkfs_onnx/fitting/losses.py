@@ -17,7 +17,7 @@ import torch
 from ..config import PipelineConfig
 from ..loss import COARSE_TO_FINE, DrkfsLoss, SoftMatch, Stage
 from ..metric import DRKFS
-from .mesh_fit import ChamferLoss, DrkfsTerm, Objective, PixelLoss
+from .mesh_fit import ChamferLoss, DrkfsTerm, Fade, Objective, PixelLoss
 
 CHAMFER, PIXEL = "Chamfer", "pixel MSE"
 SCORING = "DR-KFS (scoring match)"  # the first studies' "DR-KFS": the default's match, softer
@@ -52,10 +52,12 @@ SHIPPED = "window r0 mean, coarse to fine"
 @dataclass(frozen=True)
 class Recipe:
     """A loss: (weight, term) pairs, a term being CHAMFER, PIXEL or a name of FORMS; each term
-    is divided by its value at the start (``Objective``)."""
+    is divided by its value at the start (``Objective``). With a ``fade`` every term but pixel
+    MSE fades out over the fit (``pixel_mse_last``)."""
 
     name: str
     terms: tuple[tuple[float, str], ...]
+    fade: Fade | None = None
 
     @property
     def forms(self) -> list[str]:
@@ -90,6 +92,13 @@ def pixel_with_chamfer(weight: float) -> Recipe:
     return Recipe(f"pixel MSE + {weight:g} x Chamfer", ((1.0, PIXEL), (weight, CHAMFER)))
 
 
+def pixel_mse_last(recipe: Recipe, fade: Fade) -> Recipe:
+    """``recipe`` whose terms other than pixel MSE fade out over ``fade``, so the fit is shaped
+    by all of them first and ends on pixel MSE alone."""
+    name = f"{recipe.name}, pixel MSE alone from {fade.end:g}"
+    return Recipe(name, recipe.terms, fade)
+
+
 class Terms:
     """Builds the terms of recipes for targets; every DR-KFS form's nets are loaded once: the
     shipped ones, or copies of ``nets``' detector and HardNet."""
@@ -122,4 +131,5 @@ class Terms:
         template: torch.Tensor, faces: torch.Tensor,
     ) -> Objective:  # fmt: skip
         built = [(w, self.term(t, target_verts, target_faces, faces)) for w, t in recipe.terms]
-        return Objective(built, template)
+        fades = [None if t == PIXEL else recipe.fade for _, t in recipe.terms]
+        return Objective(built, template, fades)

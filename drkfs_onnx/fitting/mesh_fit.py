@@ -85,24 +85,47 @@ class PixelLoss:
         return ((self.metric.render(verts, self.faces) - self.target) ** 2).mean()
 
 
-class Objective:
-    """sum_i weight_i * loss_i(verts) / loss_i(template): each term starts at its weight (a
-    staged term at its first stage; its later stages keep that scale)."""
+@dataclass(frozen=True)
+class Fade:
+    """A weight that falls linearly from 1 at ``start`` to 0 at ``end`` (shares of the fit)."""
 
-    def __init__(self, terms: list[tuple[float, object]], template: torch.Tensor):
+    start: float
+    end: float
+
+    def factor(self, progress: float) -> float:
+        return float(np.clip((self.end - progress) / (self.end - self.start), 0.0, 1.0))
+
+
+class Objective:
+    """sum_i fade_i * weight_i * loss_i(verts) / loss_i(template): each term starts at its
+    weight (a staged term at its first stage; its later stages keep that scale); a term with a
+    ``Fade`` falls to 0 over the fit and is not computed once it is 0."""
+
+    def __init__(
+        self,
+        terms: list[tuple[float, object]],
+        template: torch.Tensor,
+        fades: list[Fade | None] | None = None,
+    ):
         self.terms = terms
+        self.fades = fades or [None] * len(terms)
         self.at(0.0)
         with torch.no_grad():
             self.scales = [max(float(loss(template)), 1e-12) for _, loss in terms]
 
     def at(self, progress: float) -> None:
         """Tell the terms that change with training (``DrkfsTerm``) how far the fit has come."""
+        self.factors = [1.0 if fade is None else fade.factor(progress) for fade in self.fades]
         for _, loss in self.terms:
             if isinstance(loss, DrkfsTerm):
                 loss.at(progress)
 
     def __call__(self, verts: torch.Tensor) -> torch.Tensor:
-        parts = [w * loss(verts) / s for (w, loss), s in zip(self.terms, self.scales, strict=True)]
+        parts = [
+            f * w * loss(verts) / s
+            for (w, loss), s, f in zip(self.terms, self.scales, self.factors, strict=True)
+            if f > 0.0
+        ]
         return torch.stack(parts).sum()
 
 

@@ -232,6 +232,8 @@ def loss_step_case() -> tuple[torch.Tensor, torch.Tensor, tuple[torch.Tensor, to
 
 def targets(recipe: Recipe, train: list[Shape], faces: torch.Tensor, terms: Terms) -> list:
     """Each training shape's (weight, term) pairs of ``recipe``, its targets prepared once."""
+    if recipe.fade is not None:  # the networks' loop weighs terms without fades
+        raise ValueError(f"{recipe.name}: the network study does not fade terms")
     return [[(w, terms.term(t, s.verts, s.faces, faces)) for w, t in recipe.terms] for s in train]
 
 
