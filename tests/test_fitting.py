@@ -467,16 +467,22 @@ def test_each_ideas_three_term_fit_is_judged_beside_the_studys_reproduced_rows(
 
 def test_the_committed_ideas_recompute_from_their_rows():
     """bench/fit/ideas.json: its study rows are the study's, and its ideas' shares against pixel
-    MSE follow from its table."""
+    MSE follow from its table, and against pixel MSE fitted again where it ran from ``here``."""
     study = json.loads((ROOT / "bench" / "fit" / "results.json").read_text())
     results = json.loads((ROOT / "bench" / "fit" / "ideas.json").read_text())
     assert results["torch"] == study["torch"]
     for problem, rows in results["table"].items():
         assert all(rows[name] == study["table"][problem][name] for name in study["losses"])
-    for idea in results["ideas"]:
-        found = results["shares"][idea]["pixel MSE"]["visual"]
-        recomputed = share(results["table"], idea, "pixel MSE", VISUAL)
-        assert found == {k: recomputed[k] for k in ("wins", "cells", "share")}
+    ideas = results["ideas"]
+    here = {
+        p: {**rows, **{i: results["table"][p][i] for i in ideas}}
+        for p, rows in results["here"].items()
+    }
+    for idea in ideas:
+        for table, shares in ((results["table"], "shares"), (here, "shares_here")):
+            found = results[shares][idea]["pixel MSE"]["visual"]
+            recomputed = share(table, idea, "pixel MSE", VISUAL)
+            assert found == {k: recomputed[k] for k in ("wins", "cells", "share")}
 
 
 def test_readme_training_loop_example_runs(monkeypatch):
