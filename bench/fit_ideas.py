@@ -113,7 +113,7 @@ def main() -> None:
     form = choice["form"]
     pixel_weight = choice["pixel_weight"]["chosen"]
     chamfer_weight = choice["chamfer_weight"]["chosen"]
-    shipped = with_both(form, pixel_weight, chamfer_weight).name
+    shipped = with_both(form, pixel_weight, chamfer_weight)
     control = pixel_with_chamfer(chamfer_weight)
     tried = ideas(form, pixel_weight, chamfer_weight)
     earlier = json.loads(args.ideas_from.read_text()) if args.ideas_from else None
@@ -135,7 +135,7 @@ def main() -> None:
             problem = load_problem(spec)
             rows = committed[problem.name]
             refitted[problem.name] = {}
-            for recipe in (alone(PIXEL), control, with_both(form, pixel_weight, chamfer_weight)):
+            for recipe in (alone(PIXEL), control, shipped):
                 fit = fitters[None].fit(recipe, problem)
                 refitted[problem.name][recipe.name] = fitters[None].judged(problem, fit.verts)
             new = {}
@@ -152,7 +152,7 @@ def main() -> None:
     names = [*study["losses"], *tried]
     here = {p: {**rows, **{i: table[p][i] for i in tried}} for p, rows in refitted.items()}
     against = {"pixel MSE": PIXEL, "Chamfer": CHAMFER, "the control": control.name}
-    against["the shipped form's three terms"] = shipped
+    against["the shipped form's three terms"] = shipped.name
     results = {
         "command": f"python bench/fit_ideas.py --study {args.study} --out {args.out}"
         + (f" --ideas-from {args.ideas_from}" if args.ideas_from else ""),
@@ -169,13 +169,13 @@ def main() -> None:
                 {p: rows[name] for p, rows in refitted.items()},
                 {p: committed[p][name] for p in refitted},
             )
-            for name in (PIXEL, control.name, shipped)
+            for name in (PIXEL, control.name, shipped.name)
         },
         "table": table,
         "here": refitted,
         "shares": {
             idea: pair_shares(table, {label: (idea, rival) for label, rival in against.items()})
-            for idea in (shipped, *tried)
+            for idea in (shipped.name, *tried)
         },
         "shares_here": {  # Chamfer is not fitted again
             idea: pair_shares(
@@ -184,7 +184,7 @@ def main() -> None:
             for idea in tried
         },
         "mean_rank": average_ranks(table, names),
-        "chamfer_l1_over_chamfer_fit": chamfer_ratios(table, [shipped, *tried]),
+        "chamfer_l1_over_chamfer_fit": chamfer_ratios(table, [shipped.name, *tried]),
         "seconds": time.perf_counter() - start,
     }
     args.out.parent.mkdir(parents=True, exist_ok=True)
