@@ -15,13 +15,18 @@ other ideas' best forms take the shipped form's place in that recipe, at the stu
   out from half the fit (``PIXEL_MSE_LAST``) so that it ends on pixel MSE alone, the judges'
   renders polished from a start the structural terms chose.
 
-Pixel MSE, the control (pixel MSE + w_c x Chamfer) and the shipped form's three terms are
-fitted again on this machine (``here``). On the study's machine, torch build and thread count
-they equal the study's rows (``reproduced``); on another CPU the float sums differ and the fits
-drift, so the ideas are also compared with these refitted rivals (``shares_here``), like with
-like. ``--ideas-from`` takes the judged rows of the ideas an earlier output made on the same
-machine, build and thread count has instead of fitting them again. The fits are judged by the
-study's judges; their meshes are not saved.
+Beside them, as a row of their own, the control (pixel MSE + w_c x Chamfer) on the same fade:
+not an idea but what tells whether the fade's wins come from its DR-KFS term or from the
+schedule.
+
+Pixel MSE, the control and the shipped form's three terms are fitted again on this machine
+(``here``). On the study's machine, torch build and thread count they equal the study's rows
+(``reproduced``); on another CPU the float sums differ and the fits drift, so the ideas are also
+compared with these refitted rivals (``shares_here``), like with like. ``--ideas-from`` takes the
+judged rows of the rivals and ideas an earlier output has instead of fitting them again, once
+pixel MSE fitted again on the first problem equals that output's row exactly (the same machine,
+build and thread count is not proof of the same float sums: the processor is not recorded). The
+fits are judged by the study's judges; their meshes are not saved.
 """
 
 from __future__ import annotations
@@ -61,6 +66,7 @@ from drkfs_onnx.synthetic.shapes import FAMILIES
 from drkfs_onnx.training import graded
 
 TUNED = "fine-tuned nets"
+FADED_CONTROL = "the control, pixel MSE last"
 # fixed before the run, not tuned: the structural terms at full weight for the first half, gone
 # for the last fifth (tried first on the chair and the table without LFD, this one schedule)
 PIXEL_MSE_LAST = Fade(0.5, 0.8)
@@ -70,7 +76,8 @@ def ideas(
     form: str, pixel_weight: float, chamfer_weight: float
 ) -> dict[str, tuple[Recipe, str | None]]:
     """Idea -> (its three-term recipe, its nets: None for the shipped ones); ``form`` is the
-    study's (the shipped form in the full study), the weights the study's."""
+    study's (the shipped form in the full study), the weights the study's. The last row is the
+    faded idea's control, without DR-KFS."""
     three = with_both(form, pixel_weight, chamfer_weight)
     return {
         "position-aligned, dense, one scale": (
@@ -83,6 +90,17 @@ def ideas(
         ),
         "nets fine-tuned for the loss": (three, TUNED),
         "structure first, pixel MSE last": (pixel_mse_last(three, PIXEL_MSE_LAST), None),
+        FADED_CONTROL: (pixel_mse_last(pixel_with_chamfer(chamfer_weight), PIXEL_MSE_LAST), None),
+    }
+
+
+def rivals_of(idea: str, against: dict[str, str], *missing: str) -> dict[str, tuple[str, str]]:
+    """(idea, rival) pairs for ``pair_shares``, each under its rival's label, but for the idea
+    itself (named by its label or its recipe) and the ``missing`` rivals."""
+    return {
+        label: (idea, rival)
+        for label, rival in against.items()
+        if rival not in missing and idea not in (label, rival)
     }
 
 
@@ -102,7 +120,9 @@ def main() -> None:
     parser.add_argument("--out", type=Path, required=True)
     parser.add_argument("--work", type=Path, default=Path(".drkfs-train/loss-nets"))
     parser.add_argument("--threads", type=int, default=2)
-    parser.add_argument("--ideas-from", type=Path, help="an earlier output made here: its ideas")
+    parser.add_argument(
+        "--ideas-from", type=Path, help="an earlier output made here: its rivals and ideas"
+    )
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
     start = time.perf_counter()
@@ -126,16 +146,27 @@ def main() -> None:
     nets = {None: Terms()}
     if any(n == TUNED for idea, (_, n) in tried.items() if idea not in reused):
         nets[TUNED] = Terms(tuned_nets(quick, args.work / ("quick" if quick else "full")))
+    rivals = (alone(PIXEL), control, shipped)
+    earlier_here = {} if earlier is None else earlier["here"]
+    reused_rivals = [r.name for r in rivals if r.name in next(iter(earlier_here.values()), {})]
     judge = Judge(plan.judge_config, args.threads, plan.unseen_views, plan.lfd)
     committed = study["table"]
     refitted, table = {}, {}
     try:
         fitters = {name: Fitter(plan, judge, terms) for name, terms in nets.items()}
-        for spec in plan.problems:
-            problem = load_problem(spec)
+        problems = [load_problem(spec) for spec in plan.problems]
+        if earlier is not None:
+            first = problems[0]
+            check = fitters[None].judged(first, fitters[None].fit(alone(PIXEL), first).verts)
+            if check != earlier_here[first.name][PIXEL]:
+                raise SystemExit(f"{args.ideas_from}: pixel MSE fits differently here")
+        for problem in problems:
             rows = committed[problem.name]
             refitted[problem.name] = {}
-            for recipe in (alone(PIXEL), control, shipped):
+            for recipe in rivals:
+                if recipe.name in reused_rivals:
+                    refitted[problem.name][recipe.name] = earlier_here[problem.name][recipe.name]
+                    continue
                 fit = fitters[None].fit(recipe, problem)
                 refitted[problem.name][recipe.name] = fitters[None].judged(problem, fit.verts)
             new = {}
@@ -153,6 +184,7 @@ def main() -> None:
     here = {p: {**rows, **{i: table[p][i] for i in tried}} for p, rows in refitted.items()}
     against = {"pixel MSE": PIXEL, "Chamfer": CHAMFER, "the control": control.name}
     against["the shipped form's three terms"] = shipped.name
+    against[FADED_CONTROL] = FADED_CONTROL  # a row of the ideas
     results = {
         "command": f"python bench/fit_ideas.py --study {args.study} --out {args.out}"
         + (f" --ideas-from {args.ideas_from}" if args.ideas_from else ""),
@@ -164,6 +196,7 @@ def main() -> None:
             idea: {"recipe": recipe.name, "nets": n or "shipped", "reused": idea in reused}
             for idea, (recipe, n) in tried.items()
         },
+        "rivals_reused": reused_rivals,
         "reproduced": {
             name: reproduction(
                 {p: rows[name] for p, rows in refitted.items()},
@@ -174,14 +207,10 @@ def main() -> None:
         "table": table,
         "here": refitted,
         "shares": {
-            idea: pair_shares(table, {label: (idea, rival) for label, rival in against.items()})
-            for idea in (shipped.name, *tried)
+            idea: pair_shares(table, rivals_of(idea, against)) for idea in (shipped.name, *tried)
         },
         "shares_here": {  # Chamfer is not fitted again
-            idea: pair_shares(
-                here, {label: (idea, rival) for label, rival in against.items() if rival != CHAMFER}
-            )
-            for idea in tried
+            idea: pair_shares(here, rivals_of(idea, against, CHAMFER)) for idea in tried
         },
         "mean_rank": average_ranks(table, names),
         "chamfer_l1_over_chamfer_fit": chamfer_ratios(table, [shipped.name, *tried]),

@@ -451,17 +451,38 @@ def test_each_ideas_three_term_fit_is_judged_beside_the_studys_reproduced_rows(
     for idea in ideas:
         for label, here in results["shares_here"][idea].items():
             assert here == results["shares"][idea][label]
-    # --ideas-from takes the ideas' rows from an earlier output and fits only the rivals again
+    # the fade's control is the same fade on the control's two terms
+    assert ideas["the control, pixel MSE last"]["recipe"] == (
+        "pixel MSE + 10 x Chamfer, pixel MSE alone from 0.8"
+    )
+    fade = results["shares"]["structure first, pixel MSE last"]["the control, pixel MSE last"]
+    recomputed = share(
+        results["table"], "structure first, pixel MSE last", "the control, pixel MSE last", VISUAL
+    )
+    assert fade["visual"] == {k: recomputed[k] for k in ("wins", "cells", "share")}
+    assert "the control, pixel MSE last" not in results["shares"]["the control, pixel MSE last"]
+    # --ideas-from takes the rows an earlier output has and fits only what it lacks: here the
+    # control and the fade's control, which on this machine fit to the same rows again
+    partial = json.loads(ideas_out.read_text())
+    del partial["ideas"]["the control, pixel MSE last"]
+    for problem in partial["table"]:
+        del partial["table"][problem]["the control, pixel MSE last"]
+        del partial["here"][problem]["pixel MSE + 10 x Chamfer"]
+    earlier = tmp_path / "partial.json"
+    earlier.write_text(json.dumps(partial))
     again = tmp_path / "again.json"
     done = subprocess.run(
         [sys.executable, "bench/fit_ideas.py", "--study", str(out / "results.json"),
-         "--out", str(again), "--ideas-from", str(ideas_out),
+         "--out", str(again), "--ideas-from", str(earlier),
          "--threads", str(torch.get_num_threads())],
         cwd=ROOT, capture_output=True, text=True, timeout=600,
     )  # fmt: skip
     assert done.returncode == 0, done.stderr[-2000:]
     reran = json.loads(again.read_text())
-    assert all(idea["reused"] for idea in reran["ideas"].values())
+    assert {i for i, idea in reran["ideas"].items() if not idea["reused"]} == {
+        "the control, pixel MSE last"
+    }
+    assert reran["rivals_reused"] == ["pixel MSE", three]
     assert reran["table"] == results["table"] and reran["here"] == results["here"]
 
 
