@@ -504,6 +504,11 @@ def test_the_committed_ideas_recompute_from_their_rows():
             found = results[shares][idea]["pixel MSE"]["visual"]
             recomputed = share(table, idea, "pixel MSE", VISUAL)
             assert found == {k: recomputed[k] for k in ("wins", "cells", "share")}
+    # what the fade's DR-KFS term adds: the fade against the same fade without it
+    fade, control = "structure first, pixel MSE last", "the control, pixel MSE last"
+    found = results["shares"][fade][control]["visual"]
+    recomputed = share(results["table"], fade, control, VISUAL)
+    assert found == {k: recomputed[k] for k in ("wins", "cells", "share")}
 
 
 def test_readme_training_loop_example_runs(monkeypatch):
