@@ -95,6 +95,8 @@ def pixel_with_chamfer(weight: float) -> Recipe:
 def pixel_mse_last(recipe: Recipe, fade: Fade) -> Recipe:
     """``recipe`` whose terms other than pixel MSE fade out over ``fade``, so the fit is shaped
     by all of them first and ends on pixel MSE alone."""
+    if PIXEL not in (t for _, t in recipe.terms):  # else nothing is left to fit at the end
+        raise ValueError(f"{recipe.name}: no pixel MSE term to end on")
     name = f"{recipe.name}, pixel MSE alone from {fade.end:g}"
     return Recipe(name, recipe.terms, fade)
 
