@@ -1,8 +1,13 @@
 """DR-KFS as a training loss: the loss preset (``PipelineConfig.loss()``) run coarse to fine.
 
-    loss = DrkfsLoss.pretrained()  # .to("cuda") moves its nets to a GPU
+    loss = DrkfsLoss.pretrained()  # an nn.Module: .to("cuda") moves its nets and cameras
     target = loss.target(truth_verts, truth_faces)  # once per ground truth, no autograd
     value = loss(pred_verts, pred_faces, target, progress=step / steps)
+
+A batch is one call: predictions as (B, V, 3) vertices with one (F, 3) face tensor, or meshes
+of different sizes (lists, or PyTorch3D-like ``Meshes``; ``batch.MeshBatch``), against one
+shared target or a batch of B targets prepared at once (``loss.target(truths_verts,
+truths_faces)``); ``reduction`` is 'mean' (default), 'sum' or 'none' ((B,) values).
 
 Early in training (``progress`` below a stage's ``until``) the views are fewer pixels, more
 cameras and a softer renderer, so a patch sees a larger part of the shape and a silhouette
@@ -17,9 +22,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import torch
+from torch import nn
 
 from .config import PipelineConfig
-from .matching import match_score
 from .metric import DRKFS, Target, with_nets
 
 
@@ -51,19 +56,36 @@ class SoftMatch:
         return self.start * (self.end / self.start) ** min(max(progress, 0.0), 1.0)
 
 
-class DrkfsLoss:
-    """DR-KFS of a prediction against a prepared ground truth, stage by stage.
+class StagedTarget(tuple):
+    """A ground truth (or a batch of them) prepared for each stage of a ``DrkfsLoss``: one
+    ``Target`` per stage; ``to(device)`` moves them all."""
 
-    ``target(verts (V, 3), faces (F, 3)) -> [Target]`` (one per stage) and ``__call__(verts,
-    faces, target, progress) -> ()``, differentiable with respect to ``verts``; ``progress`` in
-    [0, 1] is how far training has come (1: the last stage). ``to(device)`` moves the nets, as
-    ``nn.Module.to`` does; a target lives on the device of the mesh it was prepared from.
+    def to(self, device: torch.device | str) -> StagedTarget:
+        return StagedTarget(target.to(device) for target in self)
+
+    @staticmethod
+    def stack(targets: list[StagedTarget]) -> StagedTarget:
+        """One ground truth each -> a batch of them, stage by stage (``Target.stack``)."""
+        return StagedTarget(map(Target.stack, zip(*targets, strict=True)))
+
+
+class DrkfsLoss(nn.Module):
+    """DR-KFS of predictions against prepared ground truths, stage by stage.
+
+    ``target(verts, faces) -> StagedTarget`` (one ``Target`` per stage) and ``forward(verts,
+    faces, target, progress=1.0, reduction='mean')``, differentiable with respect to ``verts``:
+    one (V, 3) mesh -> (); a batch (any form ``MeshBatch.of`` takes) -> its mean, sum or (B,)
+    values. ``progress`` in [0, 1] is how far training has come (1: the last stage). The stages'
+    metrics are a ``ModuleList``, their cameras and match tables buffers: ``.to()``,
+    ``.cuda()`` and ``state_dict()`` behave as for any module.
     """
 
     def __init__(self, metrics: list[DRKFS], stages: tuple[Stage, ...], soft: SoftMatch | None):
+        super().__init__()
         if len(metrics) != len(stages) or stages[-1].until < 1.0:
             raise ValueError("one metric per stage, and the last stage must run to the end (1.0)")
-        self.metrics, self.stages, self.soft = metrics, stages, soft
+        self.metrics = nn.ModuleList(metrics)
+        self.stages, self.soft = stages, soft
 
     @classmethod
     def pretrained(
@@ -88,23 +110,23 @@ class DrkfsLoss:
         metrics = [with_nets(s.config, nets.detector, nets.descriptor) for s in stages]
         return cls(metrics, stages, soft)
 
-    def to(self, device: torch.device | str) -> DrkfsLoss:
-        for metric in self.metrics:
-            metric.to(device)
-        return self
-
     def stage(self, progress: float) -> int:
         return next(i for i, s in enumerate(self.stages) if progress < s.until or s.until >= 1.0)
 
     @torch.no_grad()
-    def target(self, verts: torch.Tensor, faces: torch.Tensor) -> list[Target]:
-        return [metric.target(verts, faces) for metric in self.metrics]
+    def target(self, verts, faces=None) -> StagedTarget:
+        """One ground truth, (V, 3) and (F, 3), to share with every prediction; or a batch of
+        them (one per prediction, any form ``MeshBatch.of`` takes), described once."""
+        return StagedTarget(metric.target(verts, faces) for metric in self.metrics)
 
-    def __call__(
-        self, verts: torch.Tensor, faces: torch.Tensor, target: list[Target], progress: float = 1.0
+    def forward(
+        self,
+        verts,
+        faces,
+        target: StagedTarget | list[Target],
+        progress: float = 1.0,
+        reduction: str = "mean",
     ) -> torch.Tensor:
         index = self.stage(progress)
-        metric, prepared = self.metrics[index], target[index]
-        features = metric.features_to(verts, faces, prepared)
         temperature = None if self.soft is None else self.soft.temperature(progress)
-        return match_score(features, prepared.features, metric.config, temperature)
+        return self.metrics[index].score_to(verts, faces, target[index], reduction, temperature)

@@ -53,8 +53,16 @@ def directions(a: T, b: T, config: PipelineConfig) -> list[tuple[T, T]]:
     return [pairs[side] for side in query_sides(config)]
 
 
+def _take_last(ops, values, index):
+    """``values`` gathered at ``index`` along the last axis (numpy or torch)."""
+    if ops is np:
+        return np.take_along_axis(values, index, -1)
+    return ops.take_along_dim(values, index, -1)
+
+
 def reduce(distances, weights, config: PipelineConfig, ops=np):
-    """(R,) best-match squared distances, (R,) patch counts -> () score.
+    """(..., R) best-match squared distances, (..., R) patch counts -> (...) score: one per
+    leading index (a batch's meshes), reduced along the last axis.
 
     sum: Σ w·d (the paper). mean: Σ w·d / Σ w. tail: the mean over the k = tail_fraction · Σ w
     largest distances (at least one patch; the boundary row counts with the fraction of its
@@ -62,26 +70,27 @@ def reduce(distances, weights, config: PipelineConfig, ops=np):
     Σ w), t = ``temperature``, a smooth maximum that tends to the mean as t grows. Every one is
     0 when all distances are 0 and differentiable in the distances.
     """
-    total = float(weights.sum())
+    total = weights.sum(-1)
     if config.reduction == "sum":
-        return (weights * distances).sum()
+        return (weights * distances).sum(-1)
     if config.reduction == "mean":
-        return (weights * distances).sum() / total
+        return (weights * distances).sum(-1) / total
     if config.reduction == "tail":
-        k = min(total, max(config.tail_fraction * total, 1.0))
-        order = ops.argsort(-distances)
-        ranked, counts = distances[order], weights[order]
-        before = ops.cumsum(counts, 0) - counts  # patches ranked above each row
-        taken = ops.minimum(ops.clip(k - before, 0.0, None), counts)
-        return (taken * ranked).sum() / k
+        k = ops.minimum(total, ops.clip(config.tail_fraction * total, 1.0, None))
+        order = ops.argsort(-distances, -1)
+        ranked, counts = _take_last(ops, distances, order), _take_last(ops, weights, order)
+        before = ops.cumsum(counts, -1) - counts  # patches ranked above each row
+        taken = ops.minimum(ops.clip(k[..., None] - before, 0.0, None), counts)
+        return (taken * ranked).sum(-1) / k
     if config.reduction == "power":
-        mean = (weights * distances**config.power).sum() / total
+        mean = (weights * distances**config.power).sum(-1) / total
         # the root's slope is infinite at 0: take it only where the mean is positive
         positive = mean > 0
         return ops.where(positive, ops.where(positive, mean, 1.0) ** (1.0 / config.power), 0.0)
-    top = ops.amax(distances)  # log-mean-exp shifted by the maximum, so exp never overflows
+    top = ops.amax(distances, -1)  # log-mean-exp shifted by the maximum: exp never overflows
     t = config.temperature
-    return top + t * ops.log((weights * ops.exp((distances - top) / t)).sum() / total)
+    spread = (weights * ops.exp((distances - top[..., None]) / t)).sum(-1)
+    return top + t * ops.log(spread / total)
 
 
 def shares(distances: np.ndarray, weights: np.ndarray, config: PipelineConfig) -> np.ndarray:

@@ -13,7 +13,8 @@ MATCH_CANDIDATES = 4
 
 
 def nearest_indices(queries: torch.Tensor, targets: torch.Tensor) -> torch.Tensor:
-    """(N, D), (M, D) -> (N,) index of each query's nearest target (squared Euclidean).
+    """(..., N, D), (..., M, D) -> (..., N) index of each query's nearest target (squared
+    Euclidean), per leading index (a batch's meshes).
 
     Ranks by |t|^2 - 2 q.t (|q|^2 is constant per row) on CHUNK_ROWS rows at a time, so the
     distance matrix never exceeds CHUNK_ROWS x M, then re-ranks the best MATCH_CANDIDATES
@@ -21,51 +22,74 @@ def nearest_indices(queries: torch.Tensor, targets: torch.Tensor) -> torch.Tenso
     and in float32 dozens of near-duplicates can outrank an exact duplicate.
     """
     queries, targets = queries.double(), targets.double()
-    target_sq = (targets * targets).sum(1)
-    k = min(MATCH_CANDIDATES, len(targets))
+    target_sq = (targets * targets).sum(-1)[..., None, :]
+    k = min(MATCH_CANDIDATES, targets.shape[-2])
     parts = []
-    for chunk in queries.split(CHUNK_ROWS):
-        candidates = (target_sq - 2.0 * chunk @ targets.T).topk(k, dim=1, largest=False).indices
-        exact = ((chunk[:, None, :] - targets[candidates]) ** 2).sum(-1)
-        parts.append(candidates.gather(1, exact.argmin(1, keepdim=True)).squeeze(1))
-    return torch.cat(parts) if parts else queries.new_zeros(0, dtype=torch.long)
+    for chunk in queries.split(CHUNK_ROWS, dim=-2):
+        ranking = target_sq - 2.0 * chunk @ targets.transpose(-1, -2)
+        candidates = ranking.topk(k, dim=-1, largest=False).indices  # (..., n, k)
+        near = torch.take_along_dim(targets[..., None, :, :], candidates[..., None], dim=-2)
+        exact = ((chunk[..., None, :] - near) ** 2).sum(-1)
+        parts.append(candidates.gather(-1, exact.argmin(-1, keepdim=True)).squeeze(-1))
+    return torch.cat(parts, dim=-1) if parts else queries.new_zeros(0, dtype=torch.long)
 
 
 def window_nearest(queries: torch.Tensor, targets: torch.Tensor, table: torch.Tensor):
-    """(N, D), (N, D) patch descriptors at the same grid positions, (N, W) ``window_table`` ->
-    (N,) index of each query's nearest target among its window (float64, exact)."""
+    """(..., N, D), (..., N, D) patch descriptors at the same grid positions, (N, W)
+    ``window_table`` -> (..., N) index of each query's nearest target among its window
+    (float64, exact)."""
     queries, targets = queries.double(), targets.double()
     parts = []
-    for rows in torch.arange(len(queries)).split(CHUNK_ROWS):
-        near = table[rows]
-        distance = ((queries[rows, None, :] - targets[near]) ** 2).sum(-1)
-        parts.append(near.gather(1, distance.argmin(1, keepdim=True)).squeeze(1))
-    return torch.cat(parts) if parts else queries.new_zeros(0, dtype=torch.long)
+    for rows in torch.arange(queries.shape[-2], device=table.device).split(CHUNK_ROWS):
+        near = table.index_select(0, rows)  # (n, W)
+        found = targets[..., near, :]  # (..., n, W, D)
+        distance = ((queries[..., rows, None, :] - found) ** 2).sum(-1)
+        index = near.expand(*distance.shape).gather(-1, distance.argmin(-1, keepdim=True))
+        parts.append(index.squeeze(-1))
+    return torch.cat(parts, dim=-1) if parts else queries.new_zeros(0, dtype=torch.long)
+
+
+def window_index(config: PipelineConfig, device: torch.device) -> torch.Tensor:
+    """``match_rules.window_table`` as a tensor on ``device``."""
+    return torch.as_tensor(match_rules.window_table(config).copy(), device=device)
+
+
+def _batched(queries: torch.Tensor, targets: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """A set without the other's batch axis expanded (not copied) to it."""
+    lead = max(queries.shape[:-2], targets.shape[:-2], key=len)
+    return queries.expand(*lead, *queries.shape[-2:]), targets.expand(*lead, *targets.shape[-2:])
 
 
 def best_match_distances(
-    queries: torch.Tensor, targets: torch.Tensor, config: PipelineConfig
+    queries: torch.Tensor,
+    targets: torch.Tensor,
+    config: PipelineConfig,
+    table: torch.Tensor | None = None,
 ) -> torch.Tensor:
-    """(N, D), (M, D) -> (N,) squared distance from each query to its best match.
+    """(..., N, D), (..., M, D) -> (..., N) squared distance from each query to its best match,
+    per leading index (a batch's meshes; a set without one is shared by all).
 
     'global' searches all targets; 'window' needs both sets as the full row-major (K * P)
-    patch lists of the same cameras. The match is found without autograd; the distance to it is
-    then differentiable with respect to both sets (the gradient of a min is the gradient at the
+    patch lists of the same cameras, and takes its ``table`` (``window_index``; made from the
+    config when None). The match is found without autograd; the distance to it is then
+    differentiable with respect to both sets (the gradient of a min is the gradient at the
     argmin).
     """
+    queries, targets = _batched(queries, targets)
     with torch.no_grad():
         if config.matching == "global":
             index = nearest_indices(queries.detach(), targets.detach())
         else:
-            table = torch.as_tensor(match_rules.window_table(config).copy(), device=queries.device)
-            if len(queries) != len(table) or len(targets) != len(table):
+            table = window_index(config, queries.device) if table is None else table
+            if queries.shape[-2] != len(table) or targets.shape[-2] != len(table):
                 raise ValueError(
                     f"window matching needs all {len(table)} patches of both meshes "
                     f"({config.num_views} views x {config.patches_per_view}); got "
-                    f"{len(queries)} and {len(targets)}"
+                    f"{queries.shape[-2]} and {targets.shape[-2]}"
                 )
             index = window_nearest(queries.detach(), targets.detach(), table)
-    return ((queries - targets[index]) ** 2).sum(1)
+    matched = torch.take_along_dim(targets, index[..., None], dim=-2)
+    return ((queries - matched) ** 2).sum(-1)
 
 
 def match_score(
@@ -73,31 +97,39 @@ def match_score(
     desc_b: torch.Tensor,
     config: PipelineConfig,
     temperature: float | None = None,
+    table: torch.Tensor | None = None,
 ) -> torch.Tensor:
-    """DR-KFS score from the (K * P, D) descriptor sets of A and B: the reduced best-match
-    distances of each direction the config searches, averaged (``match_rules``); with a
-    ``temperature``, soft best matches (``soft_match_distances``) in place of the hard ones."""
+    """DR-KFS score from the (K * P, D) descriptor sets of A and B -> (), or of a batch's
+    (B, K * P, D) (either side may be one set shared by the batch) -> (B,): the reduced
+    best-match distances of each direction the config searches, averaged (``match_rules``);
+    with a ``temperature``, soft best matches (``soft_match_distances``) in place of the hard
+    ones."""
     scores = []
     for queries, targets in match_rules.directions(desc_a, desc_b, config):
         if temperature is None:
-            distances = best_match_distances(queries, targets, config)
+            distances = best_match_distances(queries, targets, config, table)
         else:
-            distances = soft_match_distances(queries, targets, config, temperature)
+            distances = soft_match_distances(queries, targets, config, temperature, table)
         scores.append(match_rules.reduce(distances, torch.ones_like(distances), config, torch))
-    return torch.stack(scores).mean()
+    return torch.stack(scores).mean(0)
 
 
 def soft_match_distances(
-    queries: torch.Tensor, targets: torch.Tensor, config: PipelineConfig, temperature: float
+    queries: torch.Tensor,
+    targets: torch.Tensor,
+    config: PipelineConfig,
+    temperature: float,
+    table: torch.Tensor | None = None,
 ) -> torch.Tensor:
-    """(N, D), (M, D) -> (N,) soft best-match squared distances: each query's candidates (all
-    targets under 'global', its window under 'window') weighted by softmax(-d / temperature),
-    so the match moves smoothly from one candidate to the next instead of jumping. Tends to the
-    hard best match as the temperature falls; a loss form with no runtime counterpart."""
+    """(..., N, D), (..., M, D) -> (..., N) soft best-match squared distances: each query's
+    candidates (all targets under 'global', its window under 'window') weighted by
+    softmax(-d / temperature), so the match moves smoothly from one candidate to the next
+    instead of jumping. Tends to the hard best match as the temperature falls; a loss form with
+    no runtime counterpart."""
     if config.matching == "window":
-        table = torch.as_tensor(match_rules.window_table(config).copy(), device=queries.device)
-        squared = ((queries[:, None, :] - targets[table]) ** 2).sum(-1)  # (N, W)
+        table = window_index(config, queries.device) if table is None else table
+        squared = ((queries[..., None, :] - targets[..., table, :]) ** 2).sum(-1)  # (..., N, W)
     else:
-        squared = (queries[:, None, :] - targets[None]).pow(2).sum(-1)  # (N, M)
-    weights = torch.softmax(-squared / temperature, dim=1)
-    return (weights * squared).sum(1)
+        squared = (queries[..., :, None, :] - targets[..., None, :, :]).pow(2).sum(-1)
+    weights = torch.softmax(-squared / temperature, dim=-1)
+    return (weights * squared).sum(-1)

@@ -102,17 +102,24 @@ def check_mesh(vertices: np.ndarray, faces: np.ndarray, source: str = "<array>")
     return Mesh(vertices=vertices, faces=faces[area_ok], source=source)
 
 
+def _last_max(values):
+    """The largest entry along the last axis; numpy or torch."""
+    top = values.max(-1)
+    return getattr(top, "values", top)
+
+
 def bounding_frame(lower, upper):
     """(centre, scale) that map the box [lower, upper] into the unit sphere: v' = (v - c) / s.
 
-    Pure arithmetic, so numpy arrays and torch tensors (keeping gradients) both work.
+    (3,) corners give (3,) and (); a batch's (B, 3) give (B, 3) and (B,). Pure arithmetic, so
+    numpy arrays and torch tensors (keeping gradients) both work.
     """
     centre = lower / 2.0 + upper / 2.0  # halves first: the sum of two huge values overflows
     extent = upper / 2.0 - lower / 2.0
     # the half-diagonal as |extent|_max * |extent / |extent|_max|: squares of very small or very
     # large coordinates would under- or overflow
-    largest = abs(extent).max()
-    return centre, largest * (((extent / largest) ** 2).sum() ** 0.5)
+    largest = _last_max(abs(extent))
+    return centre, largest * (((extent / largest[..., None]) ** 2).sum(-1) ** 0.5)
 
 
 def check_normalization(mode: str) -> str:
@@ -122,8 +129,9 @@ def check_normalization(mode: str) -> str:
 
 
 def frame_of(vertices):
-    """(centre, scale) of a vertex array's bounding box; numpy or torch (values keep grads)."""
-    lower, upper = vertices.min(0), vertices.max(0)
+    """(centre, scale) of a vertex array's bounding box, (V, 3) or a batch's (B, V, 3); numpy or
+    torch (values keep grads)."""
+    lower, upper = vertices.min(-2), vertices.max(-2)
     return bounding_frame(getattr(lower, "values", lower), getattr(upper, "values", upper))
 
 
@@ -134,8 +142,11 @@ def reference_frame(vertices, mode: str):
 
 
 def place(vertices, frame):
-    """Vertices moved into ``frame`` = (centre, scale): v' = (v - c) / s; numpy or torch."""
+    """Vertices moved into ``frame`` = (centre, scale): v' = (v - c) / s; numpy or torch. A
+    batch's frame, (B, 3) and (B,), places (B, V, 3) vertices mesh by mesh."""
     centre, scale = frame
+    if getattr(centre, "ndim", 1) == 2:
+        centre, scale = centre[:, None], scale[:, None, None]
     return (vertices - centre) / scale
 
 

@@ -9,14 +9,19 @@ import torch
 from torch import nn
 
 from . import match_rules
+from .batch import MeshBatch, over_batch
 from .config import PipelineConfig
 from .detector import PoIDetector
 from .hardnet import HardNet
-from .matching import best_match_distances, match_score
+from .matching import best_match_distances, match_score, window_index
 from .mesh import Mesh, check_normalization, normalize_pair, place_by, reference_frame
 from .patches import nonempty_patches, select_patches
 from .render import Renderer
 from .weights import RANDOM_SEED, load_shipped_state
+
+# HardNet's patches per call on a CPU: a group's activations (about 70 KB a patch at width 0.5)
+# stay in a 32 MB cache; the whole batch's did not, and its backward ran 1.5-2x slower a patch
+CPU_PATCH_GROUP = 256
 
 
 class MissingWeights(ValueError):
@@ -24,18 +29,40 @@ class MissingWeights(ValueError):
 
 
 class Target(NamedTuple):
-    """A reference mesh prepared once: the frame predictions are placed in, and its (N, D)
-    descriptors."""
+    """A reference mesh prepared once: the frame predictions are placed in ((3,) centre, ()
+    scale) and its (N, D) descriptors; or a batch of B references, one per prediction: (B, 3)
+    and (B,) frames, (B, N, D) descriptors."""
 
     frame: tuple[torch.Tensor, torch.Tensor] | None
     features: torch.Tensor
+
+    @property
+    def batch(self) -> int | None:
+        """How many references a batch holds; None for one reference, shared by a batch."""
+        return len(self.features) if self.features.ndim == 3 else None
+
+    def to(self, device: torch.device | str) -> Target:
+        frame = None if self.frame is None else tuple(t.to(device) for t in self.frame)
+        return Target(frame, self.features.to(device))
+
+    @staticmethod
+    def stack(targets: list[Target]) -> Target:
+        """One reference each -> a batch of them, in order."""
+        frames = [t.frame for t in targets]
+        frame = None if frames[0] is None else tuple(map(torch.stack, zip(*frames, strict=True)))
+        return Target(frame, torch.stack([t.features for t in targets]))
 
 
 class DRKFS(nn.Module):
     """The DR-KFS visual distance between two triangle meshes.
 
     ``forward(verts_a (Va, 3), faces_a (Fa, 3), verts_b (Vb, 3), faces_b (Fb, 3)) -> ()`` is
-    differentiable with respect to both vertex tensors. B is the reference: with
+    differentiable with respect to both vertex tensors. Each side may be a batch of meshes in
+    any form ``MeshBatch.of`` takes (a (B, V, 3) tensor with one (F, 3) face tensor, lists of
+    meshes of different sizes, PyTorch3D-like ``Meshes``): B scores, reduced by ``reduction``
+    ('mean', 'sum', or 'none' for the (B,) scores); a single reference B is shared by a batch
+    of A. The batch's B * K views are rendered, described and matched in one pass each. B is
+    the reference: with
     ``normalization='joint'`` both meshes are placed by B's bounding box, whichever directions
     the config's match searches. The config holds every setting of the score (matching,
     reduction, direction); ``PipelineConfig.paper()`` is the paper's recipe.
@@ -55,6 +82,8 @@ class DRKFS(nn.Module):
         self.detector = PoIDetector(self.config)
         # channels-last convs run ~1.4x faster on CPU for HardNet's many small patches
         self.descriptor = HardNet(self.config).to(memory_format=torch.channels_last)
+        table = window_index(self.config, torch.device("cpu"))
+        self.register_buffer("window_table", table, persistent=False)
         self.requires_grad_(False)
         self.train(False)
 
@@ -97,34 +126,54 @@ class DRKFS(nn.Module):
         self.descriptor.eval()
         return self
 
-    def render(self, verts: torch.Tensor, faces: torch.Tensor) -> torch.Tensor:
-        """(V, 3), (F, 3) -> (K, 1, S, S) grey views."""
-        return self.renderer.render(verts, faces).unsqueeze(1)
+    def render(self, verts, faces=None) -> torch.Tensor:
+        """(V, 3), (F, 3) -> (K, 1, S, S) grey views; a batch -> (B * K, 1, S, S)."""
+        meshes = self._meshes(verts, faces)
+        return self.renderer.render(meshes).unsqueeze(1)
 
     def describe(self, images: torch.Tensor) -> torch.Tensor:
-        """(K, 1, S, S) views -> (K * P, D) patch descriptors, row-major per view.
+        """(N, 1, S, S) views -> (N * P, D) patch descriptors, row-major per view.
 
-        Patches that see only background share one descriptor, computed once.
+        Patches that see only background share one descriptor, computed once. On a GPU every
+        patch goes through HardNet and the empty ones take the shared descriptor: listing the
+        others would wait for the host, which costs it more than their convolutions.
         """
         dtype = next(self.detector.parameters()).dtype
         images = images.to(dtype)
-        index = torch.nonzero(nonempty_patches(images, self.config)).squeeze(1)
+        seen = nonempty_patches(images, self.config)
         size = self.config.patch_size
         blank = torch.full(
             (1, 1, size, size), self.config.background, dtype=dtype, device=images.device
         )
         empty = self.descriptor(self.detector(blank))
-        descriptors = empty.expand(len(images) * self.config.patches_per_view, -1)
+        if images.is_cuda:
+            every = torch.arange(len(seen), device=images.device)
+            patches = select_patches(self.detector(images), every, self.config)
+            described = self.descriptor(patches.contiguous(memory_format=torch.channels_last))
+            return torch.where(seen[:, None], described, empty)
+        index = torch.nonzero(seen).squeeze(1)
+        descriptors = empty.expand(len(seen), -1)
         if len(index) == 0:
             return descriptors
-        seen = select_patches(self.detector(images), index, self.config)
-        return descriptors.index_put(
-            (index,), self.descriptor(seen.contiguous(memory_format=torch.channels_last))
-        )
+        patches = select_patches(self.detector(images), index, self.config)
+        patches = patches.contiguous(memory_format=torch.channels_last)
+        # on a CPU in groups whose activations stay in cache, forward and backward
+        described = [self.descriptor(group) for group in patches.split(CPU_PATCH_GROUP)]
+        return descriptors.index_put((index,), torch.cat(described))
 
-    def features(self, verts: torch.Tensor, faces: torch.Tensor) -> torch.Tensor:
-        """Descriptors of a mesh already in the metric's frame: (V, 3), (F, 3) -> (K * P, D)."""
-        return self.describe(self.render(verts, faces))
+    def features(self, verts, faces=None) -> torch.Tensor:
+        """Descriptors of a mesh already in the metric's frame: (V, 3), (F, 3) -> (K * P, D);
+        a batch -> (B, K * P, D)."""
+        meshes = self._meshes(verts, faces)
+        return meshes.unbatch(self._features(meshes))
+
+    def _features(self, meshes: MeshBatch) -> torch.Tensor:
+        descriptors = self.describe(self.renderer.render(meshes).unsqueeze(1))
+        return descriptors.reshape(len(meshes), -1, descriptors.shape[-1])
+
+    def _meshes(self, verts, faces) -> MeshBatch:
+        """Any form ``MeshBatch.of`` takes, checked, on the metric's device."""
+        return MeshBatch.of(verts, faces, self.window_table.device)
 
     def score_meshes(self, a: Mesh, b: Mesh) -> float:
         """Evaluation-only score of checked meshes (float32, no autograd), as ``forward``."""
@@ -140,48 +189,73 @@ class DRKFS(nn.Module):
                 )
             )
 
-    def target(self, verts: torch.Tensor, faces: torch.Tensor) -> Target:
-        """The reference mesh B, (V, 3), (F, 3), placed and described. Differentiable like
-        ``forward``; call it under ``torch.no_grad()`` for a fixed ground truth."""
-        frame = reference_frame(verts, self.normalization)
-        return Target(frame, self.features(place_by(verts, self.normalization, frame), faces))
+    def target(self, verts, faces=None) -> Target:
+        """The reference mesh B, (V, 3), (F, 3), placed and described; a batch of references
+        (one per prediction) -> a batched ``Target``. Differentiable like ``forward``; call it
+        under ``torch.no_grad()`` for a fixed ground truth."""
+        meshes = self._meshes(verts, faces)
+        frame = reference_frame(meshes.verts, self.normalization)
+        features = self._features(meshes.moved(place_by(meshes.verts, self.normalization, frame)))
+        if frame is not None:
+            frame = tuple(meshes.unbatch(t) for t in frame)
+        return Target(frame, meshes.unbatch(features))
 
-    def score_to(self, verts: torch.Tensor, faces: torch.Tensor, target: Target) -> torch.Tensor:
-        """The score of mesh A, (V, 3), (F, 3), against a prepared reference -> ()."""
-        return match_score(self.features_to(verts, faces, target), target.features, self.config)
+    def score_to(
+        self,
+        verts,
+        faces,
+        target: Target,
+        reduction: str = "mean",
+        temperature: float | None = None,
+    ) -> torch.Tensor:
+        """The score of mesh A, (V, 3), (F, 3), against a prepared reference -> (); of a batch,
+        reduced over it by ``reduction`` ('mean', 'sum', or 'none': (B,)). A ``temperature``
+        asks for soft best matches (``matching.soft_match_distances``), a loss form."""
+        meshes = self._meshes(verts, faces)
+        features = self._features_to(meshes, target)
+        scores = match_score(features, target.features, self.config, temperature, self._table)
+        return over_batch(scores, meshes.single, reduction)
 
-    def patch_distances(
-        self, verts: torch.Tensor, faces: torch.Tensor, target: Target
-    ) -> dict[str, torch.Tensor]:
+    @property
+    def _table(self) -> torch.Tensor | None:
+        return self.window_table if self.config.matching == "window" else None
+
+    def patch_distances(self, verts, faces, target: Target) -> dict[str, torch.Tensor]:
         """Where mesh A, (V, 3), (F, 3), differs from a prepared reference: {side: (K, n, n)}
         best-match squared distance of each patch of A ('a', searching the reference) and of
         the reference ('b', searching A), for the sides the config's direction searches
-        (``match_rules.query_sides``); n patches per image side. Differentiable like
-        ``score_to``; log them (or ``drkfs-score explain``'s picture) to see where a
-        prediction is wrong."""
+        (``match_rules.query_sides``); n patches per image side; a batch -> (B, K, n, n).
+        Differentiable like ``score_to``; log them (or ``drkfs-score explain``'s picture) to
+        see where a prediction is wrong."""
         config = self.config
         grid = (config.num_views, config.patches_per_side, config.patches_per_side)
-        pairs = match_rules.directions(
-            self.features_to(verts, faces, target), target.features, config
-        )
-        return {
-            side: best_match_distances(queries, targets, config).reshape(grid)
-            for side, (queries, targets) in zip(match_rules.query_sides(config), pairs, strict=True)
-        }
+        meshes = self._meshes(verts, faces)
+        features = meshes.unbatch(self._features_to(meshes, target))
+        pairs = match_rules.directions(features, target.features, config)
+        found = {}
+        for side, (queries, targets) in zip(match_rules.query_sides(config), pairs, strict=True):
+            distances = best_match_distances(queries, targets, config, self._table)
+            found[side] = distances.reshape(*distances.shape[:-1], *grid)
+        return found
 
-    def features_to(self, verts: torch.Tensor, faces: torch.Tensor, target: Target):
+    def features_to(self, verts, faces, target: Target) -> torch.Tensor:
         """(K * P, D) descriptors of mesh A, (V, 3), (F, 3), placed as the reference ``target``
-        asks (its frame under 'joint')."""
-        return self.features(place_by(verts, self.normalization, target.frame), faces)
+        asks (its frame under 'joint'); a batch -> (B, K * P, D)."""
+        meshes = self._meshes(verts, faces)
+        return meshes.unbatch(self._features_to(meshes, target))
 
-    def forward(
-        self,
-        verts_a: torch.Tensor,
-        faces_a: torch.Tensor,
-        verts_b: torch.Tensor,
-        faces_b: torch.Tensor,
-    ) -> torch.Tensor:
-        return self.score_to(verts_a, faces_a, self.target(verts_b, faces_b))
+    def _features_to(self, meshes: MeshBatch, target: Target) -> torch.Tensor:
+        if target.batch is not None and target.batch != len(meshes):
+            raise ValueError(
+                f"target: a batch of {target.batch} references needs as many predictions; got "
+                f"{len(meshes)} (prepare one reference to share it with a whole batch)"
+            )
+        return self._features(
+            meshes.moved(place_by(meshes.verts, self.normalization, target.frame))
+        )
+
+    def forward(self, verts_a, faces_a, verts_b, faces_b, reduction: str = "mean") -> torch.Tensor:
+        return self.score_to(verts_a, faces_a, self.target(verts_b, faces_b), reduction)
 
 
 def with_nets(config: PipelineConfig, detector: nn.Module, descriptor: nn.Module) -> DRKFS:

@@ -6,7 +6,6 @@ import math
 
 import torch
 
-from . import patch_grid
 from .config import PipelineConfig
 
 
@@ -30,7 +29,11 @@ def select_patches(maps: torch.Tensor, index: torch.Tensor, config: PipelineConf
 
 
 def nonempty_patches(images: torch.Tensor, config: PipelineConfig) -> torch.Tensor:
-    """(B, 1, S, S) rendered images -> (B * P,) bool on the images' device; see
-    ``patch_grid.nonempty_patches``."""
-    mask = patch_grid.nonempty_patches(images.detach()[:, 0].cpu().numpy(), config)
-    return torch.from_numpy(mask).to(images.device)
+    """(B, 1, S, S) rendered images -> (B * P,) bool on the images' device, without a host
+    wait: ``patch_grid.nonempty_patches``' definition (any non-background pixel in the patch's
+    window grown by the detector's reach), as a max-pool of the non-background mask."""
+    reach = config.detector_kernel // 2
+    seen = (images.detach() != config.background).to(torch.float32)
+    window = config.patch_size + 2 * reach
+    pooled = torch.nn.functional.max_pool2d(seen, window, config.patch_stride, padding=reach)
+    return pooled.reshape(-1) > 0

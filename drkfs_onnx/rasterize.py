@@ -1,31 +1,37 @@
-"""Sparse soft rasteriser (SoftRas' formulation) in plain torch.
+"""Sparse soft rasteriser (SoftRas' formulation) in plain torch, sized for a batch of meshes.
 
 Each face covers pixel p with probability D = sigmoid(+-d^2 / sigma), d the screen distance from
 p to the triangle (+ inside, - outside). Like SoftRas' kernel we cut D where it falls below
 ``coverage_eps``; we shift and rescale it there, D' = max(D - eps, 0) / (1 - eps), so the cut is
 continuous and the function stays smooth for gradients.
 
-Cost grows with the covered pixel-face pairs, not pixels x faces:
+Cost grows with the pixel-face pairs of each face's bounding box grown by the cut-off radius,
+not pixels x faces. Those pairs are never stored: a ``PairPlan`` enumerates them in chunks of
+``pair_chunk(device)`` pairs, and each pass recomputes a chunk's terms from the faces'
+parameters:
 
-1. every face lists the pixels of its bounding box grown by the cut-off radius;
-2. a no-grad pass computes coverage and depth of those pairs, drops the uncovered ones and, for
-   shaded images, the ones hidden behind a nearer face by more than ``DEPTH_CULL`` softmax
-   logits (their weight is below exp(-DEPTH_CULL) of the front face's);
-3. only the surviving pairs are recomputed with autograd.
+1. a no-grad pass takes each pixel's largest blend logit;
+2. the forward pass sums each pixel's per-pair terms (``pixel_sums``); a pair hidden behind a
+   nearer face by more than ``DEPTH_CULL`` softmax logits (its weight below exp(-DEPTH_CULL) of
+   the front face's) or left uncovered weighs 0;
+3. the backward pass recomputes each chunk with autograd and sends the pixels' gradients to the
+   faces' parameters.
 
-Output is a list of pixel-face pairs (``Fragments``); shading and blending live in ``shade.py``.
-The equations are ``render_math``'s, shared with the numpy renderer; this module holds what only
-autograd needs: the two passes.
+Memory is one chunk's temporaries whatever the batch (the pairs kept for autograd were 14 GB
+for 32 meshes on a GPU), and the plan is the only host wait: two, whatever the batch.
+The equations are ``render_math``'s, shared with the numpy renderer.
 """
 
 from __future__ import annotations
 
+import functools
+import os
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from types import SimpleNamespace
 
 import torch
 
-from .cameras import Cameras
 from .config import PipelineConfig
 from .render_math import (
     DEPTH_CULL,
@@ -33,14 +39,12 @@ from .render_math import (
     background_logit,
     pair_logit,
     pair_terms,
+    pair_terms_grad,
     pixel_centre,
     pixel_span,
     project_faces,
     to_camera,
 )
-
-# Pairs per chunk of the candidate pass: small enough for elementwise work to stay in cache.
-PAIR_CHUNK = 1 << 17
 
 
 def _scatter_sum(index: torch.Tensor, values: torch.Tensor, length: int) -> torch.Tensor:
@@ -51,123 +55,243 @@ def _scatter_max(out: torch.Tensor, index: torch.Tensor, values: torch.Tensor) -
     return out.scatter_reduce_(0, index, values, reduce="amax")
 
 
+def _take(values: torch.Tensor, index: torch.Tensor) -> torch.Tensor:
+    return torch.take_along_dim(values, index, dim=-1)
+
+
 TORCH_OPS = SimpleNamespace(
     where=torch.where, minimum=torch.minimum, maximum=torch.maximum, clip=torch.clip,
     ceil=torch.ceil, floor=torch.floor, sqrt=torch.sqrt, exp=torch.exp, log=torch.log,
-    sigmoid=torch.sigmoid, stack=torch.stack, einsum=torch.einsum, scatter_sum=_scatter_sum,
-    scatter_max=_scatter_max,
+    sigmoid=torch.sigmoid, stack=torch.stack, einsum=torch.einsum, take=_take,
+    scatter_sum=_scatter_sum, scatter_max=_scatter_max,
 )  # fmt: skip
 
 
+def pair_chunk(device: torch.device) -> int:
+    """Pairs per chunk: on a CPU few enough for a chunk's temporaries to stay in cache; on a GPU
+    enough to fill it, while one chunk's autograd temporaries stay under a gigabyte."""
+    return 1 << 22 if device.type == "cuda" else 1 << 17
+
+
+def to_screen(
+    verts: torch.Tensor,
+    faces: torch.Tensor,
+    rotations: torch.Tensor,
+    eyes: torch.Tensor,
+    focal: float,
+    config: PipelineConfig,
+) -> tuple[torch.Tensor, ScreenFaces]:
+    """(B, V, 3) world vertices, (B, F, 3) faces, K cameras ((K, 3, 3) rotations, (K, 3) eyes)
+    -> (B, K, V, 3) camera-frame vertices and the faces projected into the B*K views."""
+    verts_cam = to_camera(verts, rotations.to(verts.dtype), eyes.to(verts.dtype), TORCH_OPS)
+    return verts_cam, project_faces(verts_cam, faces, focal, config, TORCH_OPS)
+
+
 @dataclass
-class Fragments:
-    """Pixel-face pairs of K views of size S x S.
+class Pairs:
+    """One chunk of pixel-face pairs: pixel (P,) flat index into (views, S, S); face (P,) flat
+    index into the screen's faces; px, py (P,) the pixel centres in NDC."""
 
-    pixel: (P,) flat index into (K, S, S); face: (P,) flat index into (K, F);
-    coverage: (P,) D' in (0, 1]; depth: (P,) normalised inverse depth (larger is nearer);
-    logit_max: (K*S*S,) the softmax shift per pixel (max of ``pair_logit``, background
-    included), a constant for autograd.
-    """
+    pixel: torch.Tensor
+    face: torch.Tensor
+    px: torch.Tensor
+    py: torch.Tensor
 
+
+class PairPlan:
+    """The pixel-face pairs of a screen's faces, enumerated chunk by chunk: each face's pixels
+    of its bounding box grown by the cut-off radius, row-major, face after face.
+
+    Building it waits for the host twice (the total, then the chunks' sizes); enumerating a
+    chunk never does."""
+
+    def __init__(self, screen: ScreenFaces, config: PipelineConfig):
+        self.config, self.num_views = config, screen.num_views
+        params = screen.params.detach()
+        self.dtype, device = params.dtype, params.device
+        xs, ys = params[0:6:2], params[1:6:2]
+        i0, width = pixel_span(xs.amin(0), xs.amax(0), config, TORCH_OPS)
+        j0, height = pixel_span(ys.amin(0), ys.amax(0), config, TORCH_OPS)
+        self.first_col, self.width = i0.long(), width.long()
+        view = torch.arange(screen.num_views, device=device).repeat_interleave(screen.num_faces)
+        # global row (view * size + row) of each face's first pixel row
+        self.first_row = view * config.image_size + j0.long()
+        self.counts = self.width * height.long() * screen.visible
+        self.chunks = self._split(torch.cumsum(self.counts, 0), pair_chunk(device))
+
+    @staticmethod
+    def _split(cumulative: torch.Tensor, chunk: int) -> list[tuple[int, int, int]]:
+        """(first face, end face, pairs) of runs of about ``chunk`` pairs; one face's pairs stay
+        together."""
+        total = int(cumulative[-1]) if len(cumulative) else 0
+        if total == 0:
+            return []
+        bucket = torch.div(cumulative - 1, chunk, rounding_mode="floor")
+        ends = torch.searchsorted(bucket, torch.arange(-(-total // chunk), device=bucket.device),
+                                  right=True)  # fmt: skip
+        sizes = torch.diff(cumulative[ends - 1], prepend=cumulative.new_zeros(1))
+        ends, sizes = ends.tolist(), sizes.tolist()
+        starts = [0] + ends[:-1]
+        return [(s, e, n) for s, e, n in zip(starts, ends, sizes, strict=True) if n > 0]
+
+    def __iter__(self) -> Iterator[Pairs]:
+        size = self.config.image_size
+        for first, end, total in self.chunks:
+            counts = self.counts[first:end]
+            ids = torch.arange(first, end, device=counts.device)
+            face = ids.repeat_interleave(counts, output_size=total)
+            start = torch.cumsum(counts, 0) - counts
+            local = torch.arange(total, device=counts.device) - start.repeat_interleave(
+                counts, output_size=total
+            )
+            width = self.width.index_select(0, face)
+            row = self.first_row.index_select(0, face) + local // width
+            col = self.first_col.index_select(0, face) + local % width
+            px = pixel_centre(col.to(self.dtype), size)
+            py = pixel_centre((row % size).to(self.dtype), size)
+            yield Pairs(row * size + col, face, px, py)
+
+    @property
+    def num_pixels(self) -> int:
+        return self.num_views * self.config.image_size**2
+
+    def num_pairs(self) -> int:
+        return sum(n for _, _, n in self.chunks)
+
+
+@dataclass
+class KeptPairs:
+    """The pairs an image is made of: covered (D' > 0) and, for shaded images, not hidden
+    behind a nearer face by more than ``DEPTH_CULL`` blend logits. pixel, face: (P,) int32
+    indices (int64 per chunk: index_add with int32 indices is several times slower on a CPU);
+    coverage, depth: (P,) ``pair_terms`` (no autograd); logit_max: (views * S * S,) each
+    pixel's largest blend logit, the background's included (the softmax's shift, a constant for
+    autograd)."""
+
+    plan: PairPlan
     pixel: torch.Tensor
     face: torch.Tensor
     coverage: torch.Tensor
     depth: torch.Tensor
     logit_max: torch.Tensor
 
+    def chunks(self) -> Iterator[KeptPairs]:
+        """The pairs in runs of ``pair_chunk`` pairs, their indices int64."""
+        step = pair_chunk(self.pixel.device)
+        for first in range(0, len(self.pixel), step):
+            part = slice(first, first + step)
+            pixel, face = self.pixel[part].long(), self.face[part].long()
+            yield KeptPairs(self.plan, pixel, face, self.coverage[part], self.depth[part],
+                            self.logit_max)  # fmt: skip
 
-def to_screen(
-    verts: torch.Tensor, faces: torch.Tensor, cameras: Cameras, config: PipelineConfig
-) -> tuple[torch.Tensor, ScreenFaces]:
-    """(V, 3) world vertices, (F, 3) faces -> (K, V, 3) camera-frame vertices and the faces
-    projected into the cameras' views."""
-    rotations = torch.as_tensor(cameras.rotations, dtype=verts.dtype, device=verts.device)
-    eyes = torch.as_tensor(cameras.eyes, dtype=verts.dtype, device=verts.device)
-    verts_cam = to_camera(verts, rotations, eyes, TORCH_OPS)
-    return verts_cam, project_faces(verts_cam, faces, cameras.focal, config, TORCH_OPS)
+    def centres(self) -> tuple[torch.Tensor, torch.Tensor]:
+        """(px, py) pixel centres in NDC of the pairs."""
+        size, dtype = self.plan.config.image_size, self.coverage.dtype
+        col, row = self.pixel % size, self.pixel // size % size
+        return pixel_centre(col.to(dtype), size), pixel_centre(row.to(dtype), size)
 
 
-class SoftRasterizer:
-    """Lists the pixel-face pairs of K views with coverage and depth, differentiably."""
+@functools.cache
+def _fused(equation: Callable, config: PipelineConfig, device_type: str) -> Callable:
+    """``equation(*tensors, config, TORCH_OPS)`` as a function of its tensors: on a GPU
+    compiled by ``torch.compile`` (its hundred-odd elementwise steps fused into a few kernels,
+    where eagerly each is a kernel launch of its own), elsewhere or where ``DRKFS_COMPILE=0``
+    as it is."""
 
-    def __init__(self, config: PipelineConfig):
-        self.config = config
+    def eager(*tensors):
+        return equation(*tensors, config, TORCH_OPS)
 
-    def __call__(self, screen: ScreenFaces, depth_cull: bool = True) -> Fragments:
-        with torch.no_grad():
-            pixel, face, logit_max = self._candidates(screen, depth_cull)
-        size = self.config.image_size
-        tri = screen.params.index_select(1, face)
-        px, py = self._pixel_ndc(pixel % size, pixel // size, tri.dtype)
-        coverage, depth = pair_terms(tri, px, py, self.config, TORCH_OPS)
-        return Fragments(pixel, face, coverage, depth, logit_max)
+    if device_type != "cuda" or os.environ.get("DRKFS_COMPILE", "1") == "0":
+        return eager
+    return torch.compile(eager, dynamic=True)
 
-    def _pixel_ndc(
-        self, col: torch.Tensor, row: torch.Tensor, dtype: torch.dtype
-    ) -> tuple[torch.Tensor, torch.Tensor]:
-        """Pixel centres in NDC; rows wrap across views."""
-        size = self.config.image_size
-        return pixel_centre(col.to(dtype), size), pixel_centre((row % size).to(dtype), size)
 
-    def _pixel_boxes(self, params: torch.Tensor) -> tuple[torch.Tensor, ...]:
-        """Per face: first column and row, width and height of its bounding box grown by the
-        cut-off radius, clipped to the image."""
-        xs, ys = params[0:6:2], params[1:6:2]
-        i0, width = pixel_span(xs.amin(0), xs.amax(0), self.config, TORCH_OPS)
-        j0, height = pixel_span(ys.amin(0), ys.amax(0), self.config, TORCH_OPS)
-        return i0.long(), j0.long(), width.long(), height.long()
+def coverage_depth(pairs: Pairs, params: torch.Tensor, config: PipelineConfig):
+    """(P,) coverage D' and normalised inverse depth of a chunk of pairs (``pair_terms``)."""
+    terms = _fused(pair_terms, config, params.device.type)
+    return terms(params.index_select(1, pairs.face), pairs.px, pairs.py)
 
-    def _candidates(
-        self, screen: ScreenFaces, depth_cull: bool
-    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        cfg = self.config
-        size = cfg.image_size
-        params = screen.params.detach()
-        device = params.device
-        logit_max = torch.full(
-            (screen.num_views * size * size,),
-            background_logit(cfg),
-            dtype=params.dtype,
-            device=device,
-        )
-        i0, j0, width, height = self._pixel_boxes(params)
-        counts = width * height * screen.visible
-        view = torch.arange(screen.num_views, device=device).repeat_interleave(screen.num_faces)
-        # Global row (view * size + row) of each face's first pixel row, and its first column.
-        first_row = view * size + j0
-        empty = torch.zeros(0, dtype=torch.long, device=device)
-        pixels, faces, logits = [empty], [empty], [params.new_zeros(0)]
-        for face_ids in self._face_chunks(counts):
-            n = counts[face_ids]
-            pair_face = face_ids.repeat_interleave(n)
-            start = torch.cumsum(n, 0) - n
-            local = torch.arange(int(n.sum()), device=device) - start.repeat_interleave(n)
-            w = width.index_select(0, pair_face)
-            row = first_row.index_select(0, pair_face) + local // w
-            col = i0.index_select(0, pair_face) + local % w
-            px, py = self._pixel_ndc(col, row, params.dtype)
-            tri = params.index_select(1, pair_face)
-            coverage, depth = pair_terms(tri, px, py, cfg, TORCH_OPS)
-            kept = torch.nonzero(coverage > 0).squeeze(1)
-            pixel = (row * size + col).index_select(0, kept)
-            coverage, depth = coverage.index_select(0, kept), depth.index_select(0, kept)
-            logit = pair_logit(coverage, depth, cfg, TORCH_OPS)
-            TORCH_OPS.scatter_max(logit_max, pixel, logit)
-            pixels.append(pixel)
-            faces.append(pair_face.index_select(0, kept))
-            logits.append(logit)
-        pixel, face, logit = torch.cat(pixels), torch.cat(faces), torch.cat(logits)
-        if depth_cull:
-            kept = torch.nonzero(logit >= logit_max.index_select(0, pixel) - DEPTH_CULL).squeeze(1)
-            pixel, face = pixel.index_select(0, kept), face.index_select(0, kept)
-        return pixel, face, logit_max
+
+@torch.no_grad()
+def kept_pairs(plan: PairPlan, params: torch.Tensor, depth_cull: bool) -> KeptPairs:
+    """The plan's pairs that make the image, listed once: one host wait (their count).
+
+    Every enumerated pair's terms are kept until each pixel's largest logit is known, then the
+    kept ones gathered; about 16 bytes a pair while it runs."""
+    cfg = plan.config
+    total = plan.num_pairs()
+    int32 = dict(dtype=torch.int32, device=params.device)
+    pixel, face = torch.empty(total, **int32), torch.empty(total, **int32)
+    coverage, depth = params.new_empty(total), params.new_empty(total)
+    shift = params.new_full((plan.num_pixels,), background_logit(cfg))
+    start = 0
+    for pairs in plan:
+        part = slice(start, start + len(pairs.pixel))
+        pixel[part], face[part] = pairs.pixel, pairs.face
+        coverage[part], depth[part] = coverage_depth(pairs, params, cfg)
+        # an uncovered pair's logit is log 0 = -inf, which leaves the maximum as it is
+        logit = pair_logit(coverage[part], depth[part], cfg, TORCH_OPS)
+        TORCH_OPS.scatter_max(shift, pairs.pixel, logit)
+        start = part.stop
+    keep = coverage > 0
+    if depth_cull:
+        for first in range(0, total, pair_chunk(params.device)):
+            part = slice(first, first + pair_chunk(params.device))
+            logit = pair_logit(coverage[part], depth[part], cfg, TORCH_OPS)
+            keep[part] &= logit >= shift.index_select(0, pixel[part]) - DEPTH_CULL
+    index = torch.nonzero(keep).squeeze(1)
+    kept = (t.index_select(0, index) for t in (pixel, face, coverage, depth))
+    return KeptPairs(plan, *kept, shift)
+
+
+class Shader:
+    """Per-pair terms summed per pixel (``pixel_sums``), and their slopes for the backward:
+    ``values(pairs, colors) -> (C, P)``; ``slopes(pairs, colors, grad (C, P)) -> (d/d coverage,
+    d/d depth, d/d each pair's colour or None)`` of sum(grad * values), for a chunk of pairs."""
+
+    channels: int
+
+    def values(self, pairs: KeptPairs, colors: torch.Tensor) -> torch.Tensor:
+        raise NotImplementedError
+
+    def slopes(self, pairs: KeptPairs, colors: torch.Tensor, grad: torch.Tensor):
+        raise NotImplementedError
+
+
+class _PixelSums(torch.autograd.Function):
+    """Per pixel, the sum over its kept pairs of a shader's terms. Backward recomputes each
+    chunk's pair terms and sends the gradient to the faces by ``pair_terms_grad``."""
 
     @staticmethod
-    def _face_chunks(counts: torch.Tensor) -> list[torch.Tensor]:
-        """Split face ids into runs of about PAIR_CHUNK pairs (one face's pairs stay together)."""
-        ids = torch.nonzero(counts).squeeze(1)
-        if ids.numel() == 0:
-            return []
-        cumulative = torch.cumsum(counts[ids], 0)
-        bucket = torch.div(cumulative - 1, PAIR_CHUNK, rounding_mode="floor")
-        return [chunk for chunk in torch.split(ids, torch.bincount(bucket).tolist()) if len(chunk)]
+    def forward(ctx, pairs: KeptPairs, shader: Shader, params, colors):
+        sums = params.new_zeros(shader.channels, pairs.plan.num_pixels)
+        for chunk in pairs.chunks():
+            sums.index_add_(1, chunk.pixel, shader.values(chunk, colors))
+        ctx.pairs, ctx.shader = pairs, shader
+        ctx.save_for_backward(params, colors)
+        return sums
+
+    @staticmethod
+    def backward(ctx, grad: torch.Tensor):
+        params, colors = ctx.saved_tensors
+        pairs, shader, config = ctx.pairs, ctx.shader, ctx.pairs.plan.config
+        grad_params, grad_colors = torch.zeros_like(params), torch.zeros_like(colors)
+        for chunk in pairs.chunks():
+            pair_grad = grad.index_select(1, chunk.pixel)
+            grad_coverage, grad_depth, grad_color = shader.slopes(chunk, colors, pair_grad)
+            tri = params.index_select(1, chunk.face)
+            px, py = chunk.centres()
+            terms_grad = _fused(pair_terms_grad, config, params.device.type)
+            grad_tri = terms_grad(tri, px, py, grad_coverage, grad_depth)
+            grad_params.index_add_(1, chunk.face, grad_tri)
+            if grad_color is not None:
+                grad_colors.index_add_(0, chunk.face, grad_color)
+        return None, None, grad_params, grad_colors
+
+
+def pixel_sums(
+    pairs: KeptPairs, shader: Shader, params: torch.Tensor, colors: torch.Tensor
+) -> torch.Tensor:
+    """(C, views * S * S): per pixel, the sum of the shader's terms over its kept pairs;
+    differentiable with respect to the faces' ``params`` (9, N) and ``colors`` (N,)."""
+    return _PixelSums.apply(pairs, shader, params, colors)

@@ -5,43 +5,62 @@ from __future__ import annotations
 from typing import Literal
 
 import torch
+from torch import nn
 
+from .batch import MeshBatch
 from .cameras import Cameras, make_cameras
 from .config import PipelineConfig
-from .rasterize import Fragments, SoftRasterizer, to_screen
+from .rasterize import KeptPairs, PairPlan, kept_pairs, to_screen
+from .render_math import ScreenFaces
 from .shade import face_shading, silhouette, soft_blend
 
 RenderMode = Literal["shaded", "silhouette"]
 
 
-class Renderer:
-    """Renders a mesh from the config's cameras.
+class Renderer(nn.Module):
+    """Renders meshes from the config's K cameras, which it holds as buffers (``.to()`` moves
+    them).
 
     ``render(verts (V, 3), faces (F, 3)) -> (K, S, S)`` grey images in [0, 1], differentiable
-    with respect to ``verts``. Faces with a vertex in front of the near plane are dropped.
+    with respect to ``verts``; a batch of B meshes (any form ``MeshBatch.of`` takes) -> (B * K,
+    S, S), mesh b's views at b * K .. (b + 1) * K. Faces with a vertex in front of the near
+    plane are dropped.
     """
 
     def __init__(self, config: PipelineConfig, cameras: Cameras | None = None):
+        super().__init__()
         self.config = config
         self.cameras = cameras if cameras is not None else make_cameras(config)
-        self.rasterizer = SoftRasterizer(config)
+        for name in ("rotations", "eyes"):
+            value = torch.as_tensor(getattr(self.cameras, name), dtype=torch.float64)
+            self.register_buffer(name, value, persistent=False)
 
-    def render(
-        self, verts: torch.Tensor, faces: torch.Tensor, mode: RenderMode = "shaded"
-    ) -> torch.Tensor:
-        num_views = len(self.cameras)
-        if mode == "silhouette":
-            _, fragments = self.rasterize(verts, faces, depth_cull=False)
-            return silhouette(fragments, num_views, self.config)
-        if mode != "shaded":
+    def render(self, verts, faces=None, mode: RenderMode = "shaded") -> torch.Tensor:
+        if mode not in ("shaded", "silhouette"):
             raise ValueError(f"unknown render mode {mode!r}; use 'shaded' or 'silhouette'")
-        verts_cam, fragments = self.rasterize(verts, faces, depth_cull=True)
-        colors = face_shading(verts_cam, faces, self.config)
-        return soft_blend(fragments, colors, num_views, self.config)
+        meshes = MeshBatch.of(verts, faces)
+        verts_cam, screen = self.screen(meshes)
+        pairs = kept_pairs(PairPlan(screen, self.config), screen.params, mode == "shaded")
+        if mode == "silhouette":
+            return silhouette(pairs, screen.params)
+        colors = face_shading(verts_cam, meshes.faces, self.config)
+        return soft_blend(pairs, screen.params, colors)
 
-    def rasterize(
-        self, verts: torch.Tensor, faces: torch.Tensor, depth_cull: bool
-    ) -> tuple[torch.Tensor, Fragments]:
-        """(V, 3), (F, 3) -> (K, V, 3) camera-frame vertices and the views' fragments."""
-        verts_cam, screen = to_screen(verts, faces, self.cameras, self.config)
-        return verts_cam, self.rasterizer(screen, depth_cull=depth_cull)
+    @torch.no_grad()
+    def rasterize(self, verts, faces=None, depth_cull: bool = True) -> KeptPairs:
+        """The pixel-face pairs the views are made of (no autograd), for analysis."""
+        meshes = MeshBatch.of(verts, faces)
+        _, screen = self.screen(meshes)
+        return kept_pairs(PairPlan(screen, self.config), screen.params, depth_cull)
+
+    def screen(self, meshes: MeshBatch) -> tuple[torch.Tensor, ScreenFaces]:
+        """-> (B, K, V, 3) camera-frame vertices and the faces projected into the B * K views,
+        padding faces hidden."""
+        verts_cam, screen = to_screen(
+            meshes.verts, meshes.faces, self.rotations, self.eyes, self.cameras.focal, self.config
+        )
+        if meshes.face_valid is not None:
+            views = len(self.cameras)
+            valid = meshes.face_valid[:, None].expand(-1, views, -1).reshape(-1)
+            screen.visible = screen.visible & valid
+        return verts_cam, screen

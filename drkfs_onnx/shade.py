@@ -1,5 +1,6 @@
-"""Shaders for rasterised fragments (torch): grey Lambertian faces with SoftRas' soft blend, and
-silhouettes. The equations are ``render_math``'s, shared with the numpy renderer."""
+"""Shaders of a screen's kept pixel-face pairs (torch): grey Lambertian faces with SoftRas' soft
+blend, and silhouettes. The equations are ``render_math``'s, shared with the numpy renderer;
+the pairs' sums and their backward are ``rasterize.pixel_sums``'."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ import torch
 
 from . import render_math
 from .config import PipelineConfig
-from .rasterize import TORCH_OPS, Fragments
+from .rasterize import TORCH_OPS, KeptPairs, Shader, pixel_sums
 
 SATURATED = 1.0 - 1e-6
 
@@ -15,28 +16,60 @@ SATURATED = 1.0 - 1e-6
 def face_shading(
     verts_cam: torch.Tensor, faces: torch.Tensor, config: PipelineConfig
 ) -> torch.Tensor:
-    """(K, V, 3) camera-frame vertices, (F, 3) faces -> (K*F,) grey value per face
+    """(B, K, V, 3) camera-frame vertices, (B, F, 3) faces -> (B*K*F,) grey value per face
     (``render_math.face_shading``)."""
     return render_math.face_shading(verts_cam, faces, config, TORCH_OPS)
 
 
-def soft_blend(
-    fragments: Fragments, face_colors: torch.Tensor, num_views: int, config: PipelineConfig
-) -> torch.Tensor:
-    """SoftRas aggregation -> (K, S, S) grey images (``render_math.soft_blend``)."""
-    size = config.image_size
-    logit = render_math.pair_logit(fragments.coverage, fragments.depth, config, TORCH_OPS)
-    image = render_math.soft_blend(
-        fragments.pixel, fragments.face, logit, fragments.logit_max, face_colors, config, TORCH_OPS
-    )
-    return image.reshape(num_views, size, size)
+class Blend(Shader):
+    """A pair's blend weight w = exp(logit - logit_max) times its face's colour, and w: the
+    numerator and denominator of ``render_math.blend_image``."""
+
+    channels = 2
+
+    def _weight(self, pairs: KeptPairs) -> torch.Tensor:
+        logit = render_math.pair_logit(pairs.coverage, pairs.depth, pairs.plan.config, TORCH_OPS)
+        shift = pairs.logit_max.index_select(0, pairs.pixel)
+        return render_math.blend_weight(logit, shift, TORCH_OPS)
+
+    def values(self, pairs: KeptPairs, colors: torch.Tensor) -> torch.Tensor:
+        weight = self._weight(pairs)
+        return torch.stack([weight * colors.index_select(0, pairs.face), weight])
+
+    def slopes(self, pairs: KeptPairs, colors: torch.Tensor, grad: torch.Tensor):
+        weight, color = self._weight(pairs), colors.index_select(0, pairs.face)
+        # d/d logit of grad_n * w * C + grad_d * w, with logit = log D' + depth / gamma
+        grad_logit = weight * (grad[0] * color + grad[1])
+        gamma = pairs.plan.config.gamma
+        return grad_logit / pairs.coverage, grad_logit / gamma, grad[0] * weight
 
 
-def silhouette(fragments: Fragments, num_views: int, config: PipelineConfig) -> torch.Tensor:
-    """alpha = 1 - prod_j (1 - D_j) -> (K, S, S); needs fragments rasterised without depth cull."""
-    size = config.image_size
-    log_clear = torch.log1p(-fragments.coverage.clamp_max(SATURATED))
-    total = fragments.logit_max.new_zeros(num_views * size * size).index_add(
-        0, fragments.pixel, log_clear
-    )
-    return (1.0 - torch.exp(total)).reshape(num_views, size, size)
+class Silhouette(Shader):
+    """log(1 - D') of each pair: summed per pixel, the log of its share left uncovered."""
+
+    channels = 1
+
+    def values(self, pairs: KeptPairs, colors: torch.Tensor) -> torch.Tensor:
+        return torch.log1p(-pairs.coverage.clamp_max(SATURATED))[None]
+
+    def slopes(self, pairs: KeptPairs, colors: torch.Tensor, grad: torch.Tensor):
+        coverage = pairs.coverage
+        slope = torch.where(coverage < SATURATED, -1.0 / (1.0 - coverage), 0.0)
+        return grad[0] * slope, torch.zeros_like(coverage), None
+
+
+def soft_blend(pairs: KeptPairs, params: torch.Tensor, face_colors: torch.Tensor) -> torch.Tensor:
+    """SoftRas aggregation of the kept pairs -> (views, S, S) grey images
+    (``render_math.blend_image``)."""
+    config, size = pairs.plan.config, pairs.plan.config.image_size
+    numerator, denominator = pixel_sums(pairs, Blend(), params, face_colors)
+    image = render_math.blend_image(numerator, denominator, pairs.logit_max, config, TORCH_OPS)
+    return image.reshape(pairs.plan.num_views, size, size)
+
+
+def silhouette(pairs: KeptPairs, params: torch.Tensor) -> torch.Tensor:
+    """alpha = 1 - prod_j (1 - D_j) over every covered pair (kept without depth cull) ->
+    (views, S, S)."""
+    size = pairs.plan.config.image_size
+    (total,) = pixel_sums(pairs, Silhouette(), params, params.new_zeros(0))
+    return (1.0 - torch.exp(total)).reshape(pairs.plan.num_views, size, size)

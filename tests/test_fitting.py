@@ -17,7 +17,6 @@ import trimesh
 from typer.testing import CliRunner
 
 from drkfs_onnx.cli import app
-from drkfs_onnx.fitting.geometry import Smoothness, chamfer, surface_points
 from drkfs_onnx.fitting.judges import METRICS, VISUAL, Judge
 from drkfs_onnx.fitting.landscape import AGREEMENT, CHECKS, probe
 from drkfs_onnx.fitting.losses import (
@@ -52,6 +51,7 @@ from drkfs_onnx.fitting.study import (
     slug,
     study_recipes,
 )
+from drkfs_onnx.geometry import Smoothness, chamfer, surface_points
 from drkfs_onnx.synthetic.shapes import Part, assemble, random_shape
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -16,9 +16,9 @@ import numpy as np
 import torch
 
 from ..benchmark.point_metrics import sample_surface
+from ..geometry import Smoothness, chamfer, surface_points
 from ..loss import DrkfsLoss
 from ..metric import DRKFS
-from .geometry import Smoothness, chamfer, surface_points
 
 CHAMFER_SAMPLES = 2000  # points drawn on the prediction each step
 TARGET_SAMPLES = 5000  # points on the target, drawn once

@@ -34,10 +34,11 @@ from torch import nn
 
 from ..benchmark.point_metrics import sample_surface
 from ..config import PipelineConfig
+from ..geometry import Smoothness
+from ..loss import StagedTarget
 from ..mesh import frame_of, place
 from ..synthetic.shapes import assemble, random_shape
 from .gallery import write_gallery
-from .geometry import Smoothness
 from .judges import HIGHER_IS_BETTER, SURFACE, UNSEEN_VIEWS, VISUAL, Judge
 from .losses import CHAMFER, PIXEL, Recipe, Terms, alone, with_chamfer, with_pixel
 from .mesh_fit import DrkfsTerm, deterministic_kernels, float_tensor
@@ -237,6 +238,15 @@ def targets(recipe: Recipe, train: list[Shape], faces: torch.Tensor, terms: Term
     return [[(w, terms.term(t, s.verts, s.faces, faces)) for w, t in recipe.terms] for s in train]
 
 
+def term_mean(terms: list, predicted: torch.Tensor, progress: float) -> torch.Tensor:
+    """The mean over a batch of one term, each prediction (B, V, 3) against its own shape's:
+    a DR-KFS term in one call of its loss for the whole batch, the others shape by shape."""
+    if isinstance(terms[0], DrkfsTerm):
+        target = StagedTarget.stack([term.target for term in terms])
+        return terms[0].loss(predicted, terms[0].faces, target, progress)
+    return torch.stack([term(verts) for term, verts in zip(terms, predicted, strict=True)]).mean()
+
+
 @deterministic_kernels()
 def train(plan: NetworkPlan, recipe: Recipe, points: torch.Tensor, shape_terms: list, progress):
     """One network trained with ``recipe`` on the training shapes' input ``points`` (S, N, 3)
@@ -255,13 +265,12 @@ def train(plan: NetworkPlan, recipe: Recipe, points: torch.Tensor, shape_terms: 
     for step in range(plan.steps):
         batch = rng.choice(len(points), size=plan.batch, replace=False)
         predicted = model(points[batch])
-        values = []
-        for verts, index in zip(predicted, batch, strict=True):
-            for _, term in shape_terms[index]:
-                if isinstance(term, DrkfsTerm):
-                    term.at(step / plan.steps)
-            values.append(torch.stack([term(verts) for _, term in shape_terms[index]]))
-        values = torch.stack(values).mean(0)  # (terms,)
+        values = torch.stack(
+            [
+                term_mean([shape_terms[i][slot][1] for i in batch], predicted, step / plan.steps)
+                for slot in range(len(recipe.terms))
+            ]
+        )  # (terms,)
         if scales is None:
             scales = values.detach().clamp_min(1e-12)
         objective = (weights * values / scales).sum()

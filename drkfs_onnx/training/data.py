@@ -84,11 +84,11 @@ def random_light(config: PipelineConfig, rng: np.random.Generator) -> tuple[floa
 def hard_depth(renderer: Renderer, verts: torch.Tensor, faces: torch.Tensor) -> torch.Tensor:
     """(K, S, S) normalised inverse depth of the nearest face covering each pixel centre, else 0."""
     cfg = renderer.config
-    _, frags = renderer.rasterize(verts, faces, depth_cull=True)
+    frags = renderer.rasterize(verts, faces, depth_cull=True)
     # D' >= (0.5 - eps) / (1 - eps) exactly where the pixel centre lies inside the face
     inside = frags.coverage >= (0.5 - cfg.coverage_eps) / (1 - cfg.coverage_eps)
     depth = torch.zeros(len(renderer.cameras) * cfg.image_size**2, dtype=verts.dtype)
-    depth.scatter_reduce_(0, frags.pixel[inside], frags.depth[inside].detach(), reduce="amax")
+    depth.scatter_reduce_(0, frags.pixel[inside].long(), frags.depth[inside], reduce="amax")
     return depth.view(len(renderer.cameras), cfg.image_size, cfg.image_size)
 
 

@@ -1,0 +1,263 @@
+"""Benchmark of the batched training loss against the per-mesh loop, in the same run.
+
+    python bench/torch_batch.py [--out bench/results/torch_batch.json] [--devices cpu,cuda]
+                                [--sizes 1,8,32] [--stages coarse,fine] [--threads 2]
+                                [--repeats 3] [--no-before] [--loop-sizes 1,8,32]
+                                [--before-archive TAR]
+
+For each device (CUDA where torch sees one), each stage of ``DrkfsLoss.pretrained()`` (coarse:
+progress 0; fine: progress 1) and each batch size B (128 too on CUDA), B predictions (the
+network study's 2,560-face prediction, ``network.loss_step_case``, nudged B ways) against the
+study's chair, forward+backward:
+
+- **batched**: one call for the whole batch: seconds per batch and per mesh, peak memory of
+  the step, pixel-face pairs enumerated and kept, host waits (CUDA, counted under
+  ``torch.cuda.set_sync_debug_mode("warn")``) and kernel launches (CUDA);
+- **loop**: the same code called mesh by mesh, as a user without batches would;
+- **before**: the per-mesh loop of the code before batches (commit ``BEFORE``, exported from
+  git into a temporary folder and run in a child process), where git has it;
+- **chamfer_l2**: Chamfer-L2 of the same batch, 5,000 points a mesh against 5,000 on the chair,
+  by ``torch.cdist``, forward+backward.
+
+Each batched case runs in a child process of its own, so its peak memory (CPU: the rise of the
+maximum resident set over the step) is its own. Ratios are taken within the run; absolute times
+are noisy here.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import torch
+
+ROOT = Path(__file__).resolve().parents[1]
+BEFORE = "ecf7222"  # the last commit whose torch path took one mesh per call
+STAGES = {"coarse": 0.0, "fine": 1.0}
+POINTS = 5000
+
+# The case every row times: identical in this code and in the code before batches.
+CASE = """
+import torch
+from drkfs_onnx.fitting.network import loss_step_case
+from drkfs_onnx.loss import DrkfsLoss
+
+prediction, faces, truth, _ = loss_step_case()
+nudges = 0.01 * torch.randn(SIZE, *prediction.shape, generator=torch.Generator().manual_seed(1))
+loss = DrkfsLoss.pretrained().to(DEVICE)
+faces, truth = faces.to(DEVICE), tuple(t.to(DEVICE) for t in truth)
+preds = (prediction[None] + nudges).to(DEVICE)
+target = loss.target(*truth)
+"""
+
+LOOP = """
+import json, time
+def sync():
+    if DEVICE == "cuda":
+        torch.cuda.synchronize()
+def step():
+    for verts in preds:
+        moved = verts.clone().requires_grad_(True)
+        loss(moved, faces, target, PROGRESS).backward()
+    sync()
+step()
+times = []
+for _ in range(REPEATS):
+    start = time.perf_counter()
+    step()
+    times.append(time.perf_counter() - start)
+print(json.dumps({"seconds": min(times)}))
+"""
+
+
+def synchronize(device: str) -> None:
+    if device == "cuda":
+        torch.cuda.synchronize()
+
+
+def child(code: str, path: Path, **values) -> dict:
+    """Run ``code`` (the case, then a body printing one JSON line) with ``path`` first on
+    sys.path and the capitals in ``values`` set -> the JSON it printed."""
+    header = "".join(f"{name} = {value!r}\n" for name, value in values.items())
+    script = f"import sys\nsys.path.insert(0, {str(path)!r})\n" + header + code
+    script += "\nimport drkfs_onnx\nassert drkfs_onnx.__file__.startswith(sys.path[0])\n"
+    run = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, check=False, cwd=path
+    )
+    if run.returncode != 0:
+        raise RuntimeError(f"child run failed:\n{run.stderr[-3000:]}")
+    return json.loads(run.stdout.strip().splitlines()[-1])
+
+
+def before_tree(folder: Path, archive: Path | None) -> Path | None:
+    """The code before batches in ``folder``: from ``archive`` (a tar of ``git archive BEFORE
+    drkfs_onnx runtime export pyproject.toml``, for a machine without the repository's history)
+    or from git; None where neither has it. The weights are this checkout's ``models/``,
+    unchanged since."""
+    if archive is None:
+        files = ["drkfs_onnx", "runtime", "export", "pyproject.toml"]
+        run = subprocess.run(
+            ["git", "-C", str(ROOT), "archive", BEFORE, *files], capture_output=True, check=False
+        )
+        if run.returncode != 0:
+            return None
+        data = run.stdout
+    else:
+        data = archive.read_bytes()
+    subprocess.run(["tar", "-x", "-C", str(folder)], input=data, check=True)
+    (folder / "models").symlink_to(ROOT / "models")
+    return folder
+
+
+BATCHED = """
+import json, resource, time, warnings
+from drkfs_onnx.batch import MeshBatch
+from drkfs_onnx.mesh import place_by
+from drkfs_onnx.rasterize import PairPlan
+
+def sync():
+    if DEVICE == "cuda":
+        torch.cuda.synchronize()
+
+def step():
+    moved = preds.clone().requires_grad_(True)
+    loss(moved, faces, target, PROGRESS).backward()
+    sync()
+
+found = {}
+if DEVICE == "cuda":
+    step()
+    torch.cuda.reset_peak_memory_stats()
+    base = torch.cuda.memory_allocated()
+    step()
+    found["peak_memory_bytes"] = torch.cuda.max_memory_allocated() - base
+    torch.cuda.set_sync_debug_mode("warn")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        step_moved = preds.clone().requires_grad_(True)
+        loss(step_moved, faces, target, PROGRESS).backward()
+    torch.cuda.set_sync_debug_mode("default")
+    sync()
+    found["host_waits"] = sum("synchroniz" in str(w.message) for w in caught)
+    with torch.profiler.profile(activities=[torch.profiler.ProfilerActivity.CUDA]) as prof:
+        step()
+    found["kernel_launches"] = sum(
+        1 for e in prof.events() if e.device_type == torch.autograd.DeviceType.CUDA
+    )
+else:  # the rise of the maximum resident set over the first step, one-time allocations too
+    base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    step()
+    found["peak_memory_bytes"] = (resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - base) * 1024
+stage = loss.metrics[loss.stage(PROGRESS)]
+with torch.no_grad():
+    placed = place_by(preds, "joint", target[loss.stage(PROGRESS)].frame)
+    _, screen = stage.renderer.screen(MeshBatch.of(placed, faces))
+    found["pairs_enumerated"] = PairPlan(screen, stage.config).num_pairs()
+    found["pairs_kept"] = len(stage.renderer.rasterize(placed, faces).pixel)
+times = []
+for _ in range(REPEATS):
+    start = time.perf_counter()
+    step()
+    times.append(time.perf_counter() - start)
+found["seconds"] = min(times)
+print(json.dumps(found))
+"""
+
+
+def chamfer_seconds(device: str, size: int, repeats: int) -> float:
+    """Chamfer-L2 by ``torch.cdist`` of (size, POINTS, 3) against (size, POINTS, 3),
+    forward+backward: the best of ``repeats``."""
+    generator = torch.Generator().manual_seed(0)
+    points = torch.rand(size, POINTS, 3, generator=generator).to(device)
+    truth = torch.rand(size, POINTS, 3, generator=generator).to(device)
+
+    def step() -> None:
+        moved = points.clone().requires_grad_(True)
+        squared = torch.cdist(moved, truth) ** 2
+        (squared.min(2).values.mean() + squared.min(1).values.mean()).backward()
+        synchronize(device)
+
+    step()
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        step()
+        times.append(time.perf_counter() - start)
+    return min(times)
+
+
+def case_rows(device: str, stage: str, size: int, args, old: Path | None) -> dict:
+    values = dict(DEVICE=device, SIZE=size, PROGRESS=STAGES[stage], REPEATS=args.repeats)
+    threads = "import torch\n" + (
+        f"torch.set_num_threads({args.threads})\n" if device == "cpu" else ""
+    )
+    batched = child(threads + CASE + BATCHED, ROOT, **values)
+    row = {
+        "device": device,
+        "stage": stage,
+        "batch": size,
+        "batched": {**batched, "seconds_per_mesh": batched["seconds"] / size},
+        "chamfer_l2_seconds": chamfer_seconds(device, size, args.repeats),
+    }
+    row["batched_over_chamfer"] = batched["seconds"] / row["chamfer_l2_seconds"]
+    if size not in [int(s) for s in args.loop_sizes.split(",")]:
+        return row
+    loops = {"loop": ROOT} if old is None else {"loop": ROOT, "before": old}
+    for name, path in loops.items():
+        seconds = child(threads + CASE + LOOP, path, **values)["seconds"]
+        row[name] = {"seconds": seconds, "seconds_per_mesh": seconds / size}
+        row[f"batched_over_{name}"] = batched["seconds"] / seconds
+    return row
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", type=Path, default=None)
+    parser.add_argument("--devices", default="cpu,cuda")
+    parser.add_argument("--sizes", default="1,8,32")
+    parser.add_argument("--stages", default="coarse,fine")
+    parser.add_argument("--loop-sizes", default="1,8,32", help="the sizes the loops run at")
+    parser.add_argument("--threads", type=int, default=2)
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--no-before", action="store_true", help="skip the code before batches")
+    parser.add_argument("--before-archive", type=Path, default=None)
+    args = parser.parse_args()
+    torch.set_num_threads(args.threads)
+    devices = [d for d in args.devices.split(",") if d != "cuda" or torch.cuda.is_available()]
+    rows = []
+    with tempfile.TemporaryDirectory() as folder:
+        old = None if args.no_before else before_tree(Path(folder), args.before_archive)
+        for device in devices:
+            sizes = [int(s) for s in args.sizes.split(",")] + ([128] if device == "cuda" else [])
+            for stage in args.stages.split(","):
+                for size in sizes:
+                    row = case_rows(device, stage, size, args, old)
+                    rows.append(row)
+                    print(json.dumps(row), flush=True)
+    result = {
+        "command": "python bench/torch_batch.py " + " ".join(sys.argv[1:]),
+        "before_commit": BEFORE if not args.no_before else None,
+        "machine": {
+            "processor": platform.processor() or platform.machine(),
+            "cpu_threads": args.threads,
+            "torch": torch.__version__,
+            "gpu": torch.cuda.get_device_name() if "cuda" in devices else None,
+        },
+        "rows": rows,
+    }
+    text = json.dumps(result, indent=2)
+    if args.out is None:
+        print(text)
+    else:
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        args.out.write_text(text + "\n")
+
+
+if __name__ == "__main__":
+    main()
