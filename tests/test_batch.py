@@ -52,7 +52,9 @@ def _assert_batch_equals_loop(batched, looped) -> None:
 @pytest.mark.parametrize("progress", [0.0, 1.0])  # the coarse stage and the loss preset
 def test_a_template_batch_equals_the_loop_with_a_shared_target(case, loss, progress):
     target = loss.target(*case.truth)
-    looped = [_value_and_grad(lambda v: loss(v, case.faces, target, progress), p) for p in case.preds]
+    looped = [
+        _value_and_grad(lambda v: loss(v, case.faces, target, progress), p) for p in case.preds
+    ]
     loop = (torch.stack([v for v, _ in looped]), torch.stack([g for _, g in looped]))
     batched = _value_and_grad(
         lambda v: loss(v, case.faces, target, progress, reduction="none"), case.preds
@@ -82,7 +84,8 @@ def test_meshes_of_different_sizes_equal_the_loop_in_every_form(loss):
     batch_target = loss.target(truths, faces)
     assert batch_target[0].batch == 3
     stacked = StagedTarget.stack(targets)
-    assert all(torch.equal(a.features, b.features) for a, b in zip(stacked, batch_target))
+    for one, batch in zip(stacked, batch_target, strict=True):
+        assert torch.equal(one.features, batch.features)
 
     counts = [len(v) for v in verts]
     offsets = np.cumsum([0] + counts[:-1])
