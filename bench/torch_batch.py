@@ -3,7 +3,7 @@
     python bench/torch_batch.py [--out bench/results/torch_batch.json] [--devices cpu,cuda]
                                 [--sizes 1,8,32] [--stages coarse,fine] [--threads 2]
                                 [--repeats 3] [--no-before] [--loop-sizes 1,8,32]
-                                [--before-archive TAR]
+                                [--compiled-sizes 32] [--before-archive TAR]
 
 For each device (CUDA where torch sees one), each stage of ``DrkfsLoss.pretrained()`` (coarse:
 progress 0; fine: progress 1) and each batch size B (128 too on CUDA), B predictions (the
@@ -16,6 +16,8 @@ study's chair, forward+backward:
 - **loop**: the same code called mesh by mesh, as a user without batches would;
 - **before**: the per-mesh loop of the code before batches (commit ``BEFORE``, exported from
   git into a temporary folder and run in a child process), where git has it;
+- **batched_compiled** (CPU, ``--compiled-sizes``): the batched call with the rasteriser's
+  equations compiled (``DRKFS_COMPILE=1``; a GPU compiles them by default);
 - **chamfer_l2**: Chamfer-L2 of the same batch, 5,000 points a mesh against 5,000 on the chair,
   by ``torch.cdist``, forward+backward.
 
@@ -28,6 +30,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import platform
 import subprocess
 import sys
@@ -81,14 +84,20 @@ def synchronize(device: str) -> None:
         torch.cuda.synchronize()
 
 
-def child(code: str, path: Path, **values) -> dict:
+def child(code: str, path: Path, env: dict | None = None, **values) -> dict:
     """Run ``code`` (the case, then a body printing one JSON line) with ``path`` first on
-    sys.path and the capitals in ``values`` set -> the JSON it printed."""
+    sys.path, the capitals in ``values`` set and ``env`` added to the environment -> the JSON
+    it printed."""
     header = "".join(f"{name} = {value!r}\n" for name, value in values.items())
     script = f"import sys\nsys.path.insert(0, {str(path)!r})\n" + header + code
     script += "\nimport drkfs_onnx\nassert drkfs_onnx.__file__.startswith(sys.path[0])\n"
     run = subprocess.run(
-        [sys.executable, "-c", script], capture_output=True, text=True, check=False, cwd=path
+        [sys.executable, "-c", script],
+        capture_output=True,
+        text=True,
+        check=False,
+        cwd=path,
+        env={**os.environ, **(env or {})},
     )
     if run.returncode != 0:
         raise RuntimeError(f"child run failed:\n{run.stderr[-3000:]}")
@@ -116,7 +125,7 @@ def before_tree(folder: Path, archive: Path | None) -> Path | None:
 
 
 BATCHED = """
-import json, resource, time, warnings
+import json, os, threading, time, warnings
 from drkfs_onnx.batch import MeshBatch
 from drkfs_onnx.mesh import place_by
 from drkfs_onnx.rasterize import PairPlan
@@ -150,10 +159,22 @@ if DEVICE == "cuda":
     found["kernel_launches"] = sum(
         1 for e in prof.events() if e.device_type == torch.autograd.DeviceType.CUDA
     )
-else:  # the rise of the maximum resident set over the first step, one-time allocations too
-    base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+else:  # the resident set's rise over the first step (one-time allocations too), sampled
+    def resident():
+        with open("/proc/self/statm") as statm:
+            return int(statm.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+    peak, done = [0], threading.Event()
+    def sample():
+        while not done.is_set():
+            peak[0] = max(peak[0], resident())
+            time.sleep(0.002)
+    base = resident()
+    sampler = threading.Thread(target=sample)
+    sampler.start()
     step()
-    found["peak_memory_bytes"] = (resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - base) * 1024
+    done.set()
+    sampler.join()
+    found["peak_memory_bytes"] = max(peak[0], resident()) - base
 stage = loss.metrics[loss.stage(PROGRESS)]
 with torch.no_grad():
     placed = place_by(preds, "joint", target[loss.stage(PROGRESS)].frame)
@@ -206,13 +227,18 @@ def case_rows(device: str, stage: str, size: int, args, old: Path | None) -> dic
         "chamfer_l2_seconds": chamfer_seconds(device, size, args.repeats),
     }
     row["batched_over_chamfer"] = batched["seconds"] / row["chamfer_l2_seconds"]
-    if size not in [int(s) for s in args.loop_sizes.split(",")]:
+    if device == "cpu" and size in [int(s) for s in args.compiled_sizes.split(",") if s]:
+        compiled = child(threads + CASE + BATCHED, ROOT, {"DRKFS_COMPILE": "1"}, **values)
+        row["batched_compiled"] = {**compiled, "seconds_per_mesh": compiled["seconds"] / size}
+    if size not in [int(s) for s in args.loop_sizes.split(",") if s]:
         return row
     loops = {"loop": ROOT} if old is None else {"loop": ROOT, "before": old}
     for name, path in loops.items():
         seconds = child(threads + CASE + LOOP, path, **values)["seconds"]
         row[name] = {"seconds": seconds, "seconds_per_mesh": seconds / size}
         row[f"batched_over_{name}"] = batched["seconds"] / seconds
+        if "batched_compiled" in row:
+            row[f"batched_compiled_over_{name}"] = row["batched_compiled"]["seconds"] / seconds
     return row
 
 
@@ -223,6 +249,9 @@ def main() -> None:
     parser.add_argument("--sizes", default="1,8,32")
     parser.add_argument("--stages", default="coarse,fine")
     parser.add_argument("--loop-sizes", default="1,8,32", help="the sizes the loops run at")
+    parser.add_argument(
+        "--compiled-sizes", default="32", help="CPU sizes also timed with DRKFS_COMPILE=1"
+    )
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--no-before", action="store_true", help="skip the code before batches")

@@ -179,9 +179,9 @@ def _check_range(faces: torch.Tensor, vertex_counts: torch.Tensor) -> None:
     if faces.numel() == 0:
         raise ValueError("faces: expected at least one face; got none")
     low, high = faces.amin(dim=(1, 2)), faces.amax(dim=(1, 2))
-    bad = torch.nonzero((low < 0) | (high >= vertex_counts)).flatten().tolist()
-    if bad:
+    bad = (low < 0) | (high >= vertex_counts)
+    if bad.any():  # the one wait; the message is built only for a bad batch
+        first = int(torch.nonzero(bad)[0])
         raise ValueError(
-            f"faces: mesh {bad[0]} has face indices outside its "
-            f"{int(vertex_counts[bad[0]])} vertices"
+            f"faces: mesh {first} has face indices outside its {int(vertex_counts[first])} vertices"
         )

@@ -6,20 +6,22 @@ p to the triangle (+ inside, - outside). Like SoftRas' kernel we cut D where it 
 continuous and the function stays smooth for gradients.
 
 Cost grows with the pixel-face pairs of each face's bounding box grown by the cut-off radius,
-not pixels x faces. Those pairs are never stored: a ``PairPlan`` enumerates them in chunks of
-``pair_chunk(device)`` pairs, and each pass recomputes a chunk's terms from the faces'
-parameters:
+not pixels x faces, and a batch of B meshes' K views is one screen of B * K views:
 
-1. a no-grad pass takes each pixel's largest blend logit;
-2. the forward pass sums each pixel's per-pair terms (``pixel_sums``); a pair hidden behind a
-   nearer face by more than ``DEPTH_CULL`` softmax logits (its weight below exp(-DEPTH_CULL) of
-   the front face's) or left uncovered weighs 0;
-3. the backward pass recomputes each chunk with autograd and sends the pixels' gradients to the
-   faces' parameters.
+1. a ``PairPlan`` enumerates the box pairs in chunks of ``pair_chunk(device)`` pairs (a CPU's
+   cache; millions on a GPU);
+2. ``kept_pairs`` computes their coverage and depth without autograd, each pixel's largest blend
+   logit, and lists once the pairs the image is made of: covered, and not hidden behind a
+   nearer face by more than ``DEPTH_CULL`` softmax logits (their weight is below
+   exp(-DEPTH_CULL) of the front face's);
+3. ``pixel_sums`` sums a shader's per-pair terms per pixel, and its backward recomputes each
+   chunk and sends the pixels' gradients to the faces by ``pair_terms_grad``, the gradient
+   written out, instead of keeping autograd's graph of every pair (14 GB for 32 meshes on a
+   GPU).
 
-Memory is one chunk's temporaries whatever the batch (the pairs kept for autograd were 14 GB
-for 32 meshes on a GPU), and the plan is the only host wait: two, whatever the batch.
-The equations are ``render_math``'s, shared with the numpy renderer.
+A step waits for the host three times whatever the batch: the plan's total and chunks, and the
+kept pairs' count. On a GPU the equations are compiled (``_fused``). The equations are
+``render_math``'s, shared with the numpy renderer.
 """
 
 from __future__ import annotations
@@ -130,7 +132,7 @@ class PairPlan:
         ends = torch.searchsorted(bucket, torch.arange(-(-total // chunk), device=bucket.device),
                                   right=True)  # fmt: skip
         sizes = torch.diff(cumulative[ends - 1], prepend=cumulative.new_zeros(1))
-        ends, sizes = ends.tolist(), sizes.tolist()
+        ends, sizes = torch.stack([ends, sizes]).tolist()  # one wait for both
         starts = [0] + ends[:-1]
         return [(s, e, n) for s, e, n in zip(starts, ends, sizes, strict=True) if n > 0]
 
@@ -193,15 +195,17 @@ class KeptPairs:
 
 @functools.cache
 def _fused(equation: Callable, config: PipelineConfig, device_type: str) -> Callable:
-    """``equation(*tensors, config, TORCH_OPS)`` as a function of its tensors: on a GPU
-    compiled by ``torch.compile`` (its hundred-odd elementwise steps fused into a few kernels,
-    where eagerly each is a kernel launch of its own), elsewhere or where ``DRKFS_COMPILE=0``
-    as it is."""
+    """``equation(*tensors, config, TORCH_OPS)`` as a function of its tensors, compiled by
+    ``torch.compile`` where ``DRKFS_COMPILE`` asks: its hundred-odd elementwise steps fused into
+    a few kernels, where eagerly each is a pass over memory (and on a GPU a launch) of its own.
+    'auto' (default): on a GPU; '1': everywhere (on a CPU it needs a C++ compiler, and the first
+    call of each stage takes a minute on 2 cores); '0': nowhere."""
 
     def eager(*tensors):
         return equation(*tensors, config, TORCH_OPS)
 
-    if device_type != "cuda" or os.environ.get("DRKFS_COMPILE", "1") == "0":
+    wanted = os.environ.get("DRKFS_COMPILE", "auto")
+    if wanted == "0" or (wanted == "auto" and device_type != "cuda"):
         return eager
     return torch.compile(eager, dynamic=True)
 

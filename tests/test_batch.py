@@ -208,3 +208,24 @@ def test_the_geometry_terms_take_batches():
     assert torch.allclose(smooth(batch), (smooth(batch[0]) + smooth(batch[1])) / 2)
     with pytest.raises(ValueError, match="unknown norm 3"):
         chamfer(points, truth, 3)
+
+
+def test_the_batch_benchmark_writes_its_rows(tmp_path):
+    """bench/torch_batch.py at its smallest: one batched case with its pairs, memory and the
+    batch's Chamfer-L2 beside it, as JSON."""
+    import json
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    script = Path(__file__).resolve().parents[1] / "bench" / "torch_batch.py"
+    out = tmp_path / "batch.json"
+    args = ["--devices", "cpu", "--sizes", "2", "--stages", "fine", "--repeats", "1"]
+    args += ["--no-before", "--loop-sizes", "", "--compiled-sizes", "", "--out", str(out)]
+    subprocess.run([sys.executable, str(script), *args], check=True, capture_output=True)
+    (row,) = json.loads(out.read_text())["rows"]
+    assert (row["device"], row["stage"], row["batch"]) == ("cpu", "fine", 2)
+    batched = row["batched"]
+    assert 0 < batched["pairs_kept"] <= batched["pairs_enumerated"]
+    assert batched["seconds_per_mesh"] == pytest.approx(batched["seconds"] / 2)
+    assert batched["peak_memory_bytes"] > 0 and row["chamfer_l2_seconds"] > 0
