@@ -244,8 +244,11 @@ def kept_pairs(plan: PairPlan, params: torch.Tensor, depth_cull: bool) -> KeptPa
             logit = pair_logit(coverage[part], depth[part], cfg, TORCH_OPS)
             keep[part] &= logit >= shift.index_select(0, pixel[part]) - DEPTH_CULL
     index = torch.nonzero(keep).squeeze(1)
-    kept = (t.index_select(0, index) for t in (pixel, face, coverage, depth))
-    return KeptPairs(plan, *kept, shift)
+    del keep
+    # one array at a time, each enumerated array freed once its kept pairs are taken
+    pixel, face = pixel.index_select(0, index), face.index_select(0, index)
+    coverage, depth = coverage.index_select(0, index), depth.index_select(0, index)
+    return KeptPairs(plan, pixel, face, coverage, depth, shift)
 
 
 class Shader:
