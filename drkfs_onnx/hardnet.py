@@ -16,6 +16,27 @@ def l2_normalize(x: torch.Tensor, eps: float = 1e-10) -> torch.Tensor:
     return x / torch.sqrt(torch.clamp_min((x * x).sum(dim=1, keepdim=True), eps))
 
 
+class _FrozenConvReLU(torch.autograd.Function):
+    """relu(conv(x)) for fixed weights, keeping for its backward only where the ReLU passed (a
+    bool an activation) and the weights, where autograd keeps the conv's input and the ReLU's
+    output (floats): a batch's HardNet activations were most of a training step's memory.
+    The gradient reaches ``x`` only."""
+
+    @staticmethod
+    def forward(ctx, x, weight, bias, stride, padding):
+        out = torch.relu_(nn.functional.conv2d(x, weight, bias, stride, padding))
+        ctx.save_for_backward(out > 0, weight)
+        ctx.geometry = (x.shape, stride, padding)
+        return out
+
+    @staticmethod
+    def backward(ctx, grad):
+        passed, weight = ctx.saved_tensors
+        shape, stride, padding = ctx.geometry
+        grad_x = nn.grad.conv2d_input(shape, weight, grad * passed, stride, padding)
+        return grad_x, None, None, None, None
+
+
 class HardNet(nn.Module):
     """Patch -> unit-length descriptor.
 
@@ -58,17 +79,18 @@ class HardNet(nn.Module):
         eps). One conv per layer instead of a conv and a normalisation, forward and backward.
         Dropout is the identity in evaluation mode."""
         layers = [m for m in self.features if not isinstance(m, nn.Dropout)]
+        # fixed nets on an input that needs a gradient (a training loss): the lean backward
+        lean = x.requires_grad and not any(p.requires_grad for p in self.parameters())
         for i, layer in enumerate(layers):
             if isinstance(layer, nn.Conv2d):
                 norm = layers[i + 1]
                 scale = torch.rsqrt(norm.running_var + norm.eps)
-                x = nn.functional.conv2d(
-                    x,
-                    layer.weight * scale[:, None, None, None],
-                    -norm.running_mean * scale,
-                    layer.stride,
-                    layer.padding,
-                )
-            elif isinstance(layer, nn.ReLU):
-                x = torch.relu_(x)  # in place: the conv's output is not needed for its backward
+                folded = (layer.weight * scale[:, None, None, None], -norm.running_mean * scale)
+                relu = i + 2 < len(layers) and isinstance(layers[i + 2], nn.ReLU)
+                if lean and relu:
+                    x = _FrozenConvReLU.apply(x, *folded, layer.stride, layer.padding)
+                    continue
+                x = nn.functional.conv2d(x, *folded, layer.stride, layer.padding)
+                if relu:  # in place: the conv's output is not needed for its backward
+                    x = torch.relu_(x)
         return x
