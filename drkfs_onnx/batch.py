@@ -113,6 +113,19 @@ class MeshBatch:
         _check_range(padded_faces, counts)
         return cls(padded_verts.reshape(len(verts), width, 3), padded_faces, valid)
 
+    def split(self, size: int) -> list[MeshBatch]:
+        """Runs of at most ``size`` meshes, in order."""
+        valid = self.face_valid
+        return [
+            MeshBatch(
+                self.verts[i : i + size],
+                self.faces[i : i + size],
+                None if valid is None else valid[i : i + size],
+                self.single,
+            )  # fmt: skip
+            for i in range(0, len(self), size)
+        ]
+
     def moved(self, verts: torch.Tensor) -> MeshBatch:
         """The same meshes with new (B, V, 3) vertex positions."""
         return MeshBatch(verts, self.faces, self.face_valid, self.single)

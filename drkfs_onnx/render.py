@@ -39,6 +39,12 @@ class Renderer(nn.Module):
         if mode not in ("shaded", "silhouette"):
             raise ValueError(f"unknown render mode {mode!r}; use 'shaded' or 'silhouette'")
         meshes = MeshBatch.of(verts, faces)
+        # on a CPU mesh by mesh, so that a mesh's pairs stay in cache (a batch's did not, and its
+        # step ran up to 1.2x slower a mesh than the loop's); on a GPU the whole batch at once
+        size = len(meshes) if meshes.verts.is_cuda else 1
+        return torch.cat([self._render(group, mode) for group in meshes.split(size)])
+
+    def _render(self, meshes: MeshBatch, mode: RenderMode) -> torch.Tensor:
         verts_cam, screen = self.screen(meshes)
         pairs = kept_pairs(PairPlan(screen, self.config), screen.params, mode == "shaded")
         if mode == "silhouette":

@@ -117,6 +117,11 @@ def test_evaluation_folds_batchnorm_into_the_convs_without_changing_descriptors(
     (grad_folded,) = torch.autograd.grad(folded.sum(), patches)
     (grad_layered,) = torch.autograd.grad(layered.sum(), patches)
     torch.testing.assert_close(grad_folded, grad_layered, atol=1e-4, rtol=1e-4)
+    # fixed weights (as in the metric): the lean backward, which keeps only the ReLU masks, gives
+    # the same gradient as autograd's through the same folded convs
+    net.requires_grad_(False)
+    (grad_lean,) = torch.autograd.grad(net(patches).sum(), patches)
+    torch.testing.assert_close(grad_lean, grad_folded, atol=1e-6, rtol=1e-6)
 
 
 def test_hardnet_ignores_patch_brightness_and_contrast():
