@@ -130,10 +130,6 @@ class MeshBatch:
         """The same meshes with new (B, V, 3) vertex positions."""
         return MeshBatch(verts, self.faces, self.face_valid, self.single)
 
-    def to(self, device: torch.device | str) -> MeshBatch:
-        valid = None if self.face_valid is None else self.face_valid.to(device)
-        return MeshBatch(self.verts.to(device), self.faces.to(device), valid, self.single)
-
     def unbatch(self, values: torch.Tensor) -> torch.Tensor:
         """(B, ...) per-mesh values -> (...) for a single mesh's input, else unchanged."""
         return values[0] if self.single else values
