@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-MESHES = ROOT.parent / "shared" / "meshes"
+MESHES = ROOT / "meshes"
 JITTER = 0.002
 RUNS = {
     "serial": [],

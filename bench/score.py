@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-MESHES = ROOT.parent / "shared" / "meshes"
+MESHES = ROOT / "meshes"
 CASES = {
     "chair (288 faces)": ROOT / "examples" / "chair.obj",
     "cow (5.8k faces)": MESHES / "cow.obj",

@@ -2,7 +2,7 @@
 
     python bench/torch_metric.py [--out bench/results/torch_metric.json] [--repeats 2]
 
-Meshes come from ../shared/meshes (read in place): woody (~1k faces), cow (~5k), rocker-arm
+Meshes come from the repository's meshes/ (read in place): woody (~1k faces), cow (~5k), rocker-arm
 (~20k), at the paper's config (25 views, 256 px). Each case runs in its own process so its peak
 memory (max RSS) is its own. The sparse renderer is compared with the dense reference of the
 tests at a size where the dense one runs, in the same run.
@@ -29,7 +29,7 @@ from dataclasses import asdict
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-MESHES = ROOT.parent / "shared" / "meshes"
+MESHES = ROOT / "meshes"
 CASES = {"1k": "woody.obj", "5k": "cow.obj", "20k": "rocker-arm.obj"}
 WIDTHS = (1.0, 0.5, 0.25)
 
@@ -233,7 +233,7 @@ def main() -> None:
         print(json.dumps(run_dense_comparison(args.repeats)))
         return
     if not MESHES.is_dir():
-        sys.exit(f"shared meshes not found at {MESHES}")
+        sys.exit(f"real meshes not found at {MESHES}")
     import torch
 
     repeats = ["--repeats", str(args.repeats)]

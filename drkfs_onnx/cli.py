@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import time
 from pathlib import Path
 from typing import Annotated
@@ -27,6 +28,29 @@ app = typer.Typer(help="DR-KFS visual similarity of 3D meshes (torch path).", no
 # Where train, export, bench and fit write unless --out says otherwise: never the shipped models/
 # or the committed bench/ results, which only an explicit --out replaces.
 RUNS = Path("runs")
+# the modules of the torch extra (pyproject.toml), as imported: a command that needs one on the
+# base install names the extra instead of a traceback
+TORCH_EXTRA = ("torch", "onnx", "onnxscript", "matplotlib", "scipy", "fast_simplification")
+
+
+RealMeshes = Annotated[
+    Path | None,
+    typer.Option(
+        help="The folder of the real meshes (meshes/README.md); default: the checkout's meshes/ "
+        "folder, or DRKFS_MESHES.",
+        show_default=False,
+    ),
+]
+
+
+def _use_meshes(folder: Path | None) -> None:
+    """Read the real meshes from ``folder`` (the benchmark's set reads DRKFS_MESHES)."""
+    if folder is None:
+        return
+    if not (folder / "cow.obj").is_file():
+        typer.echo(f"error: --meshes {folder}: no real meshes there (no cow.obj)", err=True)
+        raise typer.Exit(2)
+    os.environ["DRKFS_MESHES"] = str(folder.resolve())
 
 
 def _metric(config: PipelineConfig, normalize: str = "joint"):
@@ -146,9 +170,12 @@ def bench(
             "(docs/benchmark.md): adds the human-judgment check."
         ),
     ] = None,
+    meshes: RealMeshes = None,
 ) -> None:
     """Speed against accuracy: every method on the same variant sets, the chart, stability."""
     from .benchmark.run import run_bench
+
+    _use_meshes(meshes)
 
     try:
         results = run_bench(out, quick, threads, lambda line: typer.echo(line, err=True), human)
@@ -183,11 +210,13 @@ def fit(
     seed: Annotated[
         int, typer.Option(help="With --network: the seed of the initial weights and batch order.")
     ] = 0,
+    meshes: RealMeshes = None,
 ) -> None:
     """Fit templates to targets (or, with --network, train a reconstruction network) with
     DR-KFS, Chamfer and the others; judge every result with metrics independent of the loss.
     Output: runs/fit (runs/fit-network) unless --out says otherwise."""
     progress = lambda line: typer.echo(line, err=True)  # noqa: E731
+    _use_meshes(meshes)
     if seed and not network:
         raise typer.BadParameter(
             "--seed is for --network: a template fit starts from its template, not random weights"
@@ -309,10 +338,10 @@ def main() -> None:
     try:
         app()
     except ModuleNotFoundError as exc:
-        if exc.name != "torch":
+        if exc.name not in TORCH_EXTRA:
             raise
         typer.echo(
-            "error: this drkfs command needs torch; install the torch extra: "
+            f"error: this drkfs command needs {exc.name}; install the torch extra: "
             "pip install torch==2.13.0 && pip install 'drkfs-onnx[torch]' "
             "(drkfs-score scores without it)",
             err=True,

@@ -5,6 +5,8 @@ numpy only: the server runtime loads meshes through here without torch.
 
 from __future__ import annotations
 
+import io
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -14,6 +16,9 @@ import trimesh
 from .config import NORMALIZATIONS
 
 AREA_EPS = 1e-14
+# Text formats trimesh decodes itself: a byte that is not UTF-8 (a Latin-1 comment) sends it to
+# charset_normalizer, which the base install lacks, so they are decoded here (see ``_read``).
+TEXT_FORMATS = (".obj", ".off")
 
 
 class MeshError(ValueError):
@@ -37,21 +42,60 @@ class Mesh:
 
 def load_mesh(path: str | Path) -> Mesh:
     """Read any format trimesh reads (scenes are merged) and check it with ``check_mesh``."""
-    source = str(path)
-    if Path(path).is_dir():
+    source, path = str(path), Path(path)
+    if path.is_dir():
         raise MeshError(source, "a folder, not a mesh file")
-    if not Path(path).is_file():
+    if not path.is_file():
         raise MeshError(source, "no such file")
+    if path.suffix.lower() == ".npz":
+        raise MeshError(
+            source,
+            "a features file (drkfs-score features), not a mesh: it can only be the reference "
+            "(mesh B) of drkfs-score pair or batch; give the mesh itself here",
+        )
     try:
-        # Geometry only: materials and textures would need Pillow, which servers may lack.
-        loaded = trimesh.load(path, process=False, skip_materials=True)
+        loaded = _read(path)
         vertices, faces = _geometry(loaded)
+    except NotImplementedError as exc:  # trimesh's "file_type 'x' not supported"
+        raise MeshError(
+            source, f"not a mesh format trimesh reads ({path.suffix or 'no extension'}): {exc}"
+        ) from exc
     except Exception as exc:  # trimesh raises many types for unreadable input
-        raise MeshError(source, f"unreadable ({type(exc).__name__}: {exc})") from exc
+        reason = _range_reason(exc) or f"unreadable ({type(exc).__name__}: {exc})"
+        raise MeshError(source, reason) from exc
     if len(faces) == 0:
         kind = type(loaded).__name__
         raise MeshError(source, f"no faces (read as {kind}; a point cloud or empty scene?)")
     return check_mesh(vertices, faces, source)
+
+
+def _read(path: Path):
+    """trimesh's reading of ``path``, geometry only: materials and textures would need Pillow,
+    which servers may lack. A text format is decoded here, as UTF-8 or else Latin-1 (every byte
+    a character; keywords and numbers are ASCII, so the geometry is the same either way), so
+    every install reads the same files."""
+    options = dict(process=False, skip_materials=True)
+    suffix = path.suffix.lower()
+    if suffix not in TEXT_FORMATS:
+        return trimesh.load(path, **options)
+    data = path.read_bytes()
+    try:
+        data.decode("utf-8")
+    except UnicodeDecodeError:
+        data = data.decode("latin-1").encode("utf-8")
+    resolver = trimesh.resolvers.FilePathResolver(path)
+    return trimesh.load(io.BytesIO(data), file_type=suffix[1:], resolver=resolver, **options)
+
+
+def _range_reason(exc: Exception) -> str | None:
+    """numpy's IndexError for a face naming a vertex the file does not have, in a reader's
+    words (None for any other error)."""
+    pattern = r"index (-?\d+) is out of bounds for axis 0 with size (\d+)"
+    found = re.search(pattern, str(exc)) if isinstance(exc, IndexError) else None
+    if found is None:
+        return None
+    index, count = found.groups()
+    return f"a face uses vertex {index} (counting from 0), but the file has {count} vertices"
 
 
 def _geometry(loaded) -> tuple[np.ndarray, np.ndarray]:

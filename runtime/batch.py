@@ -33,10 +33,17 @@ class ScorerSpec:
     model: str | None = None
     threads: int | None = None
     normalization: str = "joint"
+    max_faces: int | None = None
 
-    def build(self) -> Scorer:
+    def build(self, progress=None) -> Scorer:
+        """The scorer; ``progress`` as ``Scorer``'s (a callable stays out of the plain data)."""
         return Scorer(
-            self.config, model=self.model, threads=self.threads, normalization=self.normalization
+            self.config,
+            model=self.model,
+            threads=self.threads,
+            normalization=self.normalization,
+            max_faces=self.max_faces,
+            progress=progress,
         )
 
 

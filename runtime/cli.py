@@ -25,7 +25,8 @@ from drkfs_onnx.options import (
 
 from .batch import RowScorer, ScorerSpec, ray_results, reference_of, serial_results
 from .output_lock import OutputLocked, output_lock
-from .scorer import Scorer
+from .pairs_file import read_pairs
+from .scorer import MAX_FACES, Scorer
 from .sessions import ModelMismatch
 
 app = typer.Typer(
@@ -43,6 +44,14 @@ Width = Annotated[
 Model = Annotated[
     Path | None, typer.Option(help="A feature-graph ONNX file instead of the shipped one.")
 ]
+MaxFaces = Annotated[
+    int,
+    typer.Option(
+        min=0,
+        help="Refuse a mesh with more faces, before it is rendered (rendering costs about 0.7 GB "
+        "a million faces); 0: no bound.",
+    ),
+]
 
 BATCH_COLUMNS = [
     "row", "mesh_a", "mesh_b", "score", "seconds", "error", "settings", "model_version",
@@ -59,17 +68,35 @@ def _exit_on(*errors: type[Exception]):
         raise typer.Exit(2) from exc
 
 
-def _spec(threads, normalize, width, model, **match) -> ScorerSpec:
+def _spec(threads, normalize, width, model, max_faces, **match) -> ScorerSpec:
     """What builds a scorer for the preset and overrides in ``match`` (``pick_config``'s)."""
     with _exit_on(ValueError):
         widths = {} if width is None else {"descriptor_width": width}
         config = pick_config(**match, **widths)
-    return ScorerSpec(config, None if model is None else str(model), threads, normalize)
+    model = None if model is None else str(model)
+    return ScorerSpec(config, model, threads, normalize, max_faces or None)
 
 
-def _scorer(spec: ScorerSpec) -> Scorer:
+def _scorer(spec: ScorerSpec, progress: bool = True) -> Scorer:
+    """The scorer, printing what it does on a large mesh unless ``progress`` is False."""
     with _exit_on(ModelMismatch, FileNotFoundError, ValueError):
-        return spec.build()
+        return spec.build(_say if progress else None)
+
+
+def _say(line: str) -> None:
+    typer.echo(line, err=True)
+
+
+def _check_out(out: Path) -> None:
+    """Refuse an --out that cannot be written before any work is done."""
+    problem = None
+    if out.is_dir():
+        problem = "is a folder; give a file name"
+    elif not out.parent.is_dir():
+        problem = f"its folder {out.parent} does not exist; create it or choose another"
+    if problem:
+        typer.echo(f"error: --out {out}: {problem}", err=True)
+        raise typer.Exit(2)
 
 
 @app.command()
@@ -89,10 +116,11 @@ def pair(
     symmetric: Symmetric = False,
     width: Width = None,
     model: Model = None,
+    max_faces: MaxFaces = MAX_FACES,
 ) -> None:
     """Score MESH_A against the reference MESH_B (0 for identical meshes)."""
     scorer = _scorer(_spec(
-        threads, normalize, width, model, preset=preset, matching=matching,
+        threads, normalize, width, model, max_faces, preset=preset, matching=matching,
         window=window, direction=direction, reduction=reduction, symmetric=symmetric,
     ))  # fmt: skip
     start = time.perf_counter()
@@ -127,6 +155,7 @@ def explain(
     symmetric: Symmetric = False,
     width: Width = None,
     model: Model = None,
+    max_faces: MaxFaces = MAX_FACES,
 ) -> None:
     """Show where the score of MESH_A against MESH_B comes from: each view of both, every
     patch's best-match distance as a heat overlay, the patches carrying most of it outlined."""
@@ -137,8 +166,9 @@ def explain(
         raise typer.Exit(2) from None
     from .explain import explain as explain_pair
 
+    _check_out(out)
     scorer = _scorer(_spec(
-        threads, normalize, width, model, preset=preset, matching=matching,
+        threads, normalize, width, model, max_faces, preset=preset, matching=matching,
         window=window, direction=direction, reduction=reduction, symmetric=symmetric,
     ))  # fmt: skip
     with _exit_on(MeshError, ValueError):
@@ -163,43 +193,17 @@ def features(
     preset: Preset = "default",
     width: Width = None,
     model: Model = None,
+    max_faces: MaxFaces = MAX_FACES,
 ) -> None:
     """Describe a reference mesh once; pass the .npz as MESH_B to ``pair`` or in a batch CSV."""
     out = out if out.suffix == ".npz" else out.with_name(out.name + ".npz")  # numpy adds it
-    scorer = _scorer(_spec(threads, normalize, width, model, preset=preset))
+    _check_out(out)
+    scorer = _scorer(_spec(threads, normalize, width, model, max_faces, preset=preset))
     with _exit_on(MeshError):
         result = scorer.features(mesh)
     with _exit_on(OSError):
         result.save(out)
     typer.echo(f"{out}: {len(result.descriptors)} patch descriptors, {result.empty} empty patches")
-
-
-def _pairs(path: Path) -> list[tuple[str, str]]:
-    """The CSV's (mesh_a, mesh_b) rows: columns named mesh_a and mesh_b, or, without a header,
-    the first two columns. A first row that is neither is refused: it is a header with other
-    names (pred,gt), which would otherwise be scored as a pair."""
-    if not path.is_file():
-        raise ValueError(f"{path}: no such pairs file" + (" (a folder)" if path.is_dir() else ""))
-    with open(path, newline="") as handle:
-        rows = [row for row in csv.reader(handle) if row and any(cell.strip() for cell in row)]
-    if not rows:
-        return []
-    header = [cell.strip() for cell in rows[0]]
-    if "mesh_a" in header and "mesh_b" in header:
-        a, b = header.index("mesh_a"), header.index("mesh_b")
-        body = [[_cell(row, a), _cell(row, b)] for row in rows[1:]]
-    elif not all(Path(cell).exists() for cell in header[:2]):
-        raise ValueError(
-            f"{path}: the first row {','.join(header)} is neither the header mesh_a,mesh_b nor "
-            "two existing files; name the columns mesh_a and mesh_b"
-        )
-    else:
-        body = rows
-    return [(_cell(row, 0), _cell(row, 1)) for row in body]
-
-
-def _cell(row: list[str], column: int) -> str:
-    return row[column].strip() if column < len(row) else ""
 
 
 def _finished(out: Path) -> list[dict]:
@@ -260,8 +264,13 @@ def batch(
     model: Model = None,
     ray: RayAddress = None,
     workers: Workers = None,
+    max_faces: MaxFaces = MAX_FACES,
 ) -> None:
     """Score every row of PAIRS; results are written and flushed row by row, in input order.
+
+    PAIRS: columns mesh_a, mesh_b (or, without a header, the first two); relative paths are
+    read from the CSV's folder; other columns are ignored and named; blank rows are skipped and
+    reported; a file with no pairs is an error.
 
     A pair already scored in OUT with the same settings and model is skipped (wherever its row
     now is); failed rows are tried again and replace their old record; a row that fails records
@@ -273,15 +282,20 @@ def batch(
     if workers is not None and ray is None:
         typer.echo("error: --workers needs --ray", err=True)
         raise typer.Exit(2)
+    _check_out(out)
     with _exit_on(ValueError, OSError):
-        todo = _pairs(pairs)
+        pairs_file = read_pairs(pairs)
+    for warning in pairs_file.warnings:
+        typer.echo(f"warning: {warning}", err=True)
+    todo = pairs_file.pairs
     if ray is not None and threads is None:
         threads = 1
     spec = _spec(
-        threads, normalize, width, model, preset=preset, matching=matching,
+        threads, normalize, width, model, max_faces, preset=preset, matching=matching,
         window=window, direction=direction, reduction=reduction, symmetric=symmetric,
     )  # fmt: skip
-    scorer = _scorer(spec)  # checks the model and config here, before any worker starts
+    # checks the model and config here, before any worker starts; the progress bar says the rest
+    scorer = _scorer(spec, progress=False)
     with _exit_on(OutputLocked, OSError), output_lock(out):  # before _finished rewrites OUT
         _score_rows(out, todo, scorer, spec, ray, workers)
 

@@ -12,7 +12,7 @@ import numpy as np
 
 from drkfs_onnx import match_rules
 from drkfs_onnx.config import PipelineConfig
-from drkfs_onnx.mesh import Mesh, load_mesh
+from drkfs_onnx.mesh import Mesh
 
 from .match import check_features, match, patch_distances
 from .scorer import Scorer
@@ -58,8 +58,8 @@ class Explanation:
 
 def explain(scorer: Scorer, mesh_a: Mesh | str | Path, mesh_b: Mesh | str | Path) -> Explanation:
     """A against the reference B, placed and described as ``Scorer.score`` does."""
-    a = mesh_a if isinstance(mesh_a, Mesh) else load_mesh(mesh_a)
-    b = mesh_b if isinstance(mesh_b, Mesh) else load_mesh(mesh_b)
+    a = scorer.load(mesh_a)
+    b = scorer.load(mesh_b)
     reference = scorer.features(b)
     check_features(reference, scorer.config, scorer.features_graph.sha256, scorer.normalization)
     meshes = {"a": a, "b": b}

@@ -113,8 +113,10 @@ class MeshFeatures:
             with np.load(path, allow_pickle=False) as data:
                 arrays = {name: data[name] for name in data.files}
         except Exception as exc:  # numpy and zipfile raise many types for a broken file
+            # numpy's own words (allow_pickle advice for a file that is no zip) mislead here
             raise ValueError(
-                f"{path}: unreadable features file ({type(exc).__name__}: {exc})"
+                f"{path}: not a features file (not a readable .npz archive: "
+                f"{type(exc).__name__}); write it again with drkfs-score features"
             ) from exc
         if str(arrays.get("format", "")) != FORMAT:
             raise ValueError(

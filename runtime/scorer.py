@@ -8,7 +8,9 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import time
 from collections import OrderedDict
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -23,6 +25,19 @@ from .render import NumpyRenderer
 from .sessions import open_features
 
 MeshLike = Mesh | str | Path
+# drkfs-score's default bound on a mesh's faces: rendering costs about 0.7 GB and 7-10 s a
+# million faces on 2 cores (a 5.2M-face mesh: 3.6 GB, 36-52 s), so 5M keeps one file under
+# about 4 GB
+MAX_FACES = 5_000_000
+# meshes with more faces than this say what they are doing before the long part starts
+PROGRESS_FACES = 1_000_000
+
+
+# what to try when a mesh placed in the reference's frame is out of every camera's view
+JOINT_HINT = (
+    "; joint is for a prediction and its ground truth in one frame: for two shapes of unknown "
+    "scale or units use normalisation each (--normalize each)"
+)
 
 
 class Scorer:
@@ -37,6 +52,10 @@ class Scorer:
     BLAS threads follow OPENBLAS_NUM_THREADS.
     view_batch: views per feature-graph run (default 1). Memory grows with it (25 views of 256 px
     at once: 1.8 GB more than one at a time) and speed does not; the score does not depend on it.
+    max_faces: a mesh with more faces is refused (a MeshError) before it is rendered; None: no
+    bound.
+    progress: called with a line before and after the work on a mesh of over PROGRESS_FACES
+    faces.
     """
 
     def __init__(
@@ -47,6 +66,8 @@ class Scorer:
         normalization: str = "joint",
         view_batch: int = 1,
         cache_size: int = 32,
+        max_faces: int | None = None,
+        progress: Callable[[str], None] | None = None,
     ):
         self.config = config or PipelineConfig()
         self.normalization = check_normalization(normalization)
@@ -55,6 +76,7 @@ class Scorer:
         self.renderer = NumpyRenderer(self.config, threads=threads or os.cpu_count() or 1)
         self.cache: OrderedDict[str, MeshFeatures] = OrderedDict()
         self.cache_size = cache_size
+        self.max_faces, self.progress = max_faces, progress
         self._empty = self._describe_views(
             np.full((1, self.config.image_size, self.config.image_size), self.config.background),
             np.array([0]),
@@ -77,26 +99,46 @@ class Scorer:
 
     def features(self, mesh: MeshLike, frame: tuple[np.ndarray, float] | None = None):
         """Descriptors of a mesh placed in ``frame`` (default: its own normalisation frame)."""
-        mesh = mesh if isinstance(mesh, Mesh) else load_mesh(mesh)
+        mesh = self.load(mesh)
         placement = "its own frame" if frame is None else "the reference's frame"
+        hint = JOINT_HINT if frame is not None else ""
         if frame is None:
             frame = self._own_frame(mesh.vertices)
         key = self._key(place(mesh.vertices, frame), mesh.faces)
         if key in self.cache:
             self.cache.move_to_end(key)
             return self.cache[key]
+        start, long = time.perf_counter(), len(mesh.faces) > PROGRESS_FACES and self.progress
+        if long:
+            self.progress(
+                f"{mesh.source}: {len(mesh.faces):,} faces; rendering and describing "
+                f"{self.config.num_views} views"
+            )
         result = self.describe(self.views(mesh, frame), frame)
+        if long:
+            self.progress(f"{mesh.source}: done in {time.perf_counter() - start:.0f} s")
         if len(result.patch_index) == 0:
             # every patch would match every other as empty: a silent perfect score
             raise MeshError(
                 mesh.source,
                 f"nothing visible from any camera after normalisation "
-                f"({self.normalization}: placed in {placement})",
+                f"({self.normalization}: placed in {placement}){hint}",
             )
         self.cache[key] = result
         if len(self.cache) > self.cache_size:
             self.cache.popitem(last=False)
         return result
+
+    def load(self, mesh: MeshLike) -> Mesh:
+        """A checked mesh within ``max_faces``; a MeshError naming the file otherwise."""
+        mesh = mesh if isinstance(mesh, Mesh) else load_mesh(mesh)
+        if self.max_faces is not None and len(mesh.faces) > self.max_faces:
+            raise MeshError(
+                mesh.source,
+                f"{len(mesh.faces):,} faces, over the bound of {self.max_faces:,} "
+                "(--max-faces; raise it to score this mesh)",
+            )
+        return mesh
 
     def views(self, mesh: Mesh, frame: tuple[np.ndarray, float]) -> np.ndarray:
         """(K, S, S) grey views of ``mesh`` placed in ``frame`` (as ``features`` sees it)."""
@@ -121,7 +163,7 @@ class Scorer:
 
     def score(self, a: MeshLike, b: MeshLike | MeshFeatures) -> float:
         """DR-KFS of A against the reference B (0 for identical meshes)."""
-        a = a if isinstance(a, Mesh) else load_mesh(a)  # a bad A fails before B's work
+        a = self.load(a)  # a bad A fails before B's work
         reference = b if isinstance(b, MeshFeatures) else self.features(b)
         # before A's work
         check_features(reference, self.config, self.features_graph.sha256, self.normalization)

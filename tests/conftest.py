@@ -1,20 +1,41 @@
+import os
+import shutil
+import subprocess
 from pathlib import Path
 
 import numpy as np
 import pytest
 import trimesh
 
-SHARED_MESHES = Path(__file__).resolve().parents[2] / "shared" / "meshes"
+from drkfs_onnx.benchmark.sets import real_mesh
 
 
 @pytest.fixture(scope="session")
-def shared_meshes() -> Path:
-    """The shared test meshes in ../shared/meshes (read in place, never copied)."""
-    if not (SHARED_MESHES / "cow.obj").is_file():
-        pytest.fail(f"shared test meshes not found at {SHARED_MESHES}; they sit beside the repo")
-    return SHARED_MESHES
+def real_meshes() -> Path:
+    """The folder of the repository's real meshes (meshes/; read in place, never copied); a
+    missing mesh fails the test that needs it with the reason."""
+    try:
+        return real_mesh("cow").parent
+    except ValueError as exc:
+        pytest.fail(str(exc))
 
 
 def icosphere(subdivisions: int = 1, radius: float = 0.8) -> tuple[np.ndarray, np.ndarray]:
     sphere = trimesh.creation.icosphere(subdivisions=subdivisions, radius=radius)
     return np.asarray(sphere.vertices), np.asarray(sphere.faces)
+
+
+def without(
+    tmp_path: Path, modules: tuple[str, ...], command: str, *args: str
+) -> subprocess.CompletedProcess:
+    """Run an installed command where importing ``modules`` fails, as on a base install."""
+    for module in modules:
+        blocker = tmp_path / module
+        blocker.mkdir()
+        (blocker / "__init__.py").write_text(
+            f"raise ModuleNotFoundError('no {module}', name='{module}')\n"
+        )
+    script = shutil.which(command)
+    assert script, f"{command} is not installed (pip install -e .)"
+    env = {**os.environ, "PYTHONPATH": str(tmp_path)}
+    return subprocess.run([script, *args], capture_output=True, text=True, env=env)

@@ -83,8 +83,8 @@ def test_overlapping_closed_parts_count_once():
     assert pm.iou(pm.occupancy(*one), pm.occupancy(*two)) == 1.0
 
 
-def test_a_scans_tiers_change_it_by_their_measure(shared_meshes):
-    mesh = load_mesh(shared_meshes / "cow.obj")
+def test_a_scans_tiers_change_it_by_their_measure(real_meshes):
+    mesh = load_mesh(real_meshes / "cow.obj")
     variants = scan_tiers(mesh.vertices, mesh.faces, np.random.default_rng(0))
     assert [v.name for v in variants] == [*STRUCTURAL, *INVISIBLE, *SURFACE]
     assert [v.kind for v in variants] == ["structural"] * 2 + ["invisible"] * 5 + ["surface"] * 3
@@ -103,9 +103,9 @@ def test_a_scans_tiers_change_it_by_their_measure(shared_meshes):
 
 
 def test_the_invisible_turn_is_a_turn_about_the_shape_wherever_its_files_origin_lies(
-    shared_meshes,
+    real_meshes,
 ):
-    mesh = load_mesh(shared_meshes / "homer.obj")  # its origin lies 0.7 diagonals away
+    mesh = load_mesh(real_meshes / "homer.obj")  # its origin lies 0.7 diagonals away
     verts = np.asarray(mesh.vertices)
     (turn,) = [
         v for v in scan_tiers(verts, mesh.faces, np.random.default_rng(0)) if v.name == "rotated"

@@ -193,7 +193,7 @@ def test_templates_share_the_targets_frame_and_differ_from_it():
     assert not np.allclose(problem.template_verts.max(0), upper)
 
 
-def test_a_real_target_gets_an_icosphere_inside_its_box(shared_meshes):
+def test_a_real_target_gets_an_icosphere_inside_its_box(real_meshes):
     problem = shared("cow")
     assert len(problem.template_faces) == 1280
     inside = np.abs(problem.template_verts).max(0) < np.abs(problem.target_verts).max(0)
@@ -259,7 +259,7 @@ def test_the_control_is_the_three_term_loss_without_its_drkfs_term():
 
 
 @pytest.fixture(scope="module")
-def quick_study(tmp_path_factory, shared_meshes):
+def quick_study(tmp_path_factory, real_meshes):
     out = tmp_path_factory.mktemp("fit")
     result = CliRunner().invoke(app, ["fit", "--quick", "--out", str(out)])
     assert result.exit_code == 0, result.output
@@ -389,7 +389,7 @@ def test_quick_study_saves_every_fit_as_a_ply_of_the_templates_faces(quick_study
         assert fits["best_drkfs"] == f"meshes/{slug(name)}/best_drkfs.ply"
         assert saved == (out / fits[best]["mesh"]).read_bytes()
     # the shared mesh is named, not copied into the output
-    assert results["fits"]["woody"]["target"] == "shared/meshes/woody.obj"
+    assert results["fits"]["woody"]["target"] == "meshes/woody.obj"
     assert not (out / "meshes" / "woody" / "target.ply").exists()
 
 

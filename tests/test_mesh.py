@@ -95,7 +95,7 @@ def test_each_and_none_normalisation():
         normalize_pair(other, ref, "unit")
 
 
-def test_textured_multi_part_obj_loads_geometry_without_pillow(shared_meshes):
+def test_textured_multi_part_obj_loads_geometry_without_pillow(real_meshes):
     """beast.obj references textures (trimesh would need Pillow) and has 20 parts."""
-    mesh = load_mesh(shared_meshes / "beast.obj")
+    mesh = load_mesh(real_meshes / "beast.obj")
     assert mesh.faces.shape == (64618, 3)

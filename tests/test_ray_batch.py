@@ -11,7 +11,7 @@ from typer.testing import CliRunner
 from drkfs_onnx.runtime.cli import app
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
-BUNNY = Path(__file__).resolve().parents[2] / "shared" / "meshes" / "stanford-bunny.obj"
+BUNNY = Path(__file__).resolve().parents[1] / "meshes" / "stanford-bunny.obj"
 FAST = ["--width", "0.25"]
 
 
@@ -33,7 +33,7 @@ def test_ray_workers_give_the_serial_results_in_input_order_and_resume(tmp_path)
     # The first row is the slowest (69k faces), so later rows finish before it; rows share
     # references (a mesh and a features file), and two fail.
     rows = [
-        (BUNNY if BUNNY.exists() else EXAMPLES / "chair_no_back.obj", chair),
+        (BUNNY, chair),
         (EXAMPLES / "chair_no_leg.obj", chair),
         (tmp_path / "missing.obj", chair),
         (EXAMPLES / "chair_retessellated.obj", reference),

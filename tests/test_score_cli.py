@@ -3,13 +3,13 @@ and names what went wrong."""
 
 import csv
 import json
-import os
 import shutil
 import subprocess
 from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import without
 from typer.testing import CliRunner
 
 from drkfs_onnx import PipelineConfig, load_mesh
@@ -28,25 +28,9 @@ def _run(*args: str):
     return CliRunner().invoke(app, [*map(str, args)])
 
 
-def _without(
-    tmp_path: Path, modules: tuple[str, ...], command: str, *args: str
-) -> subprocess.CompletedProcess:
-    """Run an installed command where importing ``modules`` fails, as on a base install."""
-    for module in modules:
-        blocker = tmp_path / module
-        blocker.mkdir()
-        (blocker / "__init__.py").write_text(
-            f"raise ModuleNotFoundError('no {module}', name='{module}')\n"
-        )
-    script = shutil.which(command)
-    assert script, f"{command} is not installed (pip install -e .)"
-    env = {**os.environ, "PYTHONPATH": str(tmp_path)}
-    return subprocess.run([script, *args], capture_output=True, text=True, env=env)
-
-
 def test_drkfs_score_runs_where_torch_and_matplotlib_cannot_be_imported(tmp_path):
     pair = ("pair", str(NO_LEG), str(CHAIR), "--json", *FAST)
-    result = _without(tmp_path, ("torch", "matplotlib"), "drkfs-score", *pair)
+    result = without(tmp_path, ("torch", "matplotlib"), "drkfs-score", *pair)
     assert result.returncode == 0, result.stderr
     report = json.loads(result.stdout)
     assert report["score"] > 0
@@ -329,8 +313,9 @@ def test_bad_command_lines_get_one_clear_error_line_each(tmp_path):
         (("pair", NO_LEG, CHAIR, "--threads", "-1"), "greater than or equal to 1"),
         (("batch", tmp_path / "none.csv", "--out", tmp_path / "o.csv"), "no such pairs file"),
         (("batch", folder, "--out", tmp_path / "o.csv"), "no such pairs file (a folder)"),
-        (("batch", good, "--out", folder), "Is a directory"),
-        (("batch", good, "--out", tmp_path / "no" / "o.csv"), "No such file or directory"),
+        (("batch", good, "--out", folder), f"--out {folder}: is a folder; give a file name"),
+        (("batch", good, "--out", tmp_path / "no" / "o.csv"),
+         f"its folder {tmp_path / 'no'} does not exist"),
         (("batch", _csv(tmp_path, f"pred,gt\n{CHAIR},{CHAIR}", "named.csv"), "--out",
           tmp_path / "o.csv"), "the first row pred,gt is neither the header mesh_a,mesh_b"),
     ]  # fmt: skip
@@ -363,7 +348,7 @@ def test_features_out_names_the_file_it_wrote(tmp_path):
 
 
 def test_the_torch_command_without_torch_names_the_extra_to_install(tmp_path):
-    result = _without(tmp_path, ("torch",), "drkfs", "score", str(NO_LEG), str(CHAIR))
+    result = without(tmp_path, ("torch",), "drkfs", "score", str(NO_LEG), str(CHAIR))
     assert result.returncode == 2
     assert "pip install 'drkfs-onnx[torch]'" in result.stderr
     assert "Traceback" not in result.stderr
@@ -385,7 +370,7 @@ def test_explain_draws_the_picture_and_lists_the_top_patches(tmp_path):
 
 def test_explain_without_matplotlib_names_the_extra(tmp_path):
     args = ("explain", str(NO_LEG), str(CHAIR), "--out", str(tmp_path / "d.png"))
-    result = _without(tmp_path, ("torch", "matplotlib"), "drkfs-score", *args)
+    result = without(tmp_path, ("torch", "matplotlib"), "drkfs-score", *args)
     assert result.returncode == 2
     assert result.stderr.strip() == (
         'error: explain draws with matplotlib: pip install "drkfs-onnx[plot]"'

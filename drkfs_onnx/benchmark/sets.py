@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -23,7 +24,10 @@ from ..synthetic.shapes import (
 )
 from ..synthetic.tiers import part_tiers, scan_tiers
 
-SHARED_FOLDER = Path(__file__).resolve().parents[2].parent / "shared" / "meshes"
+# The real meshes (meshes/README.md gives each one's origin and terms): a checkout's meshes/
+# folder, or the folder DRKFS_MESHES names (``drkfs bench --meshes`` sets it)
+MESHES_ENV = "DRKFS_MESHES"
+CHECKOUT_MESHES = Path(__file__).resolve().parents[2] / "meshes"
 SHARED_MESHES = (
     "alligator", "beast", "beetle", "cheburashka", "cow",
     "fandisk", "homer", "rocker-arm", "stanford-bunny", "woody",
@@ -38,6 +42,20 @@ SEED = 2026
 HOLDOUT_SEEDS = range(3000, 3003)
 BAR_SHIFT = 0.1  # the bars move by this much (a fifth of the chair's seat height)
 RETRIEVAL_PER_FAMILY = 5  # x 21 families: 105 queries
+
+
+def real_mesh(name: str) -> Path:
+    """The path of the real mesh ``name`` (e.g. "cow"); a ValueError that says where the
+    meshes come from when it is not there."""
+    folder = Path(os.environ.get(MESHES_ENV) or CHECKOUT_MESHES)
+    path = folder / f"{name}.obj"
+    if not path.is_file():
+        raise ValueError(
+            f"{path}: real mesh {name}.obj not found; the benchmark reads the repository's "
+            f"meshes/ folder from a checkout (pip install -e .), or the folder --meshes DIR or "
+            f"{MESHES_ENV} names"
+        )
+    return path
 
 
 @dataclass(frozen=True)
@@ -114,7 +132,7 @@ def tiers(
         verts, faces = assemble(parts, 1)  # the variants' own tessellation
         _variants_of(bench, prefix + family, verts, faces, part_tiers(parts, rng))
     for name in shared:
-        mesh = load_mesh(SHARED_FOLDER / f"{name}.obj")
+        mesh = load_mesh(real_mesh(name))
         variants = scan_tiers(mesh.vertices, mesh.faces, rng)
         _variants_of(bench, name, mesh.vertices, mesh.faces, variants)
 
@@ -200,7 +218,7 @@ def stability(bench: BenchSet, surface: str, large: str | None) -> None:
     """The stability cases; ``surface`` names a shared mesh for the surface edits, ``large`` one
     to subdivide past 200k faces (None: skip that case)."""
     rng = np.random.default_rng(SEED + 2)
-    mesh = load_mesh(SHARED_FOLDER / f"{surface}.obj")
+    mesh = load_mesh(real_mesh(surface))
     v, f = mesh.vertices, mesh.faces
     size = float(np.linalg.norm(np.ptp(v, axis=0)))
     offset = np.array([0.01 * size, 0.0, 0.0])
@@ -225,7 +243,7 @@ def stability(bench: BenchSet, surface: str, large: str | None) -> None:
         "degenerate_faces": (_with_degenerate(v, f, rng), (v, f)),
     }
     if large is not None:
-        big = load_mesh(SHARED_FOLDER / f"{large}.obj")
+        big = load_mesh(real_mesh(large))
         cases["over_200k_faces"] = (subdivide(big.vertices, big.faces), (big.vertices, big.faces))
     for case, ((av, af), (bv, bf)) in cases.items():
         a = bench.add(f"stability/{case}", av, af)

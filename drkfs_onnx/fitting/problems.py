@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from ..benchmark.sets import SHARED_FOLDER
+from ..benchmark.sets import real_mesh
 from ..mesh import frame_of, load_mesh, place
 from ..synthetic.shapes import Part, assemble, random_shape
 
@@ -69,9 +69,9 @@ def synthetic(family: str, seed: int) -> Problem:
 
 
 def shared(name: str) -> Problem:
-    """A shared mesh (read in place); the template is an icosphere stretched to the ellipsoid
+    """A real mesh (read in place); the template is an icosphere stretched to the ellipsoid
     inscribed in ELLIPSOID_FILL times its bounding box (for genus-0 targets)."""
-    source = SHARED_FOLDER / f"{name}.obj"
+    source = real_mesh(name)
     mesh = load_mesh(source)
     sphere = trimesh.creation.icosphere(ICOSPHERE_LEVEL)
     lower, upper = mesh.vertices.min(0), mesh.vertices.max(0)
@@ -79,7 +79,7 @@ def shared(name: str) -> Problem:
     target_verts, template_verts = _in_frame_of(mesh.vertices, template)
     return Problem(
         name,
-        f"shared mesh {name}.obj ({len(mesh.faces)} faces); template: icosphere level "
+        f"real mesh {name}.obj ({len(mesh.faces)} faces); template: icosphere level "
         f"{ICOSPHERE_LEVEL} as the ellipsoid in {ELLIPSOID_FILL:g} x its bounding box",
         target_verts,
         mesh.faces,

@@ -548,8 +548,8 @@ def fitting_study(
         folder = out / "meshes" / slug(problem.name)
         rows = {"template": fitter.judged(problem, problem.template_verts)}
         fits[problem.name] = {
-            # a shared mesh stays where it is: the fits are in its frame_of frame
-            "target": "/".join(problem.source.parts[-3:])  # shared/meshes/<name>.obj
+            # a real mesh stays where it is: the fits are in its frame_of frame
+            "target": f"meshes/{problem.source.name}"  # the repository's real mesh
             if problem.source
             else save_mesh(folder / "target.ply", problem.target_verts, problem.target_faces),
             "template": save_mesh(

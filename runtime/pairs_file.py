@@ -1,0 +1,93 @@
+"""The pairs CSV of ``drkfs-score batch``: its rules, and what it reports about a file.
+
+- Columns named ``mesh_a`` and ``mesh_b`` in a header, or, without a header, the first two.
+  A first row that is neither is refused (a header with other names, ``pred,gt``, would
+  otherwise be scored as a pair).
+- A relative path is relative to the CSV's folder, so a CSV and its meshes move together and
+  the batch runs from any directory; absolute paths stay as they are.
+- Other columns are ignored and named in a warning; blank rows (``,`` included) are skipped
+  and their line numbers reported; a row with one path is kept and fails as that row.
+- A file with no pairs, or one that is not UTF-8 text, is an error naming the file.
+"""
+
+from __future__ import annotations
+
+import csv
+from dataclasses import dataclass, field
+from pathlib import Path
+
+COLUMNS = ("mesh_a", "mesh_b")
+
+
+@dataclass
+class PairsFile:
+    """The pairs to score, as paths to open, and warnings about the rows not read as pairs."""
+
+    pairs: list[tuple[str, str]]
+    warnings: list[str] = field(default_factory=list)
+
+
+def read_pairs(path: Path) -> PairsFile:
+    """The pairs of a CSV; anything that makes the whole file unusable is a ValueError that
+    names it."""
+    if not path.is_file():
+        raise ValueError(f"{path}: no such pairs file" + (" (a folder)" if path.is_dir() else ""))
+    lines = _rows(path)  # (line number, cells)
+    blank = [number for number, row in lines if not any(cell.strip() for cell in row)]
+    rows = [(number, [cell.strip() for cell in row]) for number, row in lines]
+    rows = [(number, row) for number, row in rows if number not in blank]
+    if not rows:
+        raise ValueError(f"{path}: no pairs (the file is empty); one row per pair: mesh_a,mesh_b")
+    warnings = []
+    if blank:
+        warnings.append(f"{path}: blank rows skipped (lines {_numbers(blank)})")
+    header = rows[0][1]
+    folder = path.parent
+    if all(name in header for name in COLUMNS):
+        a, b = (header.index(name) for name in COLUMNS)
+        rows = rows[1:]
+        extra = [name or f"column {i + 1}" for i, name in enumerate(header) if i not in (a, b)]
+        if extra:
+            warnings.append(f"{path}: columns ignored: {', '.join(extra)}")
+        if not rows:
+            raise ValueError(f"{path}: no pairs below the header mesh_a,mesh_b")
+    elif all((folder / cell).exists() for cell in header[:2]) and len(header) >= 2:
+        a, b = 0, 1
+        wide = [number for number, row in rows if len(row) > 2 and any(row[2:])]
+        if wide:
+            warnings.append(
+                f"{path}: only the first two columns are read (more on lines {_numbers(wide)})"
+            )
+    else:
+        raise ValueError(
+            f"{path}: the first row {','.join(header)} is neither the header mesh_a,mesh_b nor "
+            "two existing files (relative paths are read from the CSV's folder); name the "
+            "columns mesh_a and mesh_b"
+        )
+    return PairsFile([(_path(folder, row, a), _path(folder, row, b)) for _, row in rows], warnings)
+
+
+def _rows(path: Path) -> list[tuple[int, list[str]]]:
+    try:
+        with open(path, newline="", encoding="utf-8") as handle:
+            reader = csv.reader(handle)
+            return [(reader.line_num, row) for row in reader]
+    except UnicodeDecodeError as exc:
+        raise ValueError(
+            f"{path}: not a CSV of mesh pairs (byte {exc.start} is not UTF-8 text); give a CSV "
+            "with columns mesh_a, mesh_b"
+        ) from exc
+    except csv.Error as exc:
+        raise ValueError(f"{path}: not a readable CSV ({exc})") from exc
+
+
+def _path(folder: Path, row: list[str], column: int) -> str:
+    """The cell as a path from the CSV's folder; an empty or missing cell stays empty (the row
+    then fails as needing two meshes)."""
+    cell = row[column] if column < len(row) else ""
+    return str(folder / cell) if cell else ""
+
+
+def _numbers(lines: list[int], shown: int = 10) -> str:
+    text = ", ".join(map(str, lines[:shown]))
+    return text + (f" and {len(lines) - shown} more" if len(lines) > shown else "")
