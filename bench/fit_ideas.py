@@ -37,10 +37,7 @@ import time
 from pathlib import Path
 
 import torch
-
-from drkfs_onnx.config import PipelineConfig
-from drkfs_onnx.fitting.judges import Judge
-from drkfs_onnx.fitting.losses import (
+from studies.losses import (
     CHAMFER,
     PIXEL,
     Recipe,
@@ -50,18 +47,21 @@ from drkfs_onnx.fitting.losses import (
     pixel_with_chamfer,
     with_both,
 )
-from drkfs_onnx.fitting.mesh_fit import Fade
-from drkfs_onnx.fitting.network import reproduction
-from drkfs_onnx.fitting.study import (
+from studies.mesh_fit import Fade
+from studies.network import reproduction
+from studies.study import (
     FULL,
     QUICK_STUDY,
     Fitter,
     average_ranks,
-    chamfer_ratios,
     load_problem,
     machine,
     pair_shares,
 )
+
+from drkfs_onnx.config import PipelineConfig
+from drkfs_onnx.judging.judges import Judge
+from drkfs_onnx.judging.rule import chamfer_ratios
 from drkfs_onnx.synthetic.shapes import FAMILIES
 from drkfs_onnx.training import graded
 

@@ -7,8 +7,8 @@
    the scoring default's (metric) and the fine-tuned ones.
 2. The correspondence nets fine-tuned with ``graded_monotone`` on series of other bases (work
    folder ``--work``, resumable).
-3. The loss study's fits (``drkfs fit``'s tuning problems, plan and judges) of the shipped loss
-   form with the shipped and with the fine-tuned nets, with their landscape probes.
+3. The loss study's fits (``python bench/fit.py``'s tuning problems, plan and judges) of the
+   shipped loss form with the shipped and with the fine-tuned nets, with their landscape probes.
 """
 
 from __future__ import annotations
@@ -19,11 +19,11 @@ import time
 from pathlib import Path
 
 import torch
+from studies.losses import Terms, alone
+from studies.study import FULL, QUICK_STUDY, Fitter, average_ranks, load_problem
 
 from drkfs_onnx.config import PipelineConfig
-from drkfs_onnx.fitting.judges import Judge
-from drkfs_onnx.fitting.losses import Terms, alone
-from drkfs_onnx.fitting.study import FULL, QUICK_STUDY, Fitter, average_ranks, load_problem
+from drkfs_onnx.judging.judges import Judge
 from drkfs_onnx.metric import DRKFS
 from drkfs_onnx.synthetic.shapes import FAMILIES
 from drkfs_onnx.training import graded

@@ -19,11 +19,12 @@ import time
 from pathlib import Path
 
 import torch
+from studies.losses import CHAMFER, FORMS, PIXEL, with_chamfer
+from studies.network import retrained_beside
+from studies.study import machine
 
-from drkfs_onnx.fitting.judges import VISUAL
-from drkfs_onnx.fitting.losses import CHAMFER, FORMS, PIXEL, with_chamfer
-from drkfs_onnx.fitting.network import retrained_beside
-from drkfs_onnx.fitting.study import chamfer_ratios, machine, share
+from drkfs_onnx.judging.judges import VISUAL
+from drkfs_onnx.judging.rule import chamfer_ratios, share
 
 
 def main() -> None:

@@ -1,6 +1,6 @@
 """The network study's two further losses: all three terms (pixel MSE + w·DR-KFS + w·Chamfer) and
-the control without DR-KFS (pixel MSE + w·Chamfer), trained as ``drkfs fit --network`` trains its
-five, and compared with the networks that study committed.
+the control without DR-KFS (pixel MSE + w·Chamfer), trained as ``python bench/fit.py --network``
+trains its five, and compared with the networks that study committed.
 
     python bench/network_combinations.py --out bench/fit-network/combinations.json [--quick]
 
@@ -21,16 +21,11 @@ import time
 from pathlib import Path
 
 import torch
+from studies.losses import CHAMFER, PIXEL, pixel_with_chamfer, with_both
+from studies.network import retrained_beside
+from studies.study import average_ranks, machine, metric_means, pair_shares
 
-from drkfs_onnx.fitting.losses import CHAMFER, PIXEL, pixel_with_chamfer, with_both
-from drkfs_onnx.fitting.network import retrained_beside
-from drkfs_onnx.fitting.study import (
-    average_ranks,
-    chamfer_ratios,
-    machine,
-    metric_means,
-    pair_shares,
-)
+from drkfs_onnx.judging.rule import chamfer_ratios
 
 
 def main() -> None:

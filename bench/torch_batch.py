@@ -39,19 +39,21 @@ import time
 from pathlib import Path
 
 import torch
+from studies.network import loss_step_case
 
 ROOT = Path(__file__).resolve().parents[1]
 BEFORE = "ecf7222"  # the last commit whose torch path took one mesh per call
 STAGES = {"coarse": 0.0, "fine": 1.0}
 POINTS = 5000
 
-# The case every row times: identical in this code and in the code before batches.
+# The case every row times: the network study's loss step (``studies.network.loss_step_case``),
+# made once by this script and read by every child, so this code and the code before batches
+# time the same tensors.
 CASE = """
 import torch
-from drkfs_onnx.fitting.network import loss_step_case
 from drkfs_onnx.loss import DrkfsLoss
 
-prediction, faces, truth, _ = loss_step_case()
+prediction, faces, truth = torch.load(CASE_FILE, weights_only=True)
 nudges = 0.01 * torch.randn(SIZE, *prediction.shape, generator=torch.Generator().manual_seed(1))
 loss = DrkfsLoss.pretrained().to(DEVICE)
 faces, truth = faces.to(DEVICE), tuple(t.to(DEVICE) for t in truth)
@@ -213,8 +215,9 @@ def chamfer_seconds(device: str, size: int, repeats: int) -> float:
     return min(times)
 
 
-def case_rows(device: str, stage: str, size: int, args, old: Path | None) -> dict:
+def case_rows(device: str, stage: str, size: int, args, old: Path | None, case: Path) -> dict:
     values = dict(DEVICE=device, SIZE=size, PROGRESS=STAGES[stage], REPEATS=args.repeats)
+    values["CASE_FILE"] = str(case)
     threads = "import torch\n" + (
         f"torch.set_num_threads({args.threads})\n" if device == "cpu" else ""
     )
@@ -262,11 +265,14 @@ def main() -> None:
     rows = []
     with tempfile.TemporaryDirectory() as folder:
         old = None if args.no_before else before_tree(Path(folder), args.before_archive)
+        prediction, faces, truth, _ = loss_step_case()
+        case = Path(folder) / "case.pt"
+        torch.save((prediction, faces, truth), case)
         for device in devices:
             sizes = [int(s) for s in args.sizes.split(",")] + ([128] if device == "cuda" else [])
             for stage in args.stages.split(","):
                 for size in sizes:
-                    row = case_rows(device, stage, size, args, old)
+                    row = case_rows(device, stage, size, args, old, case)
                     rows.append(row)
                     print(json.dumps(row), flush=True)
     result = {

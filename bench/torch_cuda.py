@@ -20,10 +20,10 @@ import sys
 from pathlib import Path
 
 import torch
+from studies.network import loss_step_case
 
 from drkfs_onnx import DRKFS, PipelineConfig, load_mesh
 from drkfs_onnx.benchmark.torch_checks import agreement, value_and_gradient
-from drkfs_onnx.fitting.network import loss_step_case
 from drkfs_onnx.loss import DrkfsLoss
 from drkfs_onnx.mesh import normalize_pair
 

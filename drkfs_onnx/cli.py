@@ -25,7 +25,7 @@ from .options import (
 from .synthetic.examples import REFERENCE, example_meshes, write_examples
 
 app = typer.Typer(help="DR-KFS visual similarity of 3D meshes (torch path).", no_args_is_help=True)
-# Where train, export, bench and fit write unless --out says otherwise: never the shipped models/
+# Where train, export and bench write unless --out says otherwise: never the shipped models/
 # or the committed bench/ results, which only an explicit --out replaces.
 RUNS = Path("runs")
 # the modules of the torch extra (pyproject.toml), as imported: a command that needs one on the
@@ -43,7 +43,7 @@ RealMeshes = Annotated[
 ]
 
 
-def _use_meshes(folder: Path | None) -> None:
+def use_meshes(folder: Path | None) -> None:
     """Read the real meshes from ``folder`` (the benchmark's set reads DRKFS_MESHES)."""
     if folder is None:
         return
@@ -175,7 +175,7 @@ def bench(
     """Speed against accuracy: every method on the same variant sets, the chart, stability."""
     from .benchmark.run import run_bench
 
-    _use_meshes(meshes)
+    use_meshes(meshes)
 
     try:
         results = run_bench(out, quick, threads, lambda line: typer.echo(line, err=True), human)
@@ -194,63 +194,6 @@ def bench(
         typer.echo(f"{name:36}" + "".join(f"{_fmt(c):>10}" for c in cells))
     seconds = results["seconds_total"]
     typer.echo(f"{out / 'results.json'}, {out / 'speed_accuracy.png'} in {seconds:.0f} s")
-
-
-@app.command()
-def fit(
-    out: Annotated[
-        Path | None,
-        typer.Option(help="Where results.json, gallery.png and meshes/ go.", show_default=False),
-    ] = None,
-    network: Annotated[
-        bool, typer.Option(help="Train reconstruction networks instead of fitting templates.")
-    ] = False,
-    quick: Annotated[bool, typer.Option(help="A tiny plan that runs in seconds (tests).")] = False,
-    threads: Annotated[int, typer.Option(help="Threads for the judge's numpy renderer.")] = 2,
-    seed: Annotated[
-        int, typer.Option(help="With --network: the seed of the initial weights and batch order.")
-    ] = 0,
-    meshes: RealMeshes = None,
-) -> None:
-    """Fit templates to targets (or, with --network, train a reconstruction network) with
-    DR-KFS, Chamfer and the others; judge every result with metrics independent of the loss.
-    Output: runs/fit (runs/fit-network) unless --out says otherwise."""
-    progress = lambda line: typer.echo(line, err=True)  # noqa: E731
-    _use_meshes(meshes)
-    if seed and not network:
-        raise typer.BadParameter(
-            "--seed is for --network: a template fit starts from its template, not random weights"
-        )
-    if network:
-        from .fitting.network import run_network_study
-
-        out = out or RUNS / "fit-network"
-        results = run_network_study(out, quick, threads, progress, seed)
-    else:
-        from .fitting.study import run_study
-
-        out = out or RUNS / "fit"
-        results = run_study(out, quick, threads, progress)
-        study = results["loss_study"]
-        weights = study["pixel_weight"]["chosen"], study["chamfer_weight"]["chosen"]
-        typer.echo(
-            f"loss study: {study['forms']['chosen']} ranks first; {study['form']} beside pixel "
-            f"MSE at weight {weights[0]:g}, beside Chamfer at {weights[1]:g}"
-        )
-    for against, key in (("Chamfer", "beats_chamfer"), ("pixel MSE", "beats_pixel_mse")):
-        for loss, row in results[key].items():
-            typer.echo(
-                f"{loss} beats {against} on {row['wins']}/{row['cells']} visual cells "
-                f"({row['share']:.0%})"
-            )
-    summary = results["summary"]
-    typer.echo(
-        f"best DR-KFS loss: {summary['best_drkfs_loss']}: beats Chamfer on "
-        f"{summary['share_beats_chamfer']:.0%}, pixel MSE on "
-        f"{summary['share_beats_pixel_mse']:.0%} of the visual cells at "
-        f"{summary['chamfer_l1_ratio']:.2f} x Chamfer's Chamfer-L1"
-    )
-    typer.echo(f"{out / 'results.json'}, {out / 'gallery.png'} in {results['seconds_total']:.0f} s")
 
 
 @app.command("choose-loss")
@@ -273,8 +216,8 @@ def choose_loss_command(
 ) -> None:
     """Choose the loss whose reconstructions beat the baseline's on the most visual cells of
     your held-out shapes (the network study's rule; docs/fitting.md)."""
-    from .fitting.choice import JUDGE_CONFIG, judge_and_choose, read_reconstructions
-    from .fitting.judges import Judge
+    from .judging.choice import JUDGE_CONFIG, judge_and_choose, read_reconstructions
+    from .judging.judges import Judge
 
     progress = lambda line: typer.echo(line, err=True)  # noqa: E731
     try:

@@ -169,7 +169,7 @@ class PipelineConfig:
         match jumps between patches and its power mean listens to the worst few.
         ``drkfs_onnx.loss.DrkfsLoss`` runs it coarse to fine. The network study chose it on its
         validation shapes over the loss study's first form, a soft match over window r1
-        (``drkfs fit``, docs/fitting.md)."""
+        (``python bench/fit.py``, docs/fitting.md)."""
         return cls.training(**{"matching": "window", "window": 0, "reduction": "mean", **changes})
 
     def features_part(self) -> PipelineConfig:

@@ -94,3 +94,24 @@ class HardNet(nn.Module):
                 if relu:  # in place: the conv's output is not needed for its backward
                     x = torch.relu_(x)
         return x
+
+
+def state_from_folded(folded: dict[str, torch.Tensor], config: PipelineConfig) -> dict:
+    """A HardNet state dict from its evaluation form with each BatchNorm folded into the conv
+    before it, as an exported graph's initializers hold it (``features.{k}.weight``: W / sqrt(var
+    + eps); ``features.{k}.weight_bias``: -mean / sqrt(var + eps)). The convs take the folded
+    weights and each BatchNorm becomes the identity (mean -b, var 1 - eps, whose 1 / sqrt(var +
+    eps) is exactly 1), so ``_folded`` computes the graph's numbers bit for bit."""
+    state = {}
+    for k, layer in enumerate(HardNet(config).features):
+        if isinstance(layer, nn.Conv2d):
+            state[f"features.{k}.weight"] = folded[f"features.{k}.weight"]
+        elif isinstance(layer, nn.BatchNorm2d):
+            bias = folded[f"features.{k - 1}.weight_bias"]
+            var = torch.ones_like(bias) - layer.eps
+            if not bool((torch.rsqrt(var + layer.eps) == 1).all()):
+                raise ValueError(f"BatchNorm eps {layer.eps} does not fold exactly")
+            state[f"features.{k}.running_mean"] = -bias
+            state[f"features.{k}.running_var"] = var
+            state[f"features.{k}.num_batches_tracked"] = torch.tensor(0)
+    return state

@@ -54,7 +54,12 @@ def shipped_entry(config: PipelineConfig, any_rendering: bool = False) -> dict |
 
 
 def load_shipped_state(config: PipelineConfig, any_rendering: bool = False):
-    """The torch state dict shipped for ``config`` (see ``shipped_entry``), or None."""
+    """The torch state dict shipped for ``config`` (see ``shipped_entry``), or None.
+
+    From the training's own file where it is there (a checkout, fresh weights), sha256-checked
+    against the manifest; otherwise (an installed wheel, which ships each net once) from the
+    initializers of a feature graph exported from that file, which names its sha256.
+    """
     entry = shipped_entry(config, any_rendering)
     if entry is None:
         return None
@@ -62,9 +67,43 @@ def load_shipped_state(config: PipelineConfig, any_rendering: bool = False):
 
     path = models_dir() / entry["file"]
     if not path.is_file():
-        raise ValueError(f"{path}: listed in the manifest but missing")
+        return _state_from_graph(entry)
     data = path.read_bytes()
     digest = hashlib.sha256(data).hexdigest()
     if digest != entry["sha256"]:
         raise ValueError(f"{path}: sha256 {digest} does not match the manifest")
     return torch.load(io.BytesIO(data), map_location="cpu", weights_only=True)
+
+
+def _state_from_graph(entry: dict):
+    """The state dict of ``entry``'s weights, read from a shipped feature graph exported from
+    them (any image size: the nets are the same)."""
+    import onnx
+    import torch
+    from onnx import numpy_helper
+
+    from .hardnet import state_from_folded
+    from .model_files import WEIGHTS_KEY
+
+    trained = PipelineConfig.from_dict(entry["config"])
+    prefix = f"features_{trained.nets}_w{trained.descriptor_width:g}_"
+    for item in sorted(models_dir().iterdir(), key=lambda item: item.name):
+        if not (item.name.startswith(prefix) and item.name.endswith("px.onnx")):
+            continue
+        graph = onnx.load_from_string(item.read_bytes())
+        if {p.key: p.value for p in graph.metadata_props}.get(WEIGHTS_KEY) != entry["sha256"]:
+            continue
+        tensors = {
+            init.name: torch.from_numpy(numpy_helper.to_array(init).copy())
+            for init in graph.graph.initializer
+        }
+        # the metric's two nets: the detector as trained, HardNet with its BatchNorms folded
+        state = {name: tensors[name] for name in ("detector.conv.weight", "detector.conv.bias")}
+        descriptor = {name[11:]: t for name, t in tensors.items() if name.startswith("descriptor.")}
+        for name, tensor in state_from_folded(descriptor, trained).items():
+            state[f"descriptor.{name}"] = tensor
+        return state
+    raise ValueError(
+        f"models/: neither {entry['file']} nor a feature graph exported from it (sha256 "
+        f"{entry['sha256'][:12]}); reinstall, or export it from a checkout (drkfs export)"
+    )

@@ -62,8 +62,9 @@ def _read(path: str | Path | None, default: str) -> tuple[bytes, str]:
     shipped = models_dir() / default
     if not shipped.is_file():
         raise FileNotFoundError(
-            f"no {default} in the installed models/; run `drkfs export --out models` "
-            "(torch extra) to make it"
+            f"no {default} in the installed models/: an installed package carries the presets' "
+            "graphs only; the other widths are in a checkout's models/ (pip install -e .), or "
+            "make one with drkfs export (torch extra) and pass it with --model"
         )
     return shipped.read_bytes(), f"models/{default}"
 

@@ -8,10 +8,10 @@ import pytest
 import torch
 import trimesh
 from conftest import icosphere
+from studies.network import loss_step_case
 
 from drkfs_onnx import DRKFS, PipelineConfig
 from drkfs_onnx.batch import MeshBatch
-from drkfs_onnx.fitting.network import loss_step_case
 from drkfs_onnx.geometry import Smoothness, chamfer, surface_points
 from drkfs_onnx.loss import DrkfsLoss, StagedTarget
 from drkfs_onnx.patch_grid import nonempty_patches as numpy_nonempty

@@ -8,13 +8,13 @@ from pathlib import Path
 
 import pytest
 import trimesh
+from studies.network import QUICK_NETWORK
 from typer.testing import CliRunner
 
 from drkfs_onnx.cli import app
-from drkfs_onnx.fitting.choice import JUDGE_CONFIG, judge_and_choose, read_reconstructions
-from drkfs_onnx.fitting.judges import VISUAL, Judge
-from drkfs_onnx.fitting.network import QUICK_NETWORK
-from drkfs_onnx.fitting.study import choose
+from drkfs_onnx.judging.choice import JUDGE_CONFIG, judge_and_choose, read_reconstructions
+from drkfs_onnx.judging.judges import VISUAL, Judge
+from drkfs_onnx.judging.rule import choose
 from drkfs_onnx.synthetic.examples import write_examples
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -173,6 +173,7 @@ def test_a_line_whose_mesh_lfd_cannot_describe_is_skipped_and_the_others_still_c
     assert result["skipped"][0]["reason"].startswith("LFD failed (Command '['./3DAlignment'")
 
 
+@pytest.mark.slow  # a study's end to end check
 def test_the_committed_study_reconstructions_judge_as_the_study_judged_them(tmp_path):
     """One test shape of bench/fit-network: its saved target and reconstructions, listed in a
     CSV and judged by the study's judge (LFD aside), give the study's committed values."""

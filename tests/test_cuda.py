@@ -3,10 +3,10 @@ agree with the CPU (run where torch sees a GPU; skipped elsewhere, CI included).
 
 import pytest
 import torch
+from studies.network import loss_step_case
 
 from drkfs_onnx import DRKFS, PipelineConfig
 from drkfs_onnx.benchmark.torch_checks import agreement, value_and_gradient
-from drkfs_onnx.fitting.network import loss_step_case
 from drkfs_onnx.loss import DrkfsLoss
 
 pytestmark = pytest.mark.skipif(not torch.cuda.is_available(), reason="no CUDA device")

@@ -67,6 +67,7 @@ def test_fine_tuning_lowers_the_objective_on_its_own_series(chair_series):
     assert float(graded.series_loss(metric, images).detach()) < before
 
 
+@pytest.mark.slow  # a study's end to end check
 def test_the_bench_script_measures_growth_and_fits_on_its_quick_plan(tmp_path):
     out = tmp_path / "loss_nets.json"
     done = subprocess.run(

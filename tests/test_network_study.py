@@ -1,5 +1,5 @@
-"""The network study (``drkfs fit --network``): the reconstruction network, the cameras its
-silhouettes are judged from, and the quick plan end to end through the CLI."""
+"""The network study (``python bench/fit.py --network``): the reconstruction network, the
+cameras its silhouettes are judged from, and the quick plan end to end through the CLI."""
 
 import json
 import struct
@@ -12,15 +12,9 @@ import numpy as np
 import pytest
 import torch
 import trimesh
-from typer.testing import CliRunner
-
-from drkfs_onnx.benchmark.point_metrics import iou, is_watertight
-from drkfs_onnx.cameras import make_cameras
-from drkfs_onnx.cli import app
-from drkfs_onnx.config import PipelineConfig
-from drkfs_onnx.fitting.judges import HIGHER_IS_BETTER, VISUAL, SilhouetteJudge, unseen_cameras
-from drkfs_onnx.fitting.losses import CHAMFER, PIXEL, alone, with_chamfer
-from drkfs_onnx.fitting.network import (
+from fit import app as fit_app
+from studies.losses import CHAMFER, alone
+from studies.network import (
     FULL,
     JUDGED,
     PRIMITIVES,
@@ -35,19 +29,18 @@ from drkfs_onnx.fitting.network import (
     make_shape,
     train,
 )
-from drkfs_onnx.fitting.study import brief_share, chamfer_ratios, share, slug
+from studies.study import slug
+from typer.testing import CliRunner
+
+from drkfs_onnx.benchmark.point_metrics import iou, is_watertight
+from drkfs_onnx.cameras import make_cameras
+from drkfs_onnx.config import PipelineConfig
+from drkfs_onnx.judging.judges import HIGHER_IS_BETTER, VISUAL, SilhouetteJudge, unseen_cameras
 
 ROOT = Path(__file__).resolve().parents[1]
 
-
-def test_the_full_plan_chooses_between_the_committed_loss_studys_two_best_forms():
-    results = ROOT / "bench" / "fit" / "results.json"
-    study = json.loads(results.read_text())["loss_study"]
-    ranks = study["forms"]["mean_rank"]
-    assert FULL.forms[0] == study["forms"]["chosen"]
-    assert set(FULL.forms) == set(sorted(ranks, key=ranks.get)[:2])
-    assert FULL.pixel_weight == study["pixel_weight"]["chosen"]
-    assert FULL.chamfer_weights[0] == study["chamfer_weight"]["chosen"]  # the others: validation
+# the studies' end to end checks: python -m pytest -m slow (.ci/run runs them)
+pytestmark = pytest.mark.slow
 
 
 def test_the_network_starts_as_closed_spheres_and_gives_every_parameter_a_gradient():
@@ -145,7 +138,7 @@ def test_the_seed_draws_the_initial_weights_and_batches_and_the_same_seed_repeat
 
 
 def test_a_seed_is_refused_where_nothing_is_drawn_at_random(tmp_path):
-    result = CliRunner().invoke(app, ["fit", "--quick", "--seed", "1", "--out", str(tmp_path)])
+    result = CliRunner().invoke(fit_app, ["--quick", "--seed", "1", "--out", str(tmp_path)])
     assert result.exit_code == 2 and "--seed is for --network" in result.output
     assert not (tmp_path / "results.json").exists()
 
@@ -183,9 +176,7 @@ def test_a_network_trained_on_another_torch_build_or_thread_count_is_trained_aga
 @pytest.fixture(scope="module")
 def quick_network_study(tmp_path_factory):
     out = tmp_path_factory.mktemp("network")
-    result = CliRunner().invoke(
-        app, ["fit", "--network", "--quick", "--seed", "1", "--out", str(out)]
-    )
+    result = CliRunner().invoke(fit_app, ["--network", "--quick", "--seed", "1", "--out", str(out)])
     assert result.exit_code == 0, result.output
     return out, result.output
 
@@ -317,60 +308,3 @@ def test_a_candidate_retrained_at_the_studys_seed_scores_as_the_study_judged_it(
         assert {k: results[against][k] for k in ("wins", "cells", "share")} == on_test[against]
     assert results["chamfer_l1_over_chamfer_trained"] == on_test["chamfer_l1_ratio"]
     assert not (tmp_path / "meshes").exists()  # the candidate's meshes are not saved
-
-
-@pytest.mark.parametrize(
-    "path",
-    sorted((ROOT / "bench/fit-network/candidates").glob("*.json")),
-    ids=lambda p: p.stem,
-)
-def test_each_committed_candidate_stands_beside_its_study(path):
-    """The shares the docs quote from a committed candidate hold: its Chamfer network came out
-    as its study's, its Chamfer and pixel MSE rows are the study's, and its shares and ratio
-    recompute from its table."""
-    results = json.loads(path.read_text())
-    study = json.loads((ROOT / results["study"]).read_text())
-    name = results["candidate"]
-    assert results["reproduced"]["exact"] and results["seed"] == study["plan"]["seed"]
-    assert name in study["validation"]["shares"] and not results["chosen_by_validation"]
-    assert set(results["table"]) == set(study["table"])
-    for shape, rows in results["table"].items():
-        for committed in (CHAMFER, PIXEL):
-            assert rows[committed] == study["table"][shape][committed]
-    assert results["beats_chamfer"] == share(results["table"], name, CHAMFER, VISUAL)
-    assert results["beats_pixel_mse"] == share(results["table"], name, PIXEL, VISUAL)
-    ratio = chamfer_ratios(results["table"], [name])[name]
-    assert results["chamfer_l1_over_chamfer_trained"] == ratio
-
-
-@pytest.mark.parametrize(
-    "path",
-    [
-        ROOT / "bench/fit-network/results.json",
-        *sorted((ROOT / "bench/fit-network").glob("seed*.json")),
-    ],
-    ids=lambda p: p.stem,
-)
-def test_each_committed_network_studys_shares_recompute_from_its_tables(path):
-    """The per-seed shares the docs pool hold: the summary's loss is validation's choice (the
-    shared rule picks it again from the validation table), and its shares, its Chamfer-L1
-    ratio and every passed-over candidate's shares (where the run kept them) recompute from
-    the committed tables."""
-    results = json.loads(path.read_text())
-    table, done = results["table"], results["summary"]
-    choice = results["validation"]
-    best = with_chamfer(choice["form"], choice["chamfer_weight"]).name
-    assert done["best_drkfs_loss"] == best
-    # the rule drkfs choose-loss applies picks the same loss from the validation table
-    again = choose_loss(FULL, choice["table"])
-    assert (again["form"], again["chamfer_weight"]) == (choice["form"], choice["chamfer_weight"])
-    assert done["share_beats_chamfer"] == share(table, best, CHAMFER, VISUAL)["share"]
-    assert done["share_beats_pixel_mse"] == share(table, best, PIXEL, VISUAL)["share"]
-    assert done["chamfer_l1_ratio"] == chamfer_ratios(table, [best])[best]
-    if "candidates_on_test" in results:  # runs before it judged only validation's choice
-        others = results["candidates_on_test"]
-        merged = {shape: {**rows, **others["table"][shape]} for shape, rows in table.items()}
-        assert set(others["shares"]) == set(choice["shares"])
-        for name, got in others["shares"].items():
-            for key, against in (("beats_chamfer", CHAMFER), ("beats_pixel_mse", PIXEL)):
-                assert got[key] == brief_share(merged, name, against, VISUAL)

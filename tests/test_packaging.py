@@ -1,15 +1,21 @@
 """What a user installs: a torch-free runtime, the examples, the command line."""
 
 import json
+import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
+import torch
 import trimesh
 import typer.main
+from fit import app as fit_app
 from typer.testing import CliRunner
 
+from drkfs_onnx import DRKFS, PipelineConfig, load_mesh
 from drkfs_onnx.cli import RUNS, app
 from drkfs_onnx.synthetic.examples import example_meshes
 
@@ -71,7 +77,8 @@ def test_cli_names_the_bad_file(tmp_path):
 
 
 def test_no_command_writes_into_shipped_files_by_default(monkeypatch):
-    """train, export, bench and fit write under runs/ unless --out names models/ or bench/."""
+    """train, export, bench and bench/fit.py write under runs/ unless --out names models/ or
+    bench/."""
     commands = typer.main.get_command(app).commands
     for name in ("train", "export", "bench"):
         (out,) = [p for p in commands[name].params if p.name == "out"]
@@ -84,11 +91,11 @@ def test_no_command_writes_into_shipped_files_by_default(monkeypatch):
         raise Called(out)
 
     for module, function, args in (
-        ("study", "run_study", ["fit"]),
-        ("network", "run_network_study", ["fit", "--network"]),
+        ("study", "run_study", []),
+        ("network", "run_network_study", ["--network"]),
     ):
-        monkeypatch.setattr(f"drkfs_onnx.fitting.{module}.{function}", record)
-        result = CliRunner().invoke(app, args)
+        monkeypatch.setattr(f"studies.{module}.{function}", record)
+        result = CliRunner().invoke(fit_app, args)
         assert isinstance(result.exception, Called), result.output
         assert Path(result.exception.args[0]).parts[0] == RUNS.name
 
@@ -104,7 +111,89 @@ def test_the_runtime_imports_from_the_repository_root_without_the_editable_finde
         "assert shipped_weights(), 'models/ not found'\n"
         "assert 'torch' not in sys.modules\n"
         "import drkfs_onnx.export\n"
+        "import importlib.util as u\n"
+        "names = ('bench', 'docs', 'drkfs_onnx', 'tests', 'meshes', 'studies')\n"
+        "print([u.find_spec(f'drkfs_onnx.{name}') for name in names])\n"
     )
     root = Path(__file__).resolve().parents[1]
     result = subprocess.run([sys.executable, "-c", code], cwd=root, capture_output=True, text=True)
     assert result.returncode == 0, result.stderr
+    # nothing but the package's own modules imports as drkfs_onnx.*
+    assert result.stdout.strip() == str([None] * 6)
+
+
+# what the wheel's models/ holds: each preset's nets once, as the feature graphs it loads
+PRESET_GRAPHS = {
+    "features_metric_w0.5_128px.onnx", "features_correspondence_w1_256px.onnx",
+    "features_correspondence_w0.5_128px.onnx",
+}  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def installed(tmp_path_factory) -> Path:
+    """The package as `pip install .` installs it, into a folder of its own."""
+    folder = tmp_path_factory.mktemp("wheel")
+    source = folder / "source"  # what a clone holds: no build/ left from an earlier build
+    source.mkdir()
+    for name in ("pyproject.toml", "README.md", "drkfs_onnx", "export", "runtime", "models"):
+        copy = shutil.copytree if (ROOT / name).is_dir() else shutil.copy
+        kept = {"symlinks": True, "ignore": shutil.ignore_patterns("__pycache__")}
+        copy(ROOT / name, source / name, **(kept if copy is shutil.copytree else {}))
+    build = [sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "--no-build-isolation"]
+    subprocess.run([*build, str(source), "-w", str(folder / "dist")], check=True)
+    (wheel,) = (folder / "dist").glob("*.whl")
+    install = [sys.executable, "-m", "pip", "install", "-q", "--no-deps", "--no-compile"]
+    subprocess.run([*install, "--target", str(folder / "site"), str(wheel)], check=True)
+    return folder / "site"
+
+
+def test_the_installed_package_is_lean_and_ships_each_presets_nets_once(installed):
+    package = installed / "drkfs_onnx"
+    models = {path.name for path in (package / "models").iterdir() if path.is_file()}
+    assert models == {"__init__.py", "manifest.json", "match.onnx", *PRESET_GRAPHS}
+    size = sum(path.stat().st_size for path in package.rglob("*") if path.is_file())
+    assert size <= 12e6, f"{size / 1e6:.1f} MB"
+    # the studies stay in the repository: the package is the metric, the loss, the runtime,
+    # export, the benchmark, the nets' training and choose-loss
+    assert sorted(p.name for p in package.iterdir() if p.is_dir() and p.name != "__pycache__") == [
+        "benchmark", "export", "judging", "models", "runtime", "synthetic", "training",
+    ]  # fmt: skip
+
+
+def test_every_preset_scores_from_the_installed_package(installed, tmp_path):
+    """Server presets through onnxruntime, and the torch path's nets read from the graphs (no
+    .pt installed), the training loss's included; run outside the checkout."""
+    chair, no_leg = (str(ROOT / "examples" / name) for name in ("chair.obj", "chair_no_leg.obj"))
+    code = (
+        "import json, drkfs_onnx, torch\n"
+        "from drkfs_onnx import DRKFS, PipelineConfig, load_mesh\n"
+        "from drkfs_onnx.runtime import Scorer\n"
+        f"a, b = load_mesh({no_leg!r}), load_mesh({chair!r})\n"
+        "presets = {'default': PipelineConfig(), 'structure': PipelineConfig.structure(),\n"
+        "           'paper': PipelineConfig.paper(), 'loss': PipelineConfig.loss()}\n"
+        "out = {'file': drkfs_onnx.__file__}\n"
+        "for name, config in presets.items():\n"
+        "    with torch.no_grad():\n"
+        "        out[name] = float(DRKFS.pretrained(config).score_meshes(a, b))\n"
+        "    if name != 'loss':\n"
+        "        out[name + ' onnx'] = Scorer(config).score(a, b)\n"
+        "print(json.dumps(out))\n"
+    )
+    env = {**os.environ, "PYTHONPATH": str(installed)}
+    result = subprocess.run(
+        [sys.executable, "-c", code], cwd=tmp_path, env=env, capture_output=True, text=True
+    )
+    assert result.returncode == 0, result.stderr
+    scores = json.loads(result.stdout)
+    assert scores.pop("file").startswith(str(installed))
+    presets = {
+        "default": PipelineConfig(), "structure": PipelineConfig.structure(),
+        "paper": PipelineConfig.paper(), "loss": PipelineConfig.loss(),
+    }  # fmt: skip
+    a, b = load_mesh(no_leg), load_mesh(chair)
+    for name, config in presets.items():
+        with torch.no_grad():  # the checkout's .pt weights
+            expected = float(DRKFS.pretrained(config).score_meshes(a, b))
+        assert scores[name] == expected, name  # the graph's initializers, bit for bit
+        if name != "loss":
+            assert scores[f"{name} onnx"] == pytest.approx(expected, rel=1e-4), name

@@ -9,9 +9,9 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from ..benchmark.sets import real_mesh
-from ..mesh import frame_of, load_mesh, place
-from ..synthetic.shapes import Part, assemble, random_shape
+from drkfs_onnx.benchmark.sets import real_mesh
+from drkfs_onnx.mesh import frame_of, load_mesh, place
+from drkfs_onnx.synthetic.shapes import Part, assemble, random_shape
 
 TEMPLATE_SUBDIVISIONS = 1  # template parts get four times the faces: room to bend
 SIZE_JITTER = 0.2  # a template part's size is the target's times U(1 - j, 1 + j) per axis

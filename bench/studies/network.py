@@ -1,7 +1,7 @@
-"""``drkfs fit --network``: the paper's setting. A network reconstructs procedural shapes from a
-sample of their surface points; it is trained once per loss (Chamfer, pixel MSE, the DR-KFS loss
-and its combinations) from the same initial weights on the same batches, and judged on held-out
-seeds by metrics no loss computes.
+"""``python bench/fit.py --network``: the paper's setting. A network reconstructs procedural
+shapes from a sample of their surface points; it is trained once per loss (Chamfer, pixel MSE,
+the DR-KFS loss and its combinations) from the same initial weights on the same batches, and
+judged on held-out seeds by metrics no loss computes.
 
 Which DR-KFS form, and at which weight beside Chamfer, is the network's own choice: two fitted
 meshes cannot say what a network trained on many shapes needs (with the loss study's first form,
@@ -32,26 +32,24 @@ import torch
 import trimesh
 from torch import nn
 
-from ..benchmark.point_metrics import sample_surface
-from ..config import PipelineConfig
-from ..geometry import Smoothness
-from ..loss import StagedTarget
-from ..mesh import frame_of, place
-from ..synthetic.shapes import assemble, random_shape
+from drkfs_onnx.benchmark.point_metrics import sample_surface
+from drkfs_onnx.config import PipelineConfig
+from drkfs_onnx.geometry import Smoothness
+from drkfs_onnx.judging.judges import HIGHER_IS_BETTER, SURFACE, UNSEEN_VIEWS, VISUAL, Judge
+from drkfs_onnx.judging.rule import brief_share, chamfer_ratios, choose, share
+from drkfs_onnx.loss import StagedTarget
+from drkfs_onnx.mesh import frame_of, place
+from drkfs_onnx.synthetic.shapes import assemble, random_shape
+
 from .gallery import write_gallery
-from .judges import HIGHER_IS_BETTER, SURFACE, UNSEEN_VIEWS, VISUAL, Judge
 from .losses import CHAMFER, PIXEL, Recipe, Terms, alone, with_chamfer, with_pixel
 from .mesh_fit import DrkfsTerm, deterministic_kernels, float_tensor
 from .study import (
-    brief_share,
-    chamfer_ratios,
-    choose,
     column_title,
     machine,
     metric_means,
     resume_key,
     save_mesh,
-    share,
     slug,
     summary,
 )
@@ -483,7 +481,7 @@ def run_network_study(
         judge.close()
     names = [r.name for r in recipes]
     results = {
-        "command": f"drkfs fit --network{' --quick' if quick else ''}"
+        "command": f"python bench/fit.py --network{' --quick' if quick else ''}"
         + (f" --seed {seed}" if seed else "")
         + f" --out {out}",
         "quick": quick,

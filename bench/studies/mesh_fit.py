@@ -15,10 +15,10 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from ..benchmark.point_metrics import sample_surface
-from ..geometry import Smoothness, chamfer, surface_points
-from ..loss import DrkfsLoss
-from ..metric import DRKFS
+from drkfs_onnx.benchmark.point_metrics import sample_surface
+from drkfs_onnx.geometry import Smoothness, chamfer, surface_points
+from drkfs_onnx.loss import DrkfsLoss
+from drkfs_onnx.metric import DRKFS
 
 CHAMFER_SAMPLES = 2000  # points drawn on the prediction each step
 TARGET_SAMPLES = 5000  # points on the target, drawn once

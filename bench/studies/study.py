@@ -1,5 +1,5 @@
-"""``drkfs fit``: DR-KFS as a training loss, fitting templates to targets and judged by metrics
-independent of the loss.
+"""``python bench/fit.py``: DR-KFS as a training loss, fitting templates to targets and judged
+by metrics independent of the loss.
 
 Two parts, one run:
 
@@ -36,11 +36,20 @@ import numpy as np
 import torch
 import trimesh
 
-from ..config import PipelineConfig
-from ..synthetic.shapes import FAMILIES
-from ..weights import sha256
+from drkfs_onnx.config import PipelineConfig
+from drkfs_onnx.judging.judges import (
+    HIGHER_IS_BETTER,
+    METRICS,
+    SURFACE,
+    UNSEEN_VIEWS,
+    VISUAL,
+    Judge,
+)
+from drkfs_onnx.judging.rule import brief_share, chamfer_ratios, share
+from drkfs_onnx.synthetic.shapes import FAMILIES
+from drkfs_onnx.weights import sha256
+
 from .gallery import write_gallery
-from .judges import HIGHER_IS_BETTER, METRICS, SURFACE, UNSEEN_VIEWS, VISUAL, Judge, better
 from .landscape import CHECKS, probe
 from .losses import (
     CHAMFER,
@@ -165,25 +174,6 @@ def average_ranks(table: dict, names) -> dict[str, float]:
     return {n: float(np.mean([ranks[n] for ranks in per_row])) for n in names}
 
 
-def share(table: dict, challenger: str, against: str, metrics: tuple[str, ...]) -> dict:
-    """The (problem, metric) cells where ``challenger``'s result beats ``against``'s; a cell
-    either side lacks (volumetric IoU of an open mesh, LFD where it is not installed) is not
-    counted."""
-    cells = {
-        f"{p}/{m}": better(m, rows[challenger][m], rows[against][m])
-        for p, rows in table.items()
-        for m in metrics
-        if rows[challenger].get(m) is not None and rows[against].get(m) is not None
-    }
-    wins = sum(cells.values())
-    return {"wins": wins, "cells": len(cells), "share": wins / len(cells), "cell_wins": cells}
-
-
-def brief_share(table: dict, challenger: str, against: str, metrics: tuple[str, ...]) -> dict:
-    """``share`` without its cell list: {"wins", "cells", "share"}."""
-    return {k: v for k, v in share(table, challenger, against, metrics).items() if k != "cell_wins"}
-
-
 def pair_shares(table: dict, pairs: dict[str, tuple[str, str]]) -> dict:
     """For each named (challenger, rival) pair, the shares of visual and of surface cells the
     challenger wins (``brief_share``)."""
@@ -205,34 +195,6 @@ def metric_means(table: dict, names) -> dict[str, dict[str, float]]:
             if (found := [rows[n][m] for rows in table.values() if rows[n].get(m) is not None])
         }
         for n in names
-    }
-
-
-def chamfer_ratios(table: dict, losses, against: str = CHAMFER) -> dict[str, float | None]:
-    """Each loss's Chamfer-L1 over ``against``'s (the Chamfer result's), averaged over the
-    table's rows; None where ``against`` matches some row's target exactly."""
-    if any(rows[against]["Chamfer-L1"] == 0 for rows in table.values()):
-        return dict.fromkeys(losses)
-    return {
-        loss: float(
-            np.mean(
-                [rows[loss]["Chamfer-L1"] / rows[against]["Chamfer-L1"] for rows in table.values()]
-            )
-        )
-        for loss in losses
-    }
-
-
-def choose(table: dict, candidates: list[str], baseline: str) -> dict:
-    """The network study's rule for a loss: of ``candidates``, the one whose results beat
-    ``baseline``'s on the most visual cells of ``table`` (shape -> loss -> judged row); a tie
-    goes to the earlier candidate -> {"chosen", "shares": candidate -> {"wins", "cells",
-    "share"}, "chamfer_l1_ratio": candidate -> its Chamfer-L1 over the baseline's}."""
-    shares = {name: brief_share(table, name, baseline, VISUAL) for name in candidates}
-    return {
-        "chosen": max(candidates, key=lambda n: shares[n]["share"]),  # max keeps the first
-        "shares": shares,
-        "chamfer_l1_ratio": chamfer_ratios(table, candidates, baseline),
     }
 
 
@@ -488,7 +450,7 @@ def run_study(out: Path, quick: bool, threads: int = 2, progress=print) -> dict:
     finally:
         judge.close()
     results = {
-        "command": f"drkfs fit{' --quick' if quick else ''} --out {out}",
+        "command": f"python bench/fit.py{' --quick' if quick else ''} --out {out}",
         "quick": quick,
         **machine(),
         "judge_config": plan.judge_config.to_dict(),

@@ -18,13 +18,13 @@ import subprocess
 from pathlib import Path
 from typing import NamedTuple
 
+from ..config import PipelineConfig
 from ..mesh import MeshError, frame_of, load_mesh, place
 from .judges import Judge
-from .network import FULL
-from .study import choose
+from .rule import choose
 
 TARGET = "target"
-JUDGE_CONFIG = FULL.judge_config  # the network study's judge: the paper preset
+JUDGE_CONFIG = PipelineConfig.paper()  # the network study's judge
 
 
 class Row(NamedTuple):

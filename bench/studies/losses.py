@@ -14,12 +14,14 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from ..config import PipelineConfig
-from ..loss import COARSE_TO_FINE, DrkfsLoss, SoftMatch, Stage
-from ..metric import DRKFS
+from drkfs_onnx.config import PipelineConfig
+from drkfs_onnx.judging.rule import CHAMFER
+from drkfs_onnx.loss import COARSE_TO_FINE, DrkfsLoss, SoftMatch, Stage
+from drkfs_onnx.metric import DRKFS
+
 from .mesh_fit import ChamferLoss, DrkfsTerm, Fade, Objective, PixelLoss
 
-CHAMFER, PIXEL = "Chamfer", "pixel MSE"
+PIXEL = "pixel MSE"
 SCORING = "DR-KFS (scoring match)"  # the first studies' "DR-KFS": the default's match, softer
 COARSE = COARSE_TO_FINE[0]
 

@@ -7,8 +7,8 @@ from pathlib import Path
 
 from matplotlib.figure import Figure
 
-from ..config import PipelineConfig
-from ..runtime.render import NumpyRenderer
+from drkfs_onnx.config import PipelineConfig
+from drkfs_onnx.runtime.render import NumpyRenderer
 
 VIEWS = PipelineConfig(num_views=2, image_size=128)  # a side view and one from above
 CELL_INCHES = 1.3  # per view

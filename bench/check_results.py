@@ -1,0 +1,169 @@
+"""The committed results say what the docs quote: each check recomputes a committed number from
+the committed rows it came from, or holds the code's choices to the study that made them.
+
+    python bench/check_results.py [--root DIR]
+
+Prints one line a check ("ok", or "FAILED" with the reason) and exits 1 when any failed. These
+checks read only committed files (bench/fit, bench/fit-network, bench/results, the README); the
+tests run the script (tests/test_check_results.py).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import sys
+from collections.abc import Callable
+from pathlib import Path
+
+from score_scale import markdown, scale
+from studies.losses import CHAMFER, FORMS, PIXEL, SHIPPED, with_chamfer
+from studies.network import FULL, choose_loss
+
+from drkfs_onnx.judging.judges import VISUAL
+from drkfs_onnx.judging.rule import brief_share, chamfer_ratios, share
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _json(root: Path, path: str) -> dict:
+    return json.loads((root / path).read_text())
+
+
+def _brief(found: dict) -> dict:
+    return {k: found[k] for k in ("wins", "cells", "share")}
+
+
+def fitting_study_fitted_the_shipped_form(root: Path) -> str | None:
+    results = _json(root, "bench/fit/results.json")
+    assert results["loss_study"]["form"] == results["summary"]["drkfs_loss_alone"] == SHIPPED
+    pinned = re.search(r"torch==([\d.]+)", (root / ".ci" / "run").read_text()).group(1)
+    if results["torch"] != f"{pinned}+cpu":  # a note, not a failure: the fits stand as run
+        return f"its fits ran on torch {results['torch']}, CI pins {pinned}: a rerun may differ"
+    return None
+
+
+def ideas_recompute_from_their_rows(root: Path) -> None:
+    """bench/fit/ideas.json: its study rows are the study's, and its ideas' shares against pixel
+    MSE follow from its table, and from pixel MSE fitted again where it ran from ``here``."""
+    study = _json(root, "bench/fit/results.json")
+    results = _json(root, "bench/fit/ideas.json")
+    assert results["torch"] == study["torch"]
+    for problem, rows in results["table"].items():
+        assert all(rows[name] == study["table"][problem][name] for name in study["losses"])
+    ideas = results["ideas"]
+    here = {
+        p: {**rows, **{i: results["table"][p][i] for i in ideas}}
+        for p, rows in results["here"].items()
+    }
+    for idea in ideas:
+        for table, shares in ((results["table"], "shares"), (here, "shares_here")):
+            found = results[shares][idea][PIXEL]["visual"]
+            assert found == _brief(share(table, idea, PIXEL, VISUAL)), (idea, shares)
+    # what the fade's DR-KFS term adds: the fade against the same fade without it
+    fade, control = "structure first, pixel MSE last", "the control, pixel MSE last"
+    found = results["shares"][fade][control]["visual"]
+    assert found == _brief(share(results["table"], fade, control, VISUAL))
+
+
+def shipped_loss_is_the_network_studys_choice(root: Path) -> None:
+    from drkfs_onnx.loss import DrkfsLoss
+
+    chosen = _json(root, "bench/fit-network/results.json")["validation"]["form"]
+    loss = DrkfsLoss.pretrained()
+    assert chosen == SHIPPED and (loss.stages, loss.soft) == FORMS[SHIPPED]
+
+
+def network_plan_chooses_between_the_loss_studys_two_best(root: Path) -> None:
+    study = _json(root, "bench/fit/results.json")["loss_study"]
+    ranks = study["forms"]["mean_rank"]
+    assert FULL.forms[0] == study["forms"]["chosen"]
+    assert set(FULL.forms) == set(sorted(ranks, key=ranks.get)[:2])
+    assert FULL.pixel_weight == study["pixel_weight"]["chosen"]
+    assert FULL.chamfer_weights[0] == study["chamfer_weight"]["chosen"]  # the others: validation
+
+
+def candidates_stand_beside_their_studies(root: Path) -> None:
+    """A committed candidate's Chamfer network came out as its study's, its Chamfer and pixel
+    MSE rows are the study's, and its shares and ratio recompute from its table."""
+    for path in sorted((root / "bench/fit-network/candidates").glob("*.json")):
+        results = json.loads(path.read_text())
+        study = _json(root, results["study"])
+        name = results["candidate"]
+        assert results["reproduced"]["exact"] and results["seed"] == study["plan"]["seed"]
+        assert name in study["validation"]["shares"] and not results["chosen_by_validation"]
+        assert set(results["table"]) == set(study["table"]), path.name
+        for shape, rows in results["table"].items():
+            for committed in (CHAMFER, PIXEL):
+                assert rows[committed] == study["table"][shape][committed], (path.name, shape)
+        assert results["beats_chamfer"] == share(results["table"], name, CHAMFER, VISUAL)
+        assert results["beats_pixel_mse"] == share(results["table"], name, PIXEL, VISUAL)
+        ratio = chamfer_ratios(results["table"], [name])[name]
+        assert results["chamfer_l1_over_chamfer_trained"] == ratio, path.name
+
+
+def network_studies_shares_recompute(root: Path) -> None:
+    """Per seed: the summary's loss is validation's choice (the rule drkfs choose-loss applies
+    picks it again), and its shares, its Chamfer-L1 ratio and every passed-over candidate's
+    shares (where the run kept them) recompute from the committed tables."""
+    folder = root / "bench/fit-network"
+    for path in [folder / "results.json", *sorted(folder.glob("seed*.json"))]:
+        results = json.loads(path.read_text())
+        table, done, choice = results["table"], results["summary"], results["validation"]
+        best = with_chamfer(choice["form"], choice["chamfer_weight"]).name
+        assert done["best_drkfs_loss"] == best, path.name
+        again = choose_loss(FULL, choice["table"])
+        assert (again["form"], again["chamfer_weight"]) == (
+            choice["form"],
+            choice["chamfer_weight"],
+        ), path.name
+        assert done["share_beats_chamfer"] == share(table, best, CHAMFER, VISUAL)["share"]
+        assert done["share_beats_pixel_mse"] == share(table, best, PIXEL, VISUAL)["share"]
+        assert done["chamfer_l1_ratio"] == chamfer_ratios(table, [best])[best], path.name
+        if "candidates_on_test" in results:  # runs before it judged only validation's choice
+            others = results["candidates_on_test"]
+            merged = {shape: {**rows, **others["table"][shape]} for shape, rows in table.items()}
+            assert set(others["shares"]) == set(choice["shares"]), path.name
+            for name, got in others["shares"].items():
+                for key, against in (("beats_chamfer", CHAMFER), ("beats_pixel_mse", PIXEL)):
+                    assert got[key] == brief_share(merged, name, against, VISUAL), (path, name)
+
+
+def readme_score_scale_is_the_benchmarks(root: Path) -> None:
+    """The README's table of what a score means is bench/score_scale.py's, from the committed
+    benchmark."""
+    table = markdown(scale(_json(root, "bench/results/results.json")))
+    assert table in (root / "README.md").read_text(), "README's score scale table differs"
+
+
+CHECKS: list[Callable[[Path], str | None]] = [
+    fitting_study_fitted_the_shipped_form,
+    ideas_recompute_from_their_rows,
+    shipped_loss_is_the_network_studys_choice,
+    network_plan_chooses_between_the_loss_studys_two_best,
+    candidates_stand_beside_their_studies,
+    network_studies_shares_recompute,
+    readme_score_scale_is_the_benchmarks,
+]
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--root", type=Path, default=ROOT, help="the repository to check")
+    args = parser.parse_args()
+    failed = 0
+    for check in CHECKS:
+        name = check.__name__.replace("_", " ")
+        try:
+            note = check(args.root)
+        except (AssertionError, KeyError, FileNotFoundError) as exc:
+            failed += 1
+            print(f"FAILED {name}: {type(exc).__name__} {exc}")
+            continue
+        print(f"ok {name}" + (f" (note: {note})" if note else ""))
+    sys.exit(1 if failed else 0)
+
+
+if __name__ == "__main__":
+    main()

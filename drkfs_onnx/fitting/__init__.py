@@ -1,1 +1,0 @@
-"""Fitting meshes with DR-KFS and other losses (``drkfs fit``; needs the ``torch`` extra)."""

@@ -1,0 +1,34 @@
+"""bench/check_results.py: the committed results recompute from their own rows, and a number
+changed in one of them is caught."""
+
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import check_results
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_the_script_runs_every_check_on_the_committed_results():
+    script = ROOT / "bench" / "check_results.py"
+    result = subprocess.run([sys.executable, script], capture_output=True, text=True, cwd=ROOT)
+    assert result.returncode == 0, result.stdout + result.stderr
+    lines = result.stdout.splitlines()
+    assert len(lines) == len(check_results.CHECKS)
+    assert all(line.startswith("ok ") for line in lines), result.stdout
+
+
+def test_a_share_that_does_not_follow_from_its_table_fails_its_check(tmp_path):
+    study = tmp_path / "bench" / "fit-network"
+    study.mkdir(parents=True)
+    results = json.loads((ROOT / "bench/fit-network/results.json").read_text())
+    results["summary"]["share_beats_chamfer"] = 0.99
+    (study / "results.json").write_text(json.dumps(results))
+    with pytest.raises(AssertionError):
+        check_results.network_studies_shares_recompute(tmp_path)
+    shutil.copy(ROOT / "bench/fit-network/results.json", study / "results.json")
+    check_results.network_studies_shares_recompute(tmp_path)  # the committed file passes
