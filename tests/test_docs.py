@@ -1,0 +1,70 @@
+"""What a reader and a fresh clone meet: the README's quick starts, docs a reader can follow, the
+real meshes in the repository, and a test run that says what it leaves out."""
+
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import tomllib
+
+from drkfs_onnx.benchmark import sets
+
+ROOT = Path(__file__).resolve().parents[1]
+QUICK_STARTS = ("Score your two meshes", "Run a server", "Train a network")
+
+
+def _sections(text: str) -> dict[str, list[str]]:
+    found, name = {}, None
+    for line in text.splitlines():
+        if line.startswith("## "):
+            name = line[3:].strip()
+            found[name] = []
+        elif name is not None:
+            found[name].append(line)
+    return found
+
+
+def test_the_readme_opens_with_the_two_commands_and_has_a_short_quick_start_per_reader():
+    text = (ROOT / "README.md").read_text()
+    first = re.search(r"```bash\n(.*?)```", text, re.S).group(1)
+    assert "drkfs-score batch examples/pairs.csv" in first
+    test_command = (
+        'pip install torch==2.13.0 && pip install -e ".[torch,dev]" && python -m pytest -q'
+    )
+    assert test_command in first and test_command in (ROOT / ".ci" / "run").read_text()
+    sections = _sections(text)
+    for name in QUICK_STARTS:  # a quick start per reader, each under 30 lines
+        lines = [line for line in sections[name] if line.strip()]
+        assert len(lines) < 30, (name, len(lines))
+
+
+def test_the_docs_name_no_issue_and_no_command_that_no_longer_exists():
+    for path in [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]:
+        text = path.read_text()
+        assert not re.search(r"\bissues? \d+|done-means", text, re.I), path.name
+        assert "drkfs fit" not in text and "../shared/meshes" not in text, path.name
+
+
+def test_every_real_mesh_is_in_the_repository_with_its_origin_and_terms():
+    assert sets.CHECKOUT_MESHES == ROOT / "meshes"
+    readme = (ROOT / "meshes" / "README.md").read_text()
+    for name in sets.SHARED_MESHES:
+        assert sets.real_mesh(name).is_file(), name
+        (row,) = [line for line in readme.splitlines() if line.startswith(f"| {name}.obj |")]
+        assert len(row.split("|")) == 7 and row.split("|")[-2].strip(), name  # its terms
+
+
+def test_a_folder_without_the_real_meshes_is_named_with_where_they_come_from(tmp_path):
+    code = "from drkfs_onnx.benchmark.sets import real_mesh; real_mesh('cow')"
+    env = {"DRKFS_MESHES": str(tmp_path), "PATH": ""}
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env)
+    assert f"{tmp_path / 'cow.obj'}: real mesh cow.obj not found" in result.stderr
+    assert "--meshes DIR or DRKFS_MESHES" in result.stderr
+
+
+def test_the_default_run_leaves_out_only_the_slow_studies_and_ci_runs_them():
+    options = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["pytest"]["ini_options"]
+    assert "-m 'not slow'" in options["addopts"]
+    ci = (ROOT / ".ci" / "run").read_text()
+    assert "python -m pytest -q -m slow" in ci and "python bench/check_results.py" in ci
