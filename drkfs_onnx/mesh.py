@@ -69,6 +69,30 @@ def load_mesh(path: str | Path) -> Mesh:
     return check_mesh(vertices, faces, source)
 
 
+def declared_faces(path: str | Path) -> int | None:
+    """The face count a PLY or OFF file declares in its header, read without the geometry (a
+    server can refuse a huge file before reading it); None for other formats or a header that
+    does not say."""
+    suffix = Path(path).suffix.lower()
+    if suffix not in (".ply", ".off") or not Path(path).is_file():
+        return None
+    with open(path, "rb") as handle:
+        head = handle.read(4096).decode("latin-1").splitlines()
+    if suffix == ".ply":
+        for line in head:
+            words = line.split()
+            if words[:2] == ["element", "face"] and len(words) == 3 and words[2].isdigit():
+                return int(words[2])
+            if words[:1] == ["end_header"]:
+                break
+        return None
+    # OFF: "OFF", then (comments aside) "vertices faces edges", possibly on the OFF line itself
+    counts = " ".join(line.split("#")[0] for line in head).split()
+    if counts[:1] == ["OFF"] and len(counts) >= 3 and counts[2].isdigit():
+        return int(counts[2])
+    return None
+
+
 def _read(path: Path):
     """trimesh's reading of ``path``, geometry only: materials and textures would need Pillow,
     which servers may lack. A text format is decoded here, as UTF-8 or else Latin-1 (every byte

@@ -16,7 +16,15 @@ from pathlib import Path
 import numpy as np
 
 from drkfs_onnx.config import PipelineConfig
-from drkfs_onnx.mesh import Mesh, MeshError, check_normalization, frame_of, load_mesh, place
+from drkfs_onnx.mesh import (
+    Mesh,
+    MeshError,
+    check_normalization,
+    declared_faces,
+    frame_of,
+    load_mesh,
+    place,
+)
 from drkfs_onnx.patch_grid import nonempty_patches
 
 from .features import MeshFeatures
@@ -25,9 +33,9 @@ from .render import NumpyRenderer
 from .sessions import open_features
 
 MeshLike = Mesh | str | Path
-# drkfs-score's default bound on a mesh's faces: rendering costs about 0.7 GB and 7-10 s a
-# million faces on 2 cores (a 5.2M-face mesh: 3.6 GB, 36-52 s), so 5M keeps one file under
-# about 4 GB
+# drkfs-score's default bound on a mesh's faces: rendering and describing cost about 0.8 GB and
+# 3 s a million faces on 2 cores (the bunny subdivided to 4.4M faces: 3.5 GB peak, 15 s;
+# docs/server.md), so 5M keeps one file under about 4 GB
 MAX_FACES = 5_000_000
 # meshes with more faces than this say what they are doing before the long part starts
 PROGRESS_FACES = 1_000_000
@@ -130,15 +138,21 @@ class Scorer:
         return result
 
     def load(self, mesh: MeshLike) -> Mesh:
-        """A checked mesh within ``max_faces``; a MeshError naming the file otherwise."""
-        mesh = mesh if isinstance(mesh, Mesh) else load_mesh(mesh)
-        if self.max_faces is not None and len(mesh.faces) > self.max_faces:
+        """A checked mesh within ``max_faces``; a MeshError naming the file otherwise. A PLY or
+        OFF file's header is checked before its geometry is read."""
+        if not isinstance(mesh, Mesh):
+            self._check_faces(str(mesh), declared_faces(mesh))
+            mesh = load_mesh(mesh)
+        self._check_faces(mesh.source, len(mesh.faces))
+        return mesh
+
+    def _check_faces(self, source: str, faces: int | None) -> None:
+        if self.max_faces is not None and faces is not None and faces > self.max_faces:
             raise MeshError(
-                mesh.source,
-                f"{len(mesh.faces):,} faces, over the bound of {self.max_faces:,} "
+                source,
+                f"{faces:,} faces, over the bound of {self.max_faces:,} "
                 "(--max-faces; raise it to score this mesh)",
             )
-        return mesh
 
     def views(self, mesh: Mesh, frame: tuple[np.ndarray, float]) -> np.ndarray:
         """(K, S, S) grey views of ``mesh`` placed in ``frame`` (as ``features`` sees it)."""

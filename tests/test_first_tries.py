@@ -124,6 +124,19 @@ def test_max_faces_refuses_a_larger_mesh_before_rendering_and_fails_only_its_row
     assert unbounded.exit_code == 0
 
 
+def test_a_ply_or_off_header_over_the_bound_is_refused_before_the_geometry_is_read(
+    tmp_path, monkeypatch
+):
+    chair = trimesh.load(_big_chair(tmp_path, 4), process=False)
+    paths = [tmp_path / "big.ply", tmp_path / "big.off"]
+    chair.export(paths[0])
+    chair.export(paths[1])
+    monkeypatch.setattr("drkfs_onnx.runtime.scorer.load_mesh", lambda path: 1 / 0)
+    for path in paths:
+        line = _error_line(_run("pair", path, CHAIR, "--max-faces", "1000", *FAST))
+        assert f"{path}: 1,152 faces, over the bound of 1,000" in line
+
+
 def test_a_large_mesh_says_what_it_is_doing_before_and_after(tmp_path, monkeypatch):
     monkeypatch.setattr("drkfs_onnx.runtime.scorer.PROGRESS_FACES", 1000)
     lines = []
