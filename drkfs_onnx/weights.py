@@ -83,10 +83,10 @@ def _state_from_graph(entry: dict):
     from onnx import numpy_helper
 
     from .hardnet import state_from_folded
-    from .model_files import WEIGHTS_KEY
+    from .model_files import WEIGHTS_KEY, nets_prefix
 
     trained = PipelineConfig.from_dict(entry["config"])
-    prefix = f"features_{trained.nets}_w{trained.descriptor_width:g}_"
+    prefix = nets_prefix(trained)
     for item in sorted(models_dir().iterdir(), key=lambda item: item.name):
         if not (item.name.startswith(prefix) and item.name.endswith("px.onnx")):
             continue
@@ -99,7 +99,11 @@ def _state_from_graph(entry: dict):
         }
         # the metric's two nets: the detector as trained, HardNet with its BatchNorms folded
         state = {name: tensors[name] for name in ("detector.conv.weight", "detector.conv.bias")}
-        descriptor = {name[11:]: t for name, t in tensors.items() if name.startswith("descriptor.")}
+        descriptor = {
+            name.removeprefix("descriptor."): tensor
+            for name, tensor in tensors.items()
+            if name.startswith("descriptor.")
+        }
         for name, tensor in state_from_folded(descriptor, trained).items():
             state[f"descriptor.{name}"] = tensor
         return state
