@@ -109,5 +109,6 @@ def _state_from_graph(entry: dict):
         return state
     raise ValueError(
         f"models/: neither {entry['file']} nor a feature graph exported from it (sha256 "
-        f"{entry['sha256'][:12]}); reinstall, or export it from a checkout (drkfs export)"
+        f"{entry['sha256'][:12]}): an installed package carries the presets' nets only; the "
+        "others are in a checkout's models/ (pip install -e .), or train them (drkfs train)"
     )
