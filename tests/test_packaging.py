@@ -1,5 +1,6 @@
 """What a user installs: a torch-free runtime, the examples, the command line."""
 
+import importlib.util
 import json
 import os
 import shutil
@@ -139,7 +140,9 @@ def installed(tmp_path_factory) -> Path:
         copy = shutil.copytree if (ROOT / name).is_dir() else shutil.copy
         kept = {"symlinks": True, "ignore": shutil.ignore_patterns("__pycache__")}
         copy(ROOT / name, source / name, **(kept if copy is shutil.copytree else {}))
-    build = [sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "--no-build-isolation"]
+    # this environment's setuptools where it has one (no index needed), else pip's isolated one
+    isolation = [] if importlib.util.find_spec("setuptools") is None else ["--no-build-isolation"]
+    build = [sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", *isolation]
     subprocess.run([*build, str(source), "-w", str(folder / "dist")], check=True)
     (wheel,) = (folder / "dist").glob("*.whl")
     install = [sys.executable, "-m", "pip", "install", "-q", "--no-deps", "--no-compile"]
