@@ -48,7 +48,7 @@ MaxFaces = Annotated[
     int,
     typer.Option(
         min=0,
-        help="Refuse a mesh with more faces, before it is rendered (rendering costs about 0.8 GB "
+        help="Refuse a mesh with more faces, before it is rendered (rendering costs about 0.75 GB "
         "a million faces); 0: no bound.",
     ),
 ]

@@ -32,10 +32,13 @@ def read_pairs(path: Path) -> PairsFile:
     names it."""
     if not path.is_file():
         raise ValueError(f"{path}: no such pairs file" + (" (a folder)" if path.is_dir() else ""))
-    lines = _rows(path)  # (line number, cells)
-    blank = [number for number, row in lines if not any(cell.strip() for cell in row)]
-    rows = [(number, [cell.strip() for cell in row]) for number, row in lines]
-    rows = [(number, row) for number, row in rows if number not in blank]
+    blank, rows = [], []  # line numbers of blank rows; (line number, stripped cells)
+    for number, row in _rows(path):
+        cells = [cell.strip() for cell in row]
+        if any(cells):
+            rows.append((number, cells))
+        else:
+            blank.append(number)
     if not rows:
         raise ValueError(f"{path}: no pairs (the file is empty); one row per pair: mesh_a,mesh_b")
     warnings = []

@@ -33,9 +33,9 @@ from .render import NumpyRenderer
 from .sessions import open_features
 
 MeshLike = Mesh | str | Path
-# drkfs-score's default bound on a mesh's faces: rendering and describing cost about 0.8 GB and
-# 3 s a million faces on 2 cores (the bunny subdivided to 4.4M faces: 3.5 GB peak, 15 s;
-# docs/server.md), so 5M keeps one file under about 4 GB
+# drkfs-score's default bound on a mesh's faces: rendering and describing cost about 0.75 GB
+# and 3.5 s a million faces on 2 cores (the bunny subdivided to 4.4M faces: 3.5 GB peak, 17.6 s;
+# bench/large_mesh.py), so 5M keeps one file under about 4 GB
 MAX_FACES = 5_000_000
 # meshes with more faces than this say what they are doing before the long part starts
 PROGRESS_FACES = 1_000_000
@@ -141,7 +141,8 @@ class Scorer:
         """A checked mesh within ``max_faces``; a MeshError naming the file otherwise. A PLY or
         OFF file's header is checked before its geometry is read."""
         if not isinstance(mesh, Mesh):
-            self._check_faces(str(mesh), declared_faces(mesh))
+            if self.max_faces is not None:
+                self._check_faces(str(mesh), declared_faces(mesh))
             mesh = load_mesh(mesh)
         self._check_faces(mesh.source, len(mesh.faces))
         return mesh
