@@ -49,8 +49,8 @@ class _FrozenHardNet(torch.autograd.Function):
         steps = zip(reversed(layers[:-1]), reversed(passed), reversed(ctx.sizes), strict=True)
         for (weight, _, stride, padding), mask, size in steps:
             grad = grad * mask  # (a multiply by the bool: 3x faster than where on a CPU)
-            # a strided conv drops the input's last rows where they do not fill a step: the
-            # transposed conv gives them back (zero gradient) as output padding
+            # a stride-2 conv maps input sizes n and n + 1 to one output size: the output
+            # padding tells the transposed conv which of them it had
             kernel, out = weight.shape[-2:], grad.shape[-2:]
             lost = [n - ((o - 1) * s - 2 * p + k) for n, o, s, p, k in
                     zip(size, out, stride, padding, kernel, strict=True)]  # fmt: skip

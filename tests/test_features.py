@@ -123,8 +123,8 @@ def test_evaluation_folds_batchnorm_into_the_convs_without_changing_descriptors(
 def test_fixed_nets_backward_equals_autograds(size):
     """With fixed weights (as in the metric) the detector and HardNet send the patches their
     gradient by hand-written backwards (transposed convs, the ReLU masks kept as bools): the
-    same gradient as autograd's through the same layers, for any upstream gradient; 20 px
-    patches meet a stride-2 conv whose input rows do not fill its last step."""
+    same gradient as autograd's through the same layers, for any upstream gradient and patch
+    size (20 px: a 5 x 5 map before the last conv)."""
     torch.manual_seed(0)
     config = PipelineConfig(descriptor_width=0.5, patch_size=size)
     detector, net = PoIDetector(config), HardNet(config).eval()
