@@ -16,9 +16,21 @@ def l2_normalize(x: torch.Tensor, eps: float = 1e-10) -> torch.Tensor:
     return x / torch.sqrt(torch.clamp_min((x * x).sum(dim=1, keepdim=True), eps))
 
 
+def _conv_stack(x: torch.Tensor, layers: list, passed: list | None = None) -> torch.Tensor:
+    """HardNet's folded convs (``layers``: (weight, bias, stride, padding) each) in order, a ReLU
+    after all but the last; ``passed``, where given, collects where each ReLU passed (bools)."""
+    for k, (weight, bias, stride, padding) in enumerate(layers):
+        x = nn.functional.conv2d(x, weight, bias, stride, padding)
+        if k + 1 < len(layers):  # in place: the conv's output is not needed for its backward
+            x = torch.relu_(x)
+            if passed is not None:
+                passed.append(x > 0)
+    return x
+
+
 class _FrozenHardNet(torch.autograd.Function):
     """HardNet's evaluation layers (``HardNet._folded``) for fixed weights, differentiable with
-    respect to the patches only. The forward is ``_folded``'s, number for number; the backward
+    respect to the patches only. The forward is ``_conv_stack``, as ``_folded``'s; the backward
     keeps only where each ReLU passed (a bool an activation, where autograd keeps every conv's
     input: most of a batch's training-step memory) and sends the gradient back through each
     conv as a transposed conv and through the last as a matmul. On a CPU those run 1.3-4x faster
@@ -29,24 +41,21 @@ class _FrozenHardNet(torch.autograd.Function):
 
     @staticmethod
     def forward(ctx, x, layers):
-        passed, sizes = [], []
-        for weight, bias, stride, padding in layers[:-1]:
-            sizes.append(x.shape[-2:])
-            x = torch.relu_(nn.functional.conv2d(x, weight, bias, stride, padding))
-            passed.append(x > 0)
-        weight, bias, stride, padding = layers[-1]
-        out = nn.functional.conv2d(x, weight, bias, stride, padding)
-        ctx.layers, ctx.passed, ctx.sizes, ctx.last_input = layers, passed, sizes, x.shape
+        passed = []
+        out = _conv_stack(x, layers, passed)
+        ctx.layers, ctx.passed, ctx.input_size = layers, passed, x.shape[-2:]
         return out
 
     @staticmethod
     def backward(ctx, grad):
         layers, passed = ctx.layers, ctx.passed
-        weight = layers[-1][0]
-        # the last conv covers its whole input map: its input gradient is one matmul
-        grad = (grad.flatten(1) @ weight.flatten(1)).view(ctx.last_input)
+        # the last conv covers its whole input map (the last ReLU's): its input gradient is one
+        # matmul
+        grad = (grad.flatten(1) @ layers[-1][0].flatten(1)).view(passed[-1].shape)
         grad = grad.contiguous(memory_format=torch.channels_last)
-        steps = zip(reversed(layers[:-1]), reversed(passed), reversed(ctx.sizes), strict=True)
+        # each conv's input size: the patches', then each ReLU's output but the last
+        sizes = [ctx.input_size, *(mask.shape[-2:] for mask in passed[:-1])]
+        steps = zip(reversed(layers[:-1]), reversed(passed), reversed(sizes), strict=True)
         for (weight, _, stride, padding), mask, size in steps:
             grad = grad * mask  # (a multiply by the bool: 3x faster than where on a CPU)
             # a stride-2 conv maps input sizes n and n + 1 to one output size: the output
@@ -110,11 +119,7 @@ class HardNet(nn.Module):
         # fixed nets on an input that needs a gradient (a training loss): the lean backward
         if x.requires_grad and not any(p.requires_grad for p in self.parameters()):
             return _FrozenHardNet.apply(x, layers)
-        for k, (weight, bias, stride, padding) in enumerate(layers):
-            x = nn.functional.conv2d(x, weight, bias, stride, padding)
-            if k + 1 < len(layers):  # in place: the conv's output is not needed for its backward
-                x = torch.relu_(x)
-        return x
+        return _conv_stack(x, layers)
 
 
 def state_from_folded(folded: dict[str, torch.Tensor], config: PipelineConfig) -> dict:
