@@ -2,9 +2,9 @@
 
 Torch-free: ``drkfs_onnx.rasterize`` passes ``TORCH_OPS``, the runtime ``NUMPY_OPS``. Each
 function takes the array module's few operations as ``ops``: ``where``, ``minimum``,
-``maximum``, ``clip``, ``ceil``, ``floor``, ``sqrt``, ``exp``, ``log``, ``sigmoid``, ``stack``,
-``einsum``, ``take(values, index)`` (gather along the last axis, broadcasting the others), and
-``scatter_sum(index, values, length)`` / ``scatter_max(out, index, values)``.
+``maximum``, ``clip``, ``sign``, ``ceil``, ``floor``, ``sqrt``, ``exp``, ``log``, ``sigmoid``,
+``stack``, ``einsum``, ``take(values, index)`` (gather along the last axis, broadcasting the
+others), and ``scatter_sum(index, values, length)`` / ``scatter_max(out, index, values)``.
 Only what is not an equation stays apart: autograd's two passes (``rasterize.py``) and the
 numpy renderer's culling (``runtime/candidates.py``).
 
@@ -24,6 +24,9 @@ import numpy as np
 from .config import PipelineConfig
 
 TINY = 1e-12
+TINY_LENGTH = 1e-9
+# Pairs are listed slightly beyond the cut-off radius, so float32 rounding never drops one.
+LOOSE_RADIUS = 1.01
 # A pair whose blend logit lies this far under its pixel's largest is dropped: its weight is
 # below exp(-DEPTH_CULL) of the front face's.
 DEPTH_CULL = 30.0
@@ -48,9 +51,10 @@ def _take(values: np.ndarray, index: np.ndarray) -> np.ndarray:
 
 
 NUMPY_OPS = SimpleNamespace(
-    where=np.where, minimum=np.minimum, maximum=np.maximum, clip=np.clip, ceil=np.ceil,
-    floor=np.floor, sqrt=np.sqrt, exp=np.exp, log=np.log, sigmoid=_sigmoid, stack=np.stack,
-    einsum=np.einsum, take=_take, scatter_sum=_scatter_sum, scatter_max=_scatter_max,
+    where=np.where, minimum=np.minimum, maximum=np.maximum, clip=np.clip, sign=np.sign,
+    ceil=np.ceil, floor=np.floor, sqrt=np.sqrt, exp=np.exp, log=np.log, sigmoid=_sigmoid,
+    stack=np.stack, einsum=np.einsum, take=_take, scatter_sum=_scatter_sum,
+    scatter_max=_scatter_max,
 )  # fmt: skip
 
 
@@ -113,6 +117,33 @@ def pixel_span(lo, hi, config: PipelineConfig, ops):
     return first, ops.clip(last - first + 1, 0, None)
 
 
+def edge_lines(params, ops):
+    """(9, N) screen params -> per edge (corner i to i + 1) its line's (a, b, c), (N,) each:
+    a x + b y + c is the signed distance from (x, y) to the line, positive on the triangle's
+    side (0 everywhere for a degenerate face). A pixel further than the cut-off radius outside
+    one of a face's lines is not covered by it: the distance to a triangle is at least the
+    distance to each of its lines' inner half-planes."""
+    x0, y0, x1, y1, x2, y2 = params[:6]
+    orient = ops.sign((x1 - x0) * (y2 - y0) - (y1 - y0) * (x2 - x0))
+    lines = []
+    for ax, ay, bx, by in ((x0, y0, x1, y1), (x1, y1, x2, y2), (x2, y2, x0, y0)):
+        ex, ey = bx - ax, by - ay
+        scale = orient / ops.clip(ops.sqrt(ex * ex + ey * ey), TINY_LENGTH, None)
+        lines.append((-ey * scale, ex * scale, (ey * ax - ex * ay) * scale))
+    return lines
+
+
+def line_columns(a, b, c, py, reach, size: int):
+    """Along pixel rows at height ``py``: the line a x + b y + c's (``edge_lines``) distance
+    at column 0, and the columns where it is 0 and where it is -``reach``, as fractional
+    indices; at a > 0 the columns past the last are within ``reach`` of the line's inner side,
+    at a < 0 those before it."""
+    level = a * (1.0 / size - 1.0) + b * py + c
+    per_column = (-size / 2.0) / a  # columns per unit of distance, negated
+    root = level * per_column
+    return level, root, root + reach * per_column
+
+
 def pixel_centre(index, size: int):
     """NDC of pixel centres: pixel i of a row or column sits at (2i + 1) / size - 1 (``index``
     as floats of the coordinates' dtype)."""
@@ -135,23 +166,44 @@ def _edges(tri, px, py, ops):
     return parts
 
 
+def _step(x, ops):
+    """1.0 where x > 0, else 0.0, in x's dtype: a mask to multiply by. On a CPU a comparison
+    costs torch 3x an arithmetic pass and ``where`` 12x; sign and clip cost one each."""
+    return ops.clip(ops.sign(x), 0.0, None)
+
+
+def _pick(mask, a, b):
+    """a where ``mask`` (a ``_step``) is 1, else b: exact for finite a and b (a * 1 + b * 0)."""
+    return a * mask + b * (1.0 - mask)
+
+
+def _first(masks):
+    """The first of three 0/1 masks of which one at least is 1, one-hot."""
+    a, b, _ = masks
+    b = b * (1.0 - a)
+    return a, b, 1.0 - a - b
+
+
 def _coverage(edges, config: PipelineConfig, ops):
-    """(inside, the squared distance to the triangle, sigmoid(+-d^2 / sigma), coverage D')."""
+    """(+1 inside the triangle and -1 outside, the squared distance to the triangle,
+    sigmoid(+-d^2 / sigma), coverage D')."""
     c0, c1, c2 = (e.c for e in edges)
     dist2 = ops.minimum(ops.minimum(edges[0].d2, edges[1].d2), edges[2].d2)
-    inside = ((c0 > 0) & (c1 > 0) & (c2 > 0)) | ((c0 < 0) & (c1 < 0) & (c2 < 0))
-    signed = ops.where(inside, dist2, -dist2) / config.sigma
+    # inside: the three edge functions are all positive or all negative, |sum of signs| = 3
+    turns = abs(ops.sign(c0) + ops.sign(c1) + ops.sign(c2))
+    side = 2.0 * _step(turns - 2.0, ops) - 1.0
+    signed = dist2 * side / config.sigma
     eps = config.coverage_eps
     probability = ops.sigmoid(signed)
-    return inside, dist2, probability, ops.clip((probability - eps) / (1.0 - eps), 0.0, None)
+    return side, dist2, probability, ops.clip((probability - eps) / (1.0 - eps), 0.0, None)
 
 
 def _plane(edges, w, ops):
-    """(the doubled area, its guarded value, the face's plane of inverse depth at the pixel)."""
+    """(the guarded doubled area, the face's plane of inverse depth at the pixel)."""
     c0, c1, c2 = (e.c for e in edges)
     area2 = c0 + c1 + c2
-    area_safe = ops.where(abs(area2) > TINY, area2, TINY)
-    return area2, area_safe, (c1 * w[0] + c2 * w[1] + c0 * w[2]) / area_safe
+    area_safe = _pick(_step(abs(area2) - TINY, ops), area2, TINY)
+    return area_safe, (c1 * w[0] + c2 * w[1] + c0 * w[2]) / area_safe
 
 
 def pair_terms(tri, px, py, config: PipelineConfig, ops):
@@ -168,7 +220,7 @@ def pair_terms(tri, px, py, config: PipelineConfig, ops):
     edges = _edges(tri, px, py, ops)
     coverage = _coverage(edges, config, ops)[3]
     w0, w1, w2 = tri[6:9]
-    plane = _plane(edges, (w0, w1, w2), ops)[2]
+    plane = _plane(edges, (w0, w1, w2), ops)[1]
     lowest = ops.minimum(ops.minimum(w0, w1), w2)
     highest = ops.maximum(ops.maximum(w0, w1), w2)
     return coverage, ops.maximum(ops.minimum(plane, highest), lowest)
@@ -177,62 +229,69 @@ def pair_terms(tri, px, py, config: PipelineConfig, ops):
 def pair_terms_grad(tri, px, py, grad_coverage, grad_depth, config: PipelineConfig, ops):
     """The gradient of ``pair_terms`` with respect to ``tri``: (9, P), given the gradients of
     its coverage and depth (P,). Written out so that a backward pass costs one recomputation
-    of the pairs' terms, not autograd's graph of them.
+    of the pairs' terms, not autograd's graph of them; its masks are ``_step``s multiplied in.
 
     The distance to the triangle is its nearest edge's, |p - (a + t (b - a))|^2, whose slope in
     a and b is -2 r (1 - t) and -2 r t (r from the nearest point to the pixel; t's own slope
-    meets r . e = 0). The plane is (c1 w0 + c2 w1 + c0 w2) / (c0 + c1 + c2), each edge function
-    c = e x q bilinear in the corners. A clamped depth sends its gradient to the corner whose
-    depth it took.
+    meets r . e = 0). The plane is f(p) = sum_k lambda_k w_k, lambda the pixel's barycentric
+    coordinates (lambda_k = c_(k+1) / area, c_i = e_i x q_i the edge functions): its slope in
+    w_k is lambda_k, and moving corner k by delta moves it as moving the pixel by
+    -lambda_k delta, a slope of -lambda_k grad f (grad f, the plane's screen gradient, is the
+    face's own). A clamped depth sends its gradient to the corner whose depth it took.
     """
     edges = _edges(tri, px, py, ops)
-    inside, dist2, probability, coverage = _coverage(edges, config, ops)
-    eps = config.coverage_eps
-    slope = probability * (1.0 - probability) / (1.0 - eps) / config.sigma
-    signed_grad = ops.where(coverage > 0, grad_coverage * slope, 0.0)
-    grad_dist2 = ops.where(inside, signed_grad, -signed_grad)
+    e0, e1, e2 = edges
+    side, dist2, probability, coverage = _coverage(edges, config, ops)
+    slope = probability * (1.0 - probability) / ((1.0 - config.coverage_eps) * config.sigma)
+    # -2 d coverage / d dist2, where the coverage is not cut
+    grad_dist2 = -2.0 * grad_coverage * slope * side * _step(coverage, ops)
+    # the nearest edge (the first at the minimum) and its nearest point's weights on the
+    # corners (edge i runs from corner i to corner i + 1)
+    nearest = _first([1.0 - _step(e.d2 - dist2, ops) for e in edges])
+    grad_rx = grad_dist2 * (nearest[0] * e0.rx + nearest[1] * e1.rx + nearest[2] * e2.rx)
+    grad_ry = grad_dist2 * (nearest[0] * e0.ry + nearest[1] * e1.ry + nearest[2] * e2.ry)
+    towards = [nearest[k] * (1.0 - edges[k].t) + nearest[k - 1] * edges[k - 1].t for k in range(3)]
+
     w = tri[6:9]
-    area2, area_safe, plane = _plane(edges, w, ops)
+    area_safe, plane = _plane(edges, w, ops)
     lowest = ops.minimum(ops.minimum(w[0], w[1]), w[2])
     highest = ops.maximum(ops.maximum(w[0], w[1]), w[2])
-    inner = (plane < highest) & (plane > lowest)
-    grad_plane = ops.where(inner, grad_depth, 0.0)
-    # the plane's slope in each edge function, through its numerator and (unguarded) area
-    area_slope = ops.where(abs(area2) > TINY, -plane / area_safe, 0.0)
-    grads = [0.0 * px for _ in range(9)]
-    nearest_taken = dist2 < 0  # all False: the first edge at the minimum takes its gradient
-    for i, (edge, weight) in enumerate(zip(edges, (w[2], w[0], w[1]), strict=True)):
-        a, b = i, (i + 1) % 3
-        # the edge function's slope in its corners: c = ex qy - ey qx
-        grad_c = grad_plane * (weight / area_safe + area_slope)
-        grads[2 * a] = grads[2 * a] + grad_c * (edge.ey - edge.qy)
-        grads[2 * a + 1] = grads[2 * a + 1] + grad_c * (edge.qx - edge.ex)
-        grads[2 * b] = grads[2 * b] + grad_c * edge.qy
-        grads[2 * b + 1] = grads[2 * b + 1] - grad_c * edge.qx
-        nearest = (edge.d2 == dist2) & ~nearest_taken
-        nearest_taken = nearest_taken | nearest
-        grad_d2 = ops.where(nearest, -2.0 * grad_dist2, 0.0)
-        grads[2 * a] = grads[2 * a] + grad_d2 * edge.rx * (1.0 - edge.t)
-        grads[2 * a + 1] = grads[2 * a + 1] + grad_d2 * edge.ry * (1.0 - edge.t)
-        grads[2 * b] = grads[2 * b] + grad_d2 * edge.rx * edge.t
-        grads[2 * b + 1] = grads[2 * b + 1] + grad_d2 * edge.ry * edge.t
-    area_weight = grad_plane / area_safe
-    edge_c = [e.c for e in edges]
-    for i, c in enumerate((edge_c[1], edge_c[2], edge_c[0])):  # w0 * c1, w1 * c2, w2 * c0
-        # a clamped depth is the nearest or farthest corner's own (the first one at it)
-        takes_low = (plane <= lowest) & (w[i] == lowest)
-        takes_high = (plane >= highest) & (w[i] == highest)
-        for j in range(i):
-            takes_low = takes_low & (w[j] != lowest)
-            takes_high = takes_high & (w[j] != highest)
-        clamped = ops.where(takes_low | takes_high, grad_depth, 0.0)
-        grads[6 + i] = c * area_weight + clamped
+    above_lowest = _step(plane - lowest, ops)
+    inner = above_lowest * _step(highest - plane, ops)
+    grad_plane = grad_depth * inner
+    inverse = 1.0 / area_safe
+    barycentric = (e1.c * inverse, e2.c * inverse, e0.c * inverse)
+    # grad f: c_i's slope in px is -ey_i, in py ex_i
+    grad_fx = grad_plane * -(e1.ey * w[0] + e2.ey * w[1] + e0.ey * w[2]) * inverse
+    grad_fy = grad_plane * (e1.ex * w[0] + e2.ex * w[1] + e0.ex * w[2]) * inverse
+    # clamped to the lowest (the plane at or below it) or the highest: the first corner there
+    grad_low = grad_depth * (1.0 - above_lowest)
+    grad_high = grad_depth * (above_lowest - inner)
+    at_lowest = _first([1.0 - _step(wk - lowest, ops) for wk in w])
+    at_highest = _first([1.0 - _step(highest - wk, ops) for wk in w])
+    grads = []
+    for k in range(3):
+        grads += [grad_rx * towards[k] - grad_fx * barycentric[k],
+                  grad_ry * towards[k] - grad_fy * barycentric[k]]  # fmt: skip
+    for k in range(3):
+        grads.append(
+            grad_plane * barycentric[k] + grad_low * at_lowest[k] + grad_high * at_highest[k]
+        )
     return ops.stack(grads)
 
 
 def pair_logit(coverage, depth, config: PipelineConfig, ops):
     """A covered pair's softmax logit in SoftRas' blend: log D' + depth / gamma."""
     return ops.log(coverage) + depth / config.gamma
+
+
+def pair_logits(coverage, depth, config: PipelineConfig, ops):
+    """The logits each pixel's largest is taken over, one an enumerated pair: ``pair_logit``
+    where the pair is covered, the background's (every pixel's floor) where it is not; not
+    log 0 = -inf, whose log costs torch 6x a finite one's on a CPU."""
+    covered = _step(coverage, ops)
+    logit = pair_logit(coverage + (1.0 - covered), depth, config, ops)
+    return _pick(covered, logit, background_logit(config))
 
 
 def background_logit(config: PipelineConfig) -> float:

@@ -28,9 +28,8 @@ class Blend(Shader):
     channels = 2
 
     def _weight(self, pairs: KeptPairs) -> torch.Tensor:
-        logit = render_math.pair_logit(pairs.coverage, pairs.depth, pairs.plan.config, TORCH_OPS)
         shift = pairs.logit_max.index_select(0, pairs.pixel)
-        return render_math.blend_weight(logit, shift, TORCH_OPS)
+        return render_math.blend_weight(pairs.logit, shift, TORCH_OPS)
 
     def values(self, pairs: KeptPairs, colors: torch.Tensor) -> torch.Tensor:
         weight = self._weight(pairs)

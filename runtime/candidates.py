@@ -22,16 +22,22 @@ from functools import cached_property
 import numpy as np
 
 from drkfs_onnx.config import PipelineConfig
-from drkfs_onnx.render_math import DEPTH_CULL, NUMPY_OPS, background_logit, pixel_span
+from drkfs_onnx.render_math import (
+    DEPTH_CULL,
+    LOOSE_RADIUS,
+    NUMPY_OPS,
+    TINY_LENGTH,
+    background_logit,
+    edge_lines,
+    line_columns,
+    pixel_span,
+)
 
 # float32 logits near 1 / gamma = 1e4 are good to ~1e-3; a wide margin costs a few pairs
 CULL_MARGIN = 2.0
 # A pair whose float32 logit lies this far under its pixel's bound is hidden.
 HIDDEN_BELOW = DEPTH_CULL + CULL_MARGIN
-# Candidates reach slightly beyond the cut-off radius, so float32 rounding never drops a pair.
-LOOSE_RADIUS = 1.01
 PAIR_CHUNK = 1 << 18
-TINY_LENGTH = 1e-9
 # Inverse-depth slope (per NDC unit) above which float32 plane evaluation is not trusted.
 MAX_SLOPE = 100.0
 
@@ -65,16 +71,7 @@ def face_tests(params: np.ndarray) -> FaceTests:
     vertex depth and are not trusted, so they never cull."""
     x0, y0, x1, y1, x2, y2, w0, w1, w2 = params
     area2 = (x1 - x0) * (y2 - y0) - (y1 - y0) * (x2 - x0)
-    orient = np.sign(area2)
-    lines = []
-    for ax, ay, bx, by in ((x0, y0, x1, y1), (x1, y1, x2, y2), (x2, y2, x0, y0)):
-        ex, ey = bx - ax, by - ay
-        scale = orient / np.maximum(np.sqrt(ex * ex + ey * ey), TINY_LENGTH)
-        lines.append(
-            tuple(
-                v.astype(np.float32) for v in (-ey * scale, ex * scale, (ey * ax - ex * ay) * scale)
-            )
-        )
+    lines = [tuple(v.astype(np.float32) for v in line) for line in edge_lines(params, NUMPY_OPS)]
     safe = np.where(np.abs(area2) > TINY_LENGTH**2, area2, 1.0)
     # w(p) = w0 + (w1 - w0) * beta + (w2 - w0) * gamma, barycentrics affine in p
     slope_x = ((w1 - w0) * (y2 - y0) - (w2 - w0) * (y1 - y0)) / safe
@@ -90,7 +87,7 @@ def face_tests(params: np.ndarray) -> FaceTests:
         lowest.astype(np.float32),
         highest.astype(np.float32),
         trusted,
-        orient,
+        np.sign(area2),
     )
 
 
@@ -281,10 +278,7 @@ def _row_spans(
         for a, b, c in tests.lines:
             # the line's distance at column i is a * step * (i - root); per_column = -1 / (a * step)
             slope = a[face]
-            level = slope * np.float32(1.0 / size - 1.0) + b[face] * py + c[face]
-            per_column = np.float32(-size / 2.0) / slope
-            root = level * per_column
-            outer_root = root + reach * per_column
+            level, root, outer_root = line_columns(slope, b[face], c[face], py, reach, size)
             rising, falling = slope > 0, slope < 0
             first = np.maximum(first, np.where(rising, outer_root, -np.inf))
             last = np.minimum(last, np.where(falling, outer_root, np.inf))

@@ -144,6 +144,38 @@ def test_cost_follows_covered_pairs_not_pixels_times_faces():
 
 
 @pytest.mark.parametrize("sigma", [1e-5, 1e-3])
+@pytest.mark.parametrize("mesh", [icosphere, _chair])
+def test_pair_plan_lists_every_covered_pair(mesh, sigma):
+    """The plan lists, of each face's box, only the columns of each row near its edge lines:
+    every pixel-face pair that every pixel against every face finds covered, and far fewer
+    uncovered pairs than the boxes hold."""
+    from drkfs_onnx.batch import MeshBatch
+    from drkfs_onnx.rasterize import TORCH_OPS, PairPlan
+    from drkfs_onnx.render_math import pair_terms, pixel_centre, pixel_span
+
+    config = SMALL.replace(sigma=sigma)
+    verts, faces = mesh()
+    verts, faces = _tensors(_posed(verts), faces, dtype=torch.float32)
+    _, screen = Renderer(config).screen(MeshBatch.of(verts, faces))
+    plan = PairPlan(screen, config)
+    count = len(screen.visible)
+    listed = torch.cat([pairs.pixel * count + pairs.face for pairs in plan])
+    size, per_view = config.image_size, screen.num_faces
+    pixel = torch.arange(screen.num_views * size * size)
+    face = pixel[:, None] // (size * size) * per_view + torch.arange(per_view)  # its view's
+    pixel, face = pixel[:, None].expand_as(face).reshape(-1), face.reshape(-1)
+    px = pixel_centre((pixel % size).float(), size)
+    py = pixel_centre((pixel // size % size).float(), size)
+    coverage, _ = pair_terms(screen.params[:, face], px, py, config, TORCH_OPS)
+    covered = (pixel * count + face)[(coverage > 0) & screen.visible[face]]
+    assert len(covered) > 1000
+    assert torch.isin(covered, listed).all()
+    xs, ys = screen.params[0:6:2], screen.params[1:6:2]
+    boxes = [pixel_span(v.amin(0), v.amax(0), config, TORCH_OPS)[1] for v in (xs, ys)]
+    assert len(listed) < 0.9 * float((boxes[0] * boxes[1] * screen.visible).sum())
+
+
+@pytest.mark.parametrize("sigma", [1e-5, 1e-3])
 def test_pair_terms_grad_is_autograds_gradient_of_pair_terms(sigma):
     """The backward pass's written-out gradient equals autograd's through ``pair_terms``, for
     pixels inside, near and far from triangles of every orientation, depths clamped or not."""
