@@ -2,7 +2,7 @@
 
     python bench/torch_batch.py [--out bench/results/torch_batch.json] [--devices cpu,cuda]
                                 [--sizes 1,8,32] [--stages coarse,fine] [--threads 2]
-                                [--repeats 3] [--no-before] [--loop-sizes 1,8,32]
+                                [--repeats 3] [--rounds 1] [--no-before] [--loop-sizes 1,8,32]
                                 [--compiled-sizes 32] [--before-archive TAR]
 
 For each device (CUDA where torch sees one), each stage of ``DrkfsLoss.pretrained()`` (coarse:
@@ -23,7 +23,9 @@ study's chair, forward+backward:
 
 Each batched case runs in a child process of its own, so its peak memory (CPU: the rise of the
 maximum resident set over the step) is its own. Ratios are taken within the run; absolute times
-are noisy here.
+are noisy here. With ``--rounds N`` a case's children (batched, compiled, loop, before) run in
+turn N times and each keeps its fastest round: these cores drift by 10-30% over minutes, and a
+ratio of two times taken minutes apart drifts with them.
 """
 
 from __future__ import annotations
@@ -221,7 +223,20 @@ def case_rows(device: str, stage: str, size: int, args, old: Path | None, case: 
     threads = "import torch\n" + (
         f"torch.set_num_threads({args.threads})\n" if device == "cpu" else ""
     )
-    batched = child(threads + CASE + BATCHED, ROOT, **values)
+    runs = {"batched": (ROOT, {})}
+    if device == "cpu" and size in [int(s) for s in args.compiled_sizes.split(",") if s]:
+        runs["batched_compiled"] = (ROOT, {"DRKFS_COMPILE": "1"})
+    loops = {}
+    if size in [int(s) for s in args.loop_sizes.split(",") if s]:
+        loops = {"loop": ROOT} if old is None else {"loop": ROOT, "before": old}
+    rounds = {name: [] for name in [*runs, *loops]}
+    for _ in range(args.rounds):
+        for name, (path, env) in runs.items():
+            rounds[name].append(child(threads + CASE + BATCHED, path, env, **values))
+        for name, path in loops.items():
+            rounds[name].append(child(threads + CASE + LOOP, path, **values))
+    fastest = {name: min(found, key=lambda r: r["seconds"]) for name, found in rounds.items()}
+    batched = fastest["batched"]
     row = {
         "device": device,
         "stage": stage,
@@ -230,14 +245,11 @@ def case_rows(device: str, stage: str, size: int, args, old: Path | None, case: 
         "chamfer_l2_seconds": chamfer_seconds(device, size, args.repeats),
     }
     row["batched_over_chamfer"] = batched["seconds"] / row["chamfer_l2_seconds"]
-    if device == "cpu" and size in [int(s) for s in args.compiled_sizes.split(",") if s]:
-        compiled = child(threads + CASE + BATCHED, ROOT, {"DRKFS_COMPILE": "1"}, **values)
+    if "batched_compiled" in fastest:
+        compiled = fastest["batched_compiled"]
         row["batched_compiled"] = {**compiled, "seconds_per_mesh": compiled["seconds"] / size}
-    if size not in [int(s) for s in args.loop_sizes.split(",") if s]:
-        return row
-    loops = {"loop": ROOT} if old is None else {"loop": ROOT, "before": old}
-    for name, path in loops.items():
-        seconds = child(threads + CASE + LOOP, path, **values)["seconds"]
+    for name in loops:
+        seconds = fastest[name]["seconds"]
         row[name] = {"seconds": seconds, "seconds_per_mesh": seconds / size}
         row[f"batched_over_{name}"] = batched["seconds"] / seconds
         if "batched_compiled" in row:
@@ -257,6 +269,9 @@ def main() -> None:
     )
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument(
+        "--rounds", type=int, default=1, help="times each case's children run in turn"
+    )
     parser.add_argument("--no-before", action="store_true", help="skip the code before batches")
     parser.add_argument("--before-archive", type=Path, default=None)
     args = parser.parse_args()
