@@ -223,16 +223,16 @@ def case_rows(device: str, stage: str, size: int, args, old: Path | None, case: 
     threads = "import torch\n" + (
         f"torch.set_num_threads({args.threads})\n" if device == "cpu" else ""
     )
-    runs = {"batched": (ROOT, {})}
+    runs = {"batched": {}}  # name: the environment it adds
     if device == "cpu" and size in [int(s) for s in args.compiled_sizes.split(",") if s]:
-        runs["batched_compiled"] = (ROOT, {"DRKFS_COMPILE": "1"})
+        runs["batched_compiled"] = {"DRKFS_COMPILE": "1"}
     loops = {}
     if size in [int(s) for s in args.loop_sizes.split(",") if s]:
         loops = {"loop": ROOT} if old is None else {"loop": ROOT, "before": old}
     rounds = {name: [] for name in [*runs, *loops]}
     for _ in range(args.rounds):
-        for name, (path, env) in runs.items():
-            rounds[name].append(child(threads + CASE + BATCHED, path, env, **values))
+        for name, env in runs.items():
+            rounds[name].append(child(threads + CASE + BATCHED, ROOT, env, **values))
         for name, path in loops.items():
             rounds[name].append(child(threads + CASE + LOOP, path, **values))
     fastest = {name: min(found, key=lambda r: r["seconds"]) for name, found in rounds.items()}

@@ -72,12 +72,14 @@ TORCH_OPS = SimpleNamespace(
 )  # fmt: skip
 
 
-def _ranks(counts: torch.Tensor, total: int) -> torch.Tensor:
-    """0, 1, .., n - 1 for each n of ``counts``, concatenated (``total`` entries in all)."""
-    starts = torch.cumsum(counts, 0) - counts
-    return torch.arange(total, device=counts.device) - starts.repeat_interleave(
+def _owners_ranks(counts: torch.Tensor, total: int) -> tuple[torch.Tensor, torch.Tensor]:
+    """For groups of ``counts`` entries laid end to end (``total`` in all): which group each
+    entry belongs to, and its rank in it (0, 1, .., n - 1)."""
+    owner = torch.arange(len(counts), device=counts.device).repeat_interleave(
         counts, output_size=total
     )
+    starts = torch.cumsum(counts, 0) - counts
+    return owner, torch.arange(total, device=counts.device) - starts.index_select(0, owner)
 
 
 def pair_chunk(device: torch.device) -> int:
@@ -116,7 +118,8 @@ class PairPlan:
     face's bounding box grown by the cut-off radius, the columns within ``LOOSE_RADIUS`` times
     the radius of each of its edge lines' inner sides (``render_math.edge_lines``: no pixel
     beyond is covered), row after row, face after face. For the network study's 2,560-face
-    prediction the spans hold 72% of the boxes' pixels at 128 px, 85% at 64 px.
+    prediction the spans hold 72% of the boxes' pixels at 128 px, 84% at 64 px
+    (``bench/torch_batch.py``'s pairs enumerated, before and after).
 
     Building it waits for the host twice (the box rows' count, then the chunks' sizes);
     enumerating a chunk never does."""
@@ -131,11 +134,8 @@ class PairPlan:
         j0, height = pixel_span(ys.amin(0), ys.amax(0), config, TORCH_OPS)
         height = (height * (width > 0)).long() * screen.visible
         # one entry per box row: its face, its row in the image and in the stacked views
-        num_rows = int(height.sum())
-        face = torch.arange(len(height), device=device).repeat_interleave(
-            height, output_size=num_rows
-        )
-        row = j0.long().index_select(0, face) + _ranks(height, num_rows)
+        face, rank = _owners_ranks(height, int(height.sum()))
+        row = j0.long().index_select(0, face) + rank
         self.row_face = face.int()  # int32: gathers by it run faster
         self.row_py = pixel_centre(row.to(self.dtype), size)
         self.row_start = (face // screen.num_faces * size + row) * size
@@ -171,10 +171,9 @@ class PairPlan:
     def __iter__(self) -> Iterator[Pairs]:
         size = self.config.image_size
         for first, end, total in self.chunks:
-            counts = self.counts[first:end]
-            ids = torch.arange(first, end, device=counts.device)
-            row = ids.repeat_interleave(counts, output_size=total)
-            col = self.first_col.index_select(0, row) + _ranks(counts, total)
+            row, rank = _owners_ranks(self.counts[first:end], total)
+            row = row + first
+            col = self.first_col.index_select(0, row) + rank
             px = pixel_centre(col.to(self.dtype), size)
             pixel = self.row_start.index_select(0, row) + col
             yield Pairs(pixel, self.row_face.index_select(0, row), px,
