@@ -20,8 +20,10 @@ from .render import Renderer
 from .weights import RANDOM_SEED, load_shipped_state
 
 # HardNet's patches per call on a CPU: a group's activations (about 70 KB a patch at width 0.5)
-# stay in a 32 MB cache; the whole batch's did not, and its backward ran 1.5-2x slower a patch
-CPU_PATCH_GROUP = 256
+# stay in a 32 MB cache; the whole batch's did not, and its backward ran 1.5-2x slower a patch.
+# At 256 a layer's gradient (16 MB) took fresh pages from the system each time (glibc maps an
+# allocation at least as large as any freed one afresh) and the backward ran up to 1.5x slower
+CPU_PATCH_GROUP = 128
 
 
 class MissingWeights(ValueError):
@@ -158,8 +160,8 @@ class DRKFS(nn.Module):
         patches = select_patches(self.detector(images), index, self.config)
         patches = patches.contiguous(memory_format=torch.channels_last)
         # on a CPU in groups whose activations stay in cache, forward and backward
-        described = [self.descriptor(group) for group in patches.split(CPU_PATCH_GROUP)]
-        return descriptors.index_put((index,), torch.cat(described))
+        described = self.descriptor(patches, CPU_PATCH_GROUP)
+        return descriptors.index_put((index,), described)
 
     def features(self, verts, faces=None) -> torch.Tensor:
         """Descriptors of a mesh already in the metric's frame: (V, 3), (F, 3) -> (K * P, D);

@@ -193,7 +193,9 @@ class KeptPairs:
     behind a nearer face by more than ``DEPTH_CULL`` blend logits. pixel, face: (P,) int32
     indices (pixel int64 per chunk: index_add with int32 indices is several times slower on a
     CPU, where a gather by them is faster);
-    coverage, depth: (P,) ``pair_terms`` and logit: (P,) ``pair_logit`` (no autograd);
+    coverage, depth: (P,) ``pair_terms`` and logit: (P,) ``pair_logit`` (no autograd); depth
+    None where not asked for (the shaders never read it: a batch's pairs are kept until the
+    backward, 4 bytes a pair saved);
     logit_max: (views * S * S,) each pixel's largest blend logit, the background's included
     (the softmax's shift, a constant for autograd)."""
 
@@ -201,7 +203,7 @@ class KeptPairs:
     pixel: torch.Tensor
     face: torch.Tensor
     coverage: torch.Tensor
-    depth: torch.Tensor
+    depth: torch.Tensor | None
     logit: torch.Tensor
     logit_max: torch.Tensor
 
@@ -211,8 +213,9 @@ class KeptPairs:
         for first in range(0, len(self.pixel), step):
             part = slice(first, first + step)
             pixel, face = self.pixel[part].long(), self.face[part]
-            terms = (self.coverage[part], self.depth[part], self.logit[part])
-            yield KeptPairs(self.plan, pixel, face, *terms, self.logit_max)
+            depth = None if self.depth is None else self.depth[part]
+            yield KeptPairs(self.plan, pixel, face, self.coverage[part], depth,
+                            self.logit[part], self.logit_max)  # fmt: skip
 
     def centres(self) -> tuple[torch.Tensor, torch.Tensor]:
         """(px, py) pixel centres in NDC of the pairs."""
@@ -245,8 +248,11 @@ def coverage_depth(pairs: Pairs, params: torch.Tensor, config: PipelineConfig):
 
 
 @torch.no_grad()
-def kept_pairs(plan: PairPlan, params: torch.Tensor, depth_cull: bool) -> KeptPairs:
-    """The plan's pairs that make the image, listed once: one host wait (their count).
+def kept_pairs(
+    plan: PairPlan, params: torch.Tensor, depth_cull: bool, with_depth: bool = False
+) -> KeptPairs:
+    """The plan's pairs that make the image, listed once: one host wait (their count); their
+    depth too where ``with_depth`` asks.
 
     Every enumerated pair's terms are kept until each pixel's largest logit is known, then the
     kept ones gathered; about 20 bytes a pair while it runs."""
@@ -273,8 +279,9 @@ def kept_pairs(plan: PairPlan, params: torch.Tensor, depth_cull: bool) -> KeptPa
     del keep
     # one array at a time, each enumerated array freed once its kept pairs are taken
     pixel, face = pixel.index_select(0, index), face.index_select(0, index)
-    terms = [values.index_select(0, index) for values in (coverage, depth, logit)]
-    return KeptPairs(plan, pixel, face, *terms, shift)
+    coverage, logit = coverage.index_select(0, index), logit.index_select(0, index)
+    depth = depth.index_select(0, index) if with_depth else None
+    return KeptPairs(plan, pixel, face, coverage, depth, logit, shift)
 
 
 class Shader:

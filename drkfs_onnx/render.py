@@ -57,7 +57,8 @@ class Renderer(nn.Module):
         """The pixel-face pairs the views are made of (no autograd), for analysis."""
         meshes = MeshBatch.of(verts, faces)
         _, screen = self.screen(meshes)
-        return kept_pairs(PairPlan(screen, self.config), screen.params, depth_cull)
+        plan = PairPlan(screen, self.config)
+        return kept_pairs(plan, screen.params, depth_cull, with_depth=True)
 
     def screen(self, meshes: MeshBatch) -> tuple[torch.Tensor, ScreenFaces]:
         """-> (B, K, V, 3) camera-frame vertices and the faces projected into the B * K views,
