@@ -16,20 +16,34 @@ def l2_normalize(x: torch.Tensor, eps: float = 1e-10) -> torch.Tensor:
     return x / torch.sqrt(torch.clamp_min((x * x).sum(dim=1, keepdim=True), eps))
 
 
+def _whole_map_matrix(weight: torch.Tensor) -> torch.Tensor:
+    """(D, C, h, w) weight of a conv that covers its whole h x w input -> (h * w * C, D): the
+    conv as a matrix on the channels-last input's rows."""
+    return weight.permute(2, 3, 1, 0).reshape(-1, weight.shape[0])
+
+
 def _conv_stack(x: torch.Tensor, layers: list, passed: list | None = None) -> torch.Tensor:
     """HardNet's folded convs (``layers``: (weight, bias, stride, padding) each) in order, a ReLU
-    after all but the last; ``passed``, where given, collects where each ReLU passed (0 or 1,
-    int8: a byte an activation). The activations are channels-last from the first conv on (its
+    after all but the last. The activations are channels-last from the first conv on (its
     one-channel input leaves its output in the other layout): a gradient and a mask in different
-    layouts multiplied 8x slower."""
+    layouts multiplied 8x slower.
+
+    ``passed``, where given (the fixed nets' training step), collects where each ReLU passed
+    (0 or 1, int8: a byte an activation), and the last conv, which covers its whole input map,
+    runs as one matmul: 3x faster than the conv on a CPU. Elsewhere the last layer stays the
+    conv the exported graphs hold, so that scores do not move by a rounding."""
     for k, (weight, bias, stride, padding) in enumerate(layers):
+        if passed is not None and k + 1 == len(layers):
+            rows = x.permute(0, 2, 3, 1).reshape(len(x), -1)
+            return torch.addmm(bias, rows, _whole_map_matrix(weight))[:, :, None, None]
         x = nn.functional.conv2d(x, weight, bias, stride, padding)
         if k == 0:
             x = x.contiguous(memory_format=torch.channels_last)
         if k + 1 < len(layers):  # in place: the conv's output is not needed for its backward
             x = torch.relu_(x)
             if passed is not None:
-                passed.append((x > 0).view(torch.int8))
+                # nonzero after the ReLU: where it passed (3x faster than x > 0 on a CPU)
+                passed.append(x.bool().view(torch.int8))
     return x
 
 
@@ -40,8 +54,9 @@ def _stack_input_grad(
     ``size``, from where each ReLU passed (``passed``): through the last conv as a matmul (it
     covers its whole input map), then through each ReLU and conv as a mask and a transposed conv.
     ``floats``: a float tensor at least the size of each mask, which this overwrites."""
-    grad = (grad.flatten(1) @ layers[-1][0].flatten(1)).view(passed[-1].shape)
-    grad = grad.contiguous(memory_format=torch.channels_last)
+    n, channels, height, width = passed[-1].shape
+    grad = grad.flatten(1) @ _whole_map_matrix(layers[-1][0]).t()
+    grad = grad.view(n, height, width, channels).permute(0, 3, 1, 2)  # channels-last
     # each conv's input size: the patches', then each ReLU's output but the last
     sizes = [size, *(mask.shape[-2:] for mask in passed[:-1])]
     steps = zip(layers[:-1], passed, floats, sizes, strict=True)
