@@ -98,7 +98,7 @@ class _FrozenHardNet(torch.autograd.Function):
     def backward(ctx, grad):
         # the masks as floats in one buffer per layer that every group reuses: fresh memory for
         # each took its pages from the system one fault at a time (the fine stage's 9,251
-        # patches: 770k faults, a backward of 3.9 s on 2 cores; with the buffers 90-150k, 2.4 s)
+        # patches: 760-780k faults, a backward of 3.9 s on 2 cores; with them 90-310k, 2.4-3.4 s)
         floats = [torch.empty_like(mask, dtype=grad.dtype) for mask in ctx.passed[0]]
         grads = [
             _stack_input_grad(part, ctx.layers, masks, floats, ctx.input_size)
