@@ -30,8 +30,9 @@ def _conv_stack(x: torch.Tensor, layers: list, passed: list | None = None) -> to
 
     ``passed``, where given (the fixed nets' training step), collects where each ReLU passed
     (0 or 1, int8: a byte an activation), and the last conv, which covers its whole input map,
-    runs as one matmul: 3x faster than the conv on a CPU. Elsewhere the last layer stays the
-    conv the exported graphs hold, so that scores do not move by a rounding."""
+    runs as one matmul: 1.7-2.2x faster than mkldnn's conv on a CPU (128 patches). Elsewhere
+    the last layer stays the conv the exported graphs hold, so that scores do not move by a
+    rounding."""
     for k, (weight, bias, stride, padding) in enumerate(layers):
         if passed is not None and k + 1 == len(layers):
             rows = x.permute(0, 2, 3, 1).reshape(len(x), -1)
@@ -91,7 +92,7 @@ class _FrozenHardNet(torch.autograd.Function):
         for part in x.split(group):
             passed.append([])
             parts.append(_conv_stack(part, layers, passed[-1]))
-        ctx.layers, ctx.passed, ctx.input_size = layers, passed, x.shape[-2:]
+        ctx.layers, ctx.passed, ctx.group, ctx.input_size = layers, passed, group, x.shape[-2:]
         return torch.cat(parts)
 
     @staticmethod
@@ -102,7 +103,7 @@ class _FrozenHardNet(torch.autograd.Function):
         floats = [torch.empty_like(mask, dtype=grad.dtype) for mask in ctx.passed[0]]
         grads = [
             _stack_input_grad(part, ctx.layers, masks, floats, ctx.input_size)
-            for part, masks in zip(grad.split(len(ctx.passed[0][0])), ctx.passed, strict=True)
+            for part, masks in zip(grad.split(ctx.group), ctx.passed, strict=True)
         ]
         return torch.cat(grads), None, None
 
