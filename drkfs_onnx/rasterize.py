@@ -16,8 +16,8 @@ pixels x faces, and a batch of B meshes' K views is one screen of B * K views:
    exp(-DEPTH_CULL) of the front face's);
 3. ``pixel_sums`` sums a shader's per-pair terms per pixel, and its backward recomputes each
    chunk and sends the pixels' gradients to the faces by ``pair_terms_grad``, the gradient
-   written out, instead of keeping autograd's graph of every pair (14 GB for 32 meshes on a
-   GPU).
+   written out (its parts summed per face, then ``face_params_grad``), instead of keeping
+   autograd's graph of every pair (14 GB for 32 meshes on a GPU).
 
 A step waits for the host three times whatever the batch: the plan's box rows and chunks, and
 the kept pairs' count. On a GPU the equations are compiled (``_fused``). The equations are
@@ -38,9 +38,11 @@ from .config import PipelineConfig
 from .render_math import (
     DEPTH_CULL,
     LOOSE_RADIUS,
+    PAIR_GRAD_PARTS,
     ScreenFaces,
     background_logit,
     edge_lines,
+    face_params_grad,
     line_columns,
     pair_logits,
     pair_terms,
@@ -255,19 +257,22 @@ def kept_pairs(
     depth too where ``with_depth`` asks.
 
     Every enumerated pair's terms are kept until each pixel's largest logit is known, then the
-    kept ones gathered; about 20 bytes a pair while it runs."""
+    kept ones gathered; 16 bytes a pair while it runs (20 with the depth)."""
     cfg = plan.config
     total = plan.num_pairs()
     int32 = dict(dtype=torch.int32, device=params.device)
     pixel, face = torch.empty(total, **int32), torch.empty(total, **int32)
-    coverage, depth, logit = (params.new_empty(total) for _ in range(3))
+    coverage, logit = params.new_empty(total), params.new_empty(total)
+    depth = params.new_empty(total) if with_depth else None
     shift = params.new_full((plan.num_pixels,), background_logit(cfg))
     start = 0
     for pairs in plan:
         part = slice(start, start + len(pairs.pixel))
         pixel[part], face[part] = pairs.pixel, pairs.face
-        coverage[part], depth[part] = coverage_depth(pairs, params, cfg)
-        logit[part] = pair_logits(coverage[part], depth[part], cfg, TORCH_OPS)
+        coverage[part], pair_depth = coverage_depth(pairs, params, cfg)
+        logit[part] = pair_logits(coverage[part], pair_depth, cfg, TORCH_OPS)
+        if with_depth:
+            depth[part] = pair_depth
         TORCH_OPS.scatter_max(shift, pairs.pixel, logit[part])
         start = part.stop
     keep = coverage > 0
@@ -315,19 +320,19 @@ class _PixelSums(torch.autograd.Function):
     def backward(ctx, grad: torch.Tensor):
         params, colors = ctx.saved_tensors
         pairs, shader, config = ctx.pairs, ctx.shader, ctx.pairs.plan.config
-        grad_params, grad_colors = torch.zeros_like(params), torch.zeros_like(colors)
+        grad_parts = params.new_zeros(PAIR_GRAD_PARTS, params.shape[1])
+        grad_colors = torch.zeros_like(colors)
+        terms_grad = _fused(pair_terms_grad, config, params.device.type)
         for chunk in pairs.chunks():
             pair_grad = grad.index_select(1, chunk.pixel)
             grad_coverage, grad_depth, grad_color = shader.slopes(chunk, colors, pair_grad)
             tri = params.index_select(1, chunk.face)
             px, py = chunk.centres()
-            terms_grad = _fused(pair_terms_grad, config, params.device.type)
-            grad_tri = terms_grad(tri, px, py, grad_coverage, grad_depth)
             face = chunk.face.long()
-            grad_params.index_add_(1, face, grad_tri)
+            grad_parts.index_add_(1, face, terms_grad(tri, px, py, grad_coverage, grad_depth))
             if grad_color is not None:
                 grad_colors.index_add_(0, face, grad_color)
-        return None, None, grad_params, grad_colors
+        return None, None, face_params_grad(params, grad_parts, TORCH_OPS), grad_colors
 
 
 def pixel_sums(

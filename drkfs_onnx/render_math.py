@@ -227,9 +227,13 @@ def pair_terms(tri, px, py, config: PipelineConfig, ops):
 
 
 def pair_terms_grad(tri, px, py, grad_coverage, grad_depth, config: PipelineConfig, ops):
-    """The gradient of ``pair_terms`` with respect to ``tri``: (9, P), given the gradients of
-    its coverage and depth (P,). Written out so that a backward pass costs one recomputation
-    of the pairs' terms, not autograd's graph of them; its masks are ``_step``s multiplied in.
+    """The gradient of ``pair_terms`` with respect to ``tri`` in parts: (PAIR_GRAD_PARTS, P),
+    given the gradients of its coverage and depth (P,); ``face_params_grad`` turns the parts,
+    summed over each face's pairs, into the faces' (9, N) gradient. Written out so that a
+    backward pass costs one recomputation of the pairs' terms, not autograd's graph of them;
+    its masks are ``_step``s multiplied in. What is the same for every pair of a face (the
+    plane's screen gradient, the corners at the depth clamps) multiplies the face's sums once,
+    not each pair.
 
     The distance to the triangle is its nearest edge's, |p - (a + t (b - a))|^2, whose slope in
     a and b is -2 r (1 - t) and -2 r t (r from the nearest point to the pixel; t's own slope
@@ -238,6 +242,10 @@ def pair_terms_grad(tri, px, py, grad_coverage, grad_depth, config: PipelineConf
     w_k is lambda_k, and moving corner k by delta moves it as moving the pixel by
     -lambda_k delta, a slope of -lambda_k grad f (grad f, the plane's screen gradient, is the
     face's own). A clamped depth sends its gradient to the corner whose depth it took.
+
+    Parts: per corner k the distance's slope in x_k and y_k (rows 2k, 2k + 1), then per corner
+    the depth's gradient times lambda_k (6 + k), then the depth's gradient where clamped to the
+    lowest (9) and to the highest (10) corner depth.
     """
     edges = _edges(tri, px, py, ops)
     e0, e1, e2 = edges
@@ -258,25 +266,43 @@ def pair_terms_grad(tri, px, py, grad_coverage, grad_depth, config: PipelineConf
     highest = ops.maximum(ops.maximum(w[0], w[1]), w[2])
     above_lowest = _step(plane - lowest, ops)
     inner = above_lowest * _step(highest - plane, ops)
-    grad_plane = grad_depth * inner
-    inverse = 1.0 / area_safe
-    barycentric = (e1.c * inverse, e2.c * inverse, e0.c * inverse)
-    # grad f: c_i's slope in px is -ey_i, in py ex_i
-    grad_fx = grad_plane * -(e1.ey * w[0] + e2.ey * w[1] + e0.ey * w[2]) * inverse
-    grad_fy = grad_plane * (e1.ex * w[0] + e2.ex * w[1] + e0.ex * w[2]) * inverse
-    # clamped to the lowest (the plane at or below it) or the highest: the first corner there
-    grad_low = grad_depth * (1.0 - above_lowest)
-    grad_high = grad_depth * (above_lowest - inner)
+    grad_plane = grad_depth * inner / area_safe
+    parts = []
+    for k in range(3):
+        parts += [grad_rx * towards[k], grad_ry * towards[k]]
+    # lambda_k = c_(k + 1) / area
+    parts += [grad_plane * e1.c, grad_plane * e2.c, grad_plane * e0.c]
+    parts += [grad_depth * (1.0 - above_lowest), grad_depth * (above_lowest - inner)]
+    return ops.stack(parts)
+
+
+PAIR_GRAD_PARTS = 11
+
+
+def face_params_grad(params, parts, ops):
+    """(9, N) faces' screen params, (PAIR_GRAD_PARTS, N) each face's ``pair_terms_grad`` parts
+    summed over its pairs -> (9, N) the gradient with respect to ``params``: corner k's x and y
+    take the distance's slope less the plane's screen gradient times the depth's barycentric
+    sum, its depth that sum and the clamped depths' gradients where it is the (first) lowest
+    or highest corner."""
+    x0, y0, x1, y1, x2, y2 = params[:6]
+    w = params[6:9]
+    ex0, ey0, ex1, ey1, ex2, ey2 = x1 - x0, y1 - y0, x2 - x1, y2 - y1, x0 - x2, y0 - y2
+    # the doubled area as the pairs' edge functions sum to it, guarded as they guard it
+    area2 = ex0 * ey1 - ey0 * ex1
+    area_safe = _pick(_step(abs(area2) - TINY, ops), area2, TINY)
+    # grad f, the plane's screen gradient: c_i's slope in px is -ey_i, in py ex_i
+    slope_x = -(ey1 * w[0] + ey2 * w[1] + ey0 * w[2]) / area_safe
+    slope_y = (ex1 * w[0] + ex2 * w[1] + ex0 * w[2]) / area_safe
+    lowest = ops.minimum(ops.minimum(w[0], w[1]), w[2])
+    highest = ops.maximum(ops.maximum(w[0], w[1]), w[2])
     at_lowest = _first([1.0 - _step(wk - lowest, ops) for wk in w])
     at_highest = _first([1.0 - _step(highest - wk, ops) for wk in w])
     grads = []
     for k in range(3):
-        grads += [grad_rx * towards[k] - grad_fx * barycentric[k],
-                  grad_ry * towards[k] - grad_fy * barycentric[k]]  # fmt: skip
+        grads += [parts[2 * k] - slope_x * parts[6 + k], parts[2 * k + 1] - slope_y * parts[6 + k]]
     for k in range(3):
-        grads.append(
-            grad_plane * barycentric[k] + grad_low * at_lowest[k] + grad_high * at_highest[k]
-        )
+        grads.append(parts[6 + k] + parts[9] * at_lowest[k] + parts[10] * at_highest[k])
     return ops.stack(grads)
 
 

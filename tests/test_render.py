@@ -178,9 +178,10 @@ def test_pair_plan_lists_every_covered_pair(mesh, sigma):
 @pytest.mark.parametrize("sigma", [1e-5, 1e-3])
 def test_pair_terms_grad_is_autograds_gradient_of_pair_terms(sigma):
     """The backward pass's written-out gradient equals autograd's through ``pair_terms``, for
-    pixels inside, near and far from triangles of every orientation, depths clamped or not."""
+    pixels inside, near and far from triangles of every orientation, depths clamped or not
+    (each pair a face of its own: its parts are its face's sums)."""
     from drkfs_onnx.rasterize import TORCH_OPS
-    from drkfs_onnx.render_math import pair_terms, pair_terms_grad
+    from drkfs_onnx.render_math import face_params_grad, pair_terms, pair_terms_grad
 
     config = PipelineConfig(sigma=sigma)
     generator = torch.Generator().manual_seed(0)
@@ -193,6 +194,7 @@ def test_pair_terms_grad_is_autograds_gradient_of_pair_terms(sigma):
     coverage, depth = pair_terms(leaf, px, py, config, TORCH_OPS)
     assert 0.05 < float((coverage > 0).double().mean()) < 0.95
     (grad_coverage * coverage + grad_depth * depth).sum().backward()
-    found = pair_terms_grad(tri, px, py, grad_coverage, grad_depth, config, TORCH_OPS)
+    parts = pair_terms_grad(tri, px, py, grad_coverage, grad_depth, config, TORCH_OPS)
+    found = face_params_grad(tri, parts, TORCH_OPS)
     # within 1e-8 of the largest: the written-out slope of t leaves out TINY in its denominator
     assert torch.allclose(found, leaf.grad, rtol=1e-8, atol=1e-8 * float(leaf.grad.abs().max()))
