@@ -63,22 +63,23 @@ def _conv_stack(x: torch.Tensor, layers: list, passed: list | None = None) -> to
 
 
 def _stack_input_grad(
-    grad: torch.Tensor, layers: list, passed: list, floats: list, size
+    grad: torch.Tensor, layers: list, passed: list, floats: torch.Tensor, size
 ) -> torch.Tensor:
     """The gradient of ``_conv_stack``'s output ``grad`` with respect to its input of spatial
     ``size``, from where each ReLU passed (``passed``): through the last conv as a matmul (it
     covers its whole input map), then through each ReLU and conv as a mask and a transposed conv.
-    ``floats``: a float tensor at least the size of each mask, which this overwrites."""
+    ``floats``: a flat float tensor at least the size of the largest mask, which this
+    overwrites."""
     n, channels, height, width = passed[-1].shape
     grad = grad.flatten(1) @ _whole_map_matrix(layers[-1][0]).t()
     grad = grad.view(n, height, width, channels).permute(0, 3, 1, 2)  # channels-last
     # each conv's input size: the patches', then each ReLU's output but the last
     sizes = [size, *(mask.shape[-2:] for mask in passed[:-1])]
-    steps = zip(layers[:-1], passed, floats, sizes, strict=True)
-    for (weight, _, stride, padding), mask, scratch, size in reversed(list(steps)):
+    steps = zip(layers[:-1], passed, sizes, strict=True)
+    for (weight, _, stride, padding), mask, size in reversed(list(steps)):
         # the mask as floats first: a float32 by int8 product ran 8x slower than the conversion
         # and a float32 product together
-        grad = grad.mul_(scratch[: len(mask)].copy_(mask))
+        grad = grad.mul_(floats.as_strided(mask.shape, mask.stride()).copy_(mask))
         # a stride-2 conv maps input sizes n and n + 1 to one output size: the output
         # padding tells the transposed conv which of them it had
         kernel, out = weight.shape[-2:], grad.shape[-2:]
@@ -111,10 +112,13 @@ class _FrozenHardNet(torch.autograd.Function):
 
     @staticmethod
     def backward(ctx, grad):
-        # the masks as floats in one buffer per layer that every group reuses: fresh memory for
-        # each took its pages from the system one fault at a time (the fine stage's 9,251
-        # patches: 760-780k faults, a backward of 3.9 s on 2 cores; with them 90-310k, 2.4-3.4 s)
-        floats = [torch.empty_like(mask, dtype=grad.dtype) for mask in ctx.passed[0]]
+        # the masks as floats in one buffer, the largest mask's size, that every layer and
+        # group reuses in turn: fresh memory for each took its pages from the system one fault
+        # at a time (the fine stage's 9,251 patches: 760-780k faults, a backward of 3.9 s on 2
+        # cores; with one buffer a layer 90-310k, 2.4-3.4 s), and a buffer for every layer at
+        # once would hold all of a GPU's patches' masks as floats (one group there)
+        largest = max(mask.numel() for mask in ctx.passed[0])
+        floats = grad.new_empty(largest)
         grads = [
             _stack_input_grad(part, ctx.layers, masks, floats, ctx.input_size)
             for part, masks in zip(grad.split(ctx.group), ctx.passed, strict=True)
