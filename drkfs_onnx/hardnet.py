@@ -22,15 +22,12 @@ def _whole_map_matrix(weight: torch.Tensor) -> torch.Tensor:
     return weight.permute(2, 3, 1, 0).reshape(-1, weight.shape[0])
 
 
-def _channels_last(x: torch.Tensor) -> torch.Tensor:
-    """(N, C, H, W) -> the same values with channels-last strides, one channel included: for
-    C = 1 ``contiguous(memory_format=torch.channels_last)`` keeps the other layout's strides
-    (both describe the same memory), and mkldnn then runs a conv on that layout and returns
-    its output in it (on a CPU the first conv ran 8x slower, with the copy to channels-last
-    after it)."""
-    if x.shape[1] != 1:
-        return x.contiguous(memory_format=torch.channels_last)
-    n, _, height, width = x.shape
+def _patches_channels_last(x: torch.Tensor) -> torch.Tensor:
+    """(N, 1, H, W) patches -> the same values with channels-last strides: for one channel
+    ``contiguous(memory_format=torch.channels_last)`` keeps the other layout's strides (both
+    describe the same memory), and mkldnn then runs the first conv on that layout and returns
+    its output in it (on a CPU 8x slower, with the copy to channels-last after it)."""
+    _, _, height, width = x.shape
     return x.contiguous().as_strided(x.shape, (height * width, 1, width, 1))
 
 
@@ -46,7 +43,7 @@ def _conv_stack(x: torch.Tensor, layers: list, passed: list | None = None) -> to
     the last layer stays the conv the exported graphs hold, so that scores do not move by a
     rounding."""
     if passed is not None:
-        x = _channels_last(x)
+        x = _patches_channels_last(x)
     for k, (weight, bias, stride, padding) in enumerate(layers):
         if passed is not None and k + 1 == len(layers):
             rows = x.permute(0, 2, 3, 1).reshape(len(x), -1)
