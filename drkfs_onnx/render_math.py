@@ -166,7 +166,7 @@ def _edges(tri, px, py, ops):
     return parts
 
 
-def _step(x, ops):
+def step(x, ops):
     """1.0 where x > 0, else 0.0, in x's dtype: a mask to multiply by. On a CPU a comparison
     costs torch 3x an arithmetic pass and ``where`` 12x; sign and clip cost one each."""
     return ops.clip(ops.sign(x), 0.0, None)
@@ -191,7 +191,7 @@ def _coverage(edges, config: PipelineConfig, ops):
     dist2 = ops.minimum(ops.minimum(edges[0].d2, edges[1].d2), edges[2].d2)
     # inside: the three edge functions are all positive or all negative, |sum of signs| = 3
     turns = abs(ops.sign(c0) + ops.sign(c1) + ops.sign(c2))
-    side = 2.0 * _step(turns - 2.0, ops) - 1.0
+    side = 2.0 * step(turns - 2.0, ops) - 1.0
     signed = dist2 * side / config.sigma
     eps = config.coverage_eps
     probability = ops.sigmoid(signed)
@@ -202,7 +202,7 @@ def _plane(edges, w, ops):
     """(the guarded doubled area, the face's plane of inverse depth at the pixel)."""
     c0, c1, c2 = (e.c for e in edges)
     area2 = c0 + c1 + c2
-    area_safe = _pick(_step(abs(area2) - TINY, ops), area2, TINY)
+    area_safe = _pick(step(abs(area2) - TINY, ops), area2, TINY)
     return area_safe, (c1 * w[0] + c2 * w[1] + c0 * w[2]) / area_safe
 
 
@@ -226,17 +226,19 @@ def pair_terms(tri, px, py, config: PipelineConfig, ops):
     return coverage, ops.maximum(ops.minimum(plane, highest), lowest)
 
 
-def pair_terms_grad(tri, px, py, grad_coverage, grad_depth, config: PipelineConfig, ops):
+def pair_terms_grad(tri, px, py, coverage, grad_coverage, grad_depth, config: PipelineConfig, ops):
     """The gradient of ``pair_terms`` with respect to ``tri`` in parts: (PAIR_GRAD_PARTS, P),
-    given the gradients of its coverage and depth (P,); ``face_params_grad`` turns the parts,
-    summed over each face's pairs, into the faces' (9, N) gradient. Written out so that a
-    backward pass costs one recomputation of the pairs' terms, not autograd's graph of them;
-    its masks are ``_step``s multiplied in. What is the same for every pair of a face (the
-    plane's screen gradient, the corners at the depth clamps) multiplies the face's sums once,
-    not each pair.
+    given the pairs' coverage (``pair_terms``' own) and the gradients of their coverage and
+    depth (P,); ``face_params_grad`` turns the parts, summed over each face's pairs, into the
+    faces' (9, N) gradient. Written out so that a backward pass costs one recomputation of the
+    pairs' edges, not autograd's graph of them; its masks are ``step``s multiplied in. What is
+    the same for every pair of a face (the plane's screen gradient, the corners at the depth
+    clamps) multiplies the face's sums once, not each pair.
 
-    The distance to the triangle is its nearest edge's, |p - (a + t (b - a))|^2, whose slope in
-    a and b is -2 r (1 - t) and -2 r t (r from the nearest point to the pixel; t's own slope
+    The coverage's slope in the squared distance comes from the coverage itself: D = D' (1 -
+    eps) + eps where covered, dD/d(d^2) = -+D (1 - D) / sigma, + inside (where D > 1/2). The
+    distance to the triangle is its nearest edge's, |p - (a + t (b - a))|^2, whose slope in a
+    and b is -2 r (1 - t) and -2 r t (r from the nearest point to the pixel; t's own slope
     meets r . e = 0). The plane is f(p) = sum_k lambda_k w_k, lambda the pixel's barycentric
     coordinates (lambda_k = c_(k+1) / area, c_i = e_i x q_i the edge functions): its slope in
     w_k is lambda_k, and moving corner k by delta moves it as moving the pixel by
@@ -248,30 +250,39 @@ def pair_terms_grad(tri, px, py, grad_coverage, grad_depth, config: PipelineConf
     lowest (9) and to the highest (10) corner depth.
     """
     edges = _edges(tri, px, py, ops)
-    e0, e1, e2 = edges
-    side, dist2, probability, coverage = _coverage(edges, config, ops)
-    slope = probability * (1.0 - probability) / ((1.0 - config.coverage_eps) * config.sigma)
-    # -2 d coverage / d dist2, where the coverage is not cut
-    grad_dist2 = -2.0 * grad_coverage * slope * side * _step(coverage, ops)
-    # the nearest edge (the first at the minimum) and its nearest point's weights on the
-    # corners (edge i runs from corner i to corner i + 1)
-    nearest = _first([1.0 - _step(e.d2 - dist2, ops) for e in edges])
-    grad_rx = grad_dist2 * (nearest[0] * e0.rx + nearest[1] * e1.rx + nearest[2] * e2.rx)
-    grad_ry = grad_dist2 * (nearest[0] * e0.ry + nearest[1] * e1.ry + nearest[2] * e2.ry)
-    towards = [nearest[k] * (1.0 - edges[k].t) + nearest[k - 1] * edges[k - 1].t for k in range(3)]
+    eps = config.coverage_eps
+    probability = coverage * (1.0 - eps) + eps
+    inside = ops.sign(probability - 0.5)  # 0 only where the distance, and so r, is 0
+    # d coverage / d dist2 where the coverage is not cut, times grad_coverage, times -2
+    grad_dist2 = grad_coverage * (-2.0 / ((1.0 - eps) * config.sigma)) * step(coverage, ops)
+    grad_dist2 = grad_dist2 * (probability * (1.0 - probability) * inside)
+    # the nearest edge, the first at the smallest distance, one-hot; edge i runs from corner i
+    # to corner i + 1, so the nearest point's weight on corner k is (1 - t) of edge k's and t
+    # of edge k - 1's
+    d2 = [e.d2 for e in edges]
+    second = step(d2[0] - d2[1], ops)
+    third = step(ops.minimum(d2[0], d2[1]) - d2[2], ops)
+    second = second * (1.0 - third)
+    nearest = [grad_dist2 * (1.0 - second - third), grad_dist2 * second, grad_dist2 * third]
+    # per edge and axis: the slope in the nearest point, and the share of it its end takes
+    slopes = [
+        [(s, s * e.t) for s in (g * e.rx, g * e.ry)] for e, g in zip(edges, nearest, strict=True)
+    ]
+    parts = []
+    for k in range(3):  # corner k: edge k's start, edge k - 1's end
+        for axis in range(2):
+            (start, end), before_end = slopes[k][axis], slopes[k - 1][axis][1]
+            parts.append(start - end + before_end)
 
     w = tri[6:9]
     area_safe, plane = _plane(edges, w, ops)
     lowest = ops.minimum(ops.minimum(w[0], w[1]), w[2])
     highest = ops.maximum(ops.maximum(w[0], w[1]), w[2])
-    above_lowest = _step(plane - lowest, ops)
-    inner = above_lowest * _step(highest - plane, ops)
+    above_lowest = step(plane - lowest, ops)
+    inner = above_lowest * step(highest - plane, ops)
     grad_plane = grad_depth * inner / area_safe
-    parts = []
-    for k in range(3):
-        parts += [grad_rx * towards[k], grad_ry * towards[k]]
     # lambda_k = c_(k + 1) / area
-    parts += [grad_plane * e1.c, grad_plane * e2.c, grad_plane * e0.c]
+    parts += [grad_plane * edges[1].c, grad_plane * edges[2].c, grad_plane * edges[0].c]
     parts += [grad_depth * (1.0 - above_lowest), grad_depth * (above_lowest - inner)]
     return ops.stack(parts)
 
@@ -290,14 +301,14 @@ def face_params_grad(params, parts, ops):
     ex0, ey0, ex1, ey1, ex2, ey2 = x1 - x0, y1 - y0, x2 - x1, y2 - y1, x0 - x2, y0 - y2
     # the doubled area as the pairs' edge functions sum to it, guarded as they guard it
     area2 = ex0 * ey1 - ey0 * ex1
-    area_safe = _pick(_step(abs(area2) - TINY, ops), area2, TINY)
+    area_safe = _pick(step(abs(area2) - TINY, ops), area2, TINY)
     # grad f, the plane's screen gradient: c_i's slope in px is -ey_i, in py ex_i
     slope_x = -(ey1 * w[0] + ey2 * w[1] + ey0 * w[2]) / area_safe
     slope_y = (ex1 * w[0] + ex2 * w[1] + ex0 * w[2]) / area_safe
     lowest = ops.minimum(ops.minimum(w[0], w[1]), w[2])
     highest = ops.maximum(ops.maximum(w[0], w[1]), w[2])
-    at_lowest = _first([1.0 - _step(wk - lowest, ops) for wk in w])
-    at_highest = _first([1.0 - _step(highest - wk, ops) for wk in w])
+    at_lowest = _first([1.0 - step(wk - lowest, ops) for wk in w])
+    at_highest = _first([1.0 - step(highest - wk, ops) for wk in w])
     grads = []
     for k in range(3):
         grads += [parts[2 * k] - slope_x * parts[6 + k], parts[2 * k + 1] - slope_y * parts[6 + k]]
@@ -315,7 +326,7 @@ def pair_logits(coverage, depth, config: PipelineConfig, ops):
     """The logits each pixel's largest is taken over, one an enumerated pair: ``pair_logit``
     where the pair is covered, the background's (every pixel's floor) where it is not; not
     log 0 = -inf, whose log costs torch 6x a finite one's on a CPU."""
-    covered = _step(coverage, ops)
+    covered = step(coverage, ops)
     logit = pair_logit(coverage + (1.0 - covered), depth, config, ops)
     return _pick(covered, logit, background_logit(config))
 

@@ -194,7 +194,9 @@ def test_pair_terms_grad_is_autograds_gradient_of_pair_terms(sigma):
     coverage, depth = pair_terms(leaf, px, py, config, TORCH_OPS)
     assert 0.05 < float((coverage > 0).double().mean()) < 0.95
     (grad_coverage * coverage + grad_depth * depth).sum().backward()
-    parts = pair_terms_grad(tri, px, py, grad_coverage, grad_depth, config, TORCH_OPS)
+    parts = pair_terms_grad(
+        tri, px, py, coverage.detach(), grad_coverage, grad_depth, config, TORCH_OPS
+    )
     found = face_params_grad(tri, parts, TORCH_OPS)
     # within 1e-8 of the largest: the written-out slope of t leaves out TINY in its denominator
     assert torch.allclose(found, leaf.grad, rtol=1e-8, atol=1e-8 * float(leaf.grad.abs().max()))
