@@ -3,8 +3,7 @@
     python bench/torch_batch.py [--out bench/results/torch_batch.json] [--devices cpu,cuda]
                                 [--sizes 1,8,32] [--stages coarse,fine] [--threads 2]
                                 [--repeats 3] [--rounds 1] [--no-before] [--loop-sizes 1,8,32]
-                                [--compiled-sizes 32] [--allocator-sizes 32]
-                                [--before-archive TAR]
+                                [--compiled-sizes 32] [--before-archive TAR]
 
 For each device (CUDA where torch sees one), each stage of ``DrkfsLoss.pretrained()`` (coarse:
 progress 0; fine: progress 1) and each batch size B (128 too on CUDA), B predictions (the
@@ -19,10 +18,6 @@ study's chair, forward+backward:
   git into a temporary folder and run in a child process), where git has it;
 - **batched_compiled** (CPU, ``--compiled-sizes``): the batched call with the rasteriser's
   equations compiled (``DRKFS_COMPILE=1``; a GPU compiles them by default);
-- **batched_system_malloc** and **before_kept_memory** (CPU, ``--allocator-sizes``): what the
-  C allocator's thresholds (``drkfs_onnx.cpu_memory``, which a CPU training step raises) are
-  worth: the batched call with the allocator left as it is (``DRKFS_KEEP_FREED_MEMORY=0``),
-  and the loop before batches with the same thresholds set through glibc's environment;
 - **chamfer_l2**: Chamfer-L2 of the same batch, 5,000 points a mesh against 5,000 on the chair,
   by ``torch.cdist``, forward+backward.
 
@@ -48,16 +43,9 @@ from pathlib import Path
 import torch
 from studies.network import loss_step_case
 
-from drkfs_onnx import cpu_memory
-
 ROOT = Path(__file__).resolve().parents[1]
 BEFORE = "ecf7222"  # the last commit whose torch path took one mesh per call
 STAGES = {"coarse": 0.0, "fine": 1.0}
-# glibc's environment for drkfs_onnx.cpu_memory's thresholds, for code that does not set them
-KEPT_MEMORY = {
-    "MALLOC_MMAP_THRESHOLD_": str(cpu_memory.MMAP_THRESHOLD),
-    "MALLOC_TRIM_THRESHOLD_": str(cpu_memory.TRIM_THRESHOLD),
-}
 POINTS = 5000
 
 # The case every row times: the network study's loss step (``studies.network.loss_step_case``),
@@ -229,10 +217,6 @@ def chamfer_seconds(device: str, size: int, repeats: int) -> float:
     return min(times)
 
 
-def sizes_in(text: str) -> list[int]:
-    return [int(s) for s in text.split(",") if s]
-
-
 def case_rows(device: str, stage: str, size: int, args, old: Path | None, case: Path) -> dict:
     values = dict(DEVICE=device, SIZE=size, PROGRESS=STAGES[stage], REPEATS=args.repeats)
     values["CASE_FILE"] = str(case)
@@ -240,35 +224,36 @@ def case_rows(device: str, stage: str, size: int, args, old: Path | None, case: 
         f"torch.set_num_threads({args.threads})\n" if device == "cpu" else ""
     )
     runs = {"batched": {}}  # name: the environment it adds
-    if device == "cpu" and size in sizes_in(args.compiled_sizes):
+    if device == "cpu" and size in [int(s) for s in args.compiled_sizes.split(",") if s]:
         runs["batched_compiled"] = {"DRKFS_COMPILE": "1"}
-    allocator = device == "cpu" and size in sizes_in(args.allocator_sizes)
-    if allocator:
-        runs["batched_system_malloc"] = {"DRKFS_KEEP_FREED_MEMORY": "0"}
-    loops = {}  # name: the code's folder and the environment it adds
-    if size in sizes_in(args.loop_sizes):
-        loops["loop"] = (ROOT, {})
-        if old is not None:
-            loops["before"] = (old, {})
-            if allocator:  # the code before batches, its freed memory kept as this code keeps it
-                loops["before_kept_memory"] = (old, KEPT_MEMORY)
+    loops = {}
+    if size in [int(s) for s in args.loop_sizes.split(",") if s]:
+        loops = {"loop": ROOT} if old is None else {"loop": ROOT, "before": old}
     rounds = {name: [] for name in [*runs, *loops]}
     for _ in range(args.rounds):
         for name, env in runs.items():
             rounds[name].append(child(threads + CASE + BATCHED, ROOT, env, **values))
-        for name, (path, env) in loops.items():
-            rounds[name].append(child(threads + CASE + LOOP, path, env, **values))
+        for name, path in loops.items():
+            rounds[name].append(child(threads + CASE + LOOP, path, **values))
     fastest = {name: min(found, key=lambda r: r["seconds"]) for name, found in rounds.items()}
-    row = {"device": device, "stage": stage, "batch": size}
-    for name in runs:
-        row[name] = {**fastest[name], "seconds_per_mesh": fastest[name]["seconds"] / size}
-    row["chamfer_l2_seconds"] = chamfer_seconds(device, size, args.repeats)
-    row["batched_over_chamfer"] = row["batched"]["seconds"] / row["chamfer_l2_seconds"]
+    batched = fastest["batched"]
+    row = {
+        "device": device,
+        "stage": stage,
+        "batch": size,
+        "batched": {**batched, "seconds_per_mesh": batched["seconds"] / size},
+        "chamfer_l2_seconds": chamfer_seconds(device, size, args.repeats),
+    }
+    row["batched_over_chamfer"] = batched["seconds"] / row["chamfer_l2_seconds"]
+    if "batched_compiled" in fastest:
+        compiled = fastest["batched_compiled"]
+        row["batched_compiled"] = {**compiled, "seconds_per_mesh": compiled["seconds"] / size}
     for name in loops:
         seconds = fastest[name]["seconds"]
         row[name] = {"seconds": seconds, "seconds_per_mesh": seconds / size}
-        for run in runs:
-            row[f"{run}_over_{name}"] = row[run]["seconds"] / seconds
+        row[f"batched_over_{name}"] = batched["seconds"] / seconds
+        if "batched_compiled" in row:
+            row[f"batched_compiled_over_{name}"] = row["batched_compiled"]["seconds"] / seconds
     return row
 
 
@@ -281,12 +266,6 @@ def main() -> None:
     parser.add_argument("--loop-sizes", default="1,8,32", help="the sizes the loops run at")
     parser.add_argument(
         "--compiled-sizes", default="32", help="CPU sizes also timed with DRKFS_COMPILE=1"
-    )
-    parser.add_argument(
-        "--allocator-sizes",
-        default="",
-        help="CPU sizes also timed with the C allocator left as it is (batched_system_malloc) "
-        "and the code before batches with freed memory kept (before_kept_memory)",
     )
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--repeats", type=int, default=3)

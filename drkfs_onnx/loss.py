@@ -25,7 +25,6 @@ import torch
 from torch import nn
 
 from .config import PipelineConfig
-from .cpu_memory import keep_freed_memory
 from .metric import DRKFS, Target, with_nets
 
 
@@ -78,9 +77,7 @@ class DrkfsLoss(nn.Module):
     one (V, 3) mesh -> (); a batch (any form ``MeshBatch.of`` takes) -> its mean, sum or (B,)
     values. ``progress`` in [0, 1] is how far training has come (1: the last stage). The stages'
     metrics are a ``ModuleList``, their cameras and match tables buffers: ``.to()``,
-    ``.cuda()`` and ``state_dict()`` behave as for any module. A step on a CPU with gradients
-    first raises the C allocator's thresholds for the process (``cpu_memory``: freed memory
-    kept for the next step's temporaries; ``DRKFS_KEEP_FREED_MEMORY=0`` to leave it).
+    ``.cuda()`` and ``state_dict()`` behave as for any module.
     """
 
     def __init__(self, metrics: list[DRKFS], stages: tuple[Stage, ...], soft: SoftMatch | None):
@@ -131,7 +128,5 @@ class DrkfsLoss(nn.Module):
         reduction: str = "mean",
     ) -> torch.Tensor:
         index = self.stage(progress)
-        if torch.is_grad_enabled() and self.metrics[index].window_table.device.type == "cpu":
-            keep_freed_memory()  # a step's temporaries reused, not taken anew from the system
         temperature = None if self.soft is None else self.soft.temperature(progress)
         return self.metrics[index].score_to(verts, faces, target[index], reduction, temperature)

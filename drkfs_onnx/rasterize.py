@@ -10,18 +10,18 @@ pixels x faces, and a batch of B meshes' K views is one screen of B * K views:
 
 1. a ``PairPlan`` enumerates those pairs, a span of columns in each row of a face's box, in
    chunks of ``pair_chunk(device)`` pairs (a CPU's cache; millions on a GPU);
-2. ``raster_pairs`` computes their coverage, depth and blend logit without autograd, and each
-   pixel's largest logit; the pairs that do not make the image (uncovered, or hidden behind a
-   nearer face by more than ``DEPTH_CULL`` softmax logits: their weight is below
-   exp(-DEPTH_CULL) of the front face's) stay in place with a weight of exactly 0;
+2. ``kept_pairs`` computes their coverage, depth and blend logit without autograd, each pixel's
+   largest logit, and lists once the pairs the image is made of: covered, and not hidden behind a
+   nearer face by more than ``DEPTH_CULL`` softmax logits (their weight is below
+   exp(-DEPTH_CULL) of the front face's);
 3. ``pixel_sums`` sums a shader's per-pair terms per pixel, and its backward recomputes each
-   chunk's edges and sends the pixels' gradients to the faces by ``pair_terms_grad``, the
-   gradient written out (its parts summed per face, then ``face_params_grad``), instead of
-   keeping autograd's graph of every pair (14 GB for 32 meshes on a GPU).
+   chunk's edges and sends the pixels' gradients to the faces by ``pair_terms_grad``, the gradient
+   written out (its parts summed per face, then ``face_params_grad``), instead of keeping
+   autograd's graph of every pair (14 GB for 32 meshes on a GPU).
 
-A step waits for the host twice whatever the batch: the plan's box rows and chunks. On a GPU
-the equations are compiled (``_fused``). The equations are ``render_math``'s, shared with the
-numpy renderer.
+A step waits for the host three times whatever the batch: the plan's box rows and chunks, and
+the kept pairs' count. On a GPU the equations are compiled (``_fused``). The equations are
+``render_math``'s, shared with the numpy renderer.
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ from __future__ import annotations
 import functools
 import os
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from types import SimpleNamespace
 
 import torch
@@ -190,45 +190,40 @@ class PairPlan:
 
 
 @dataclass
-class RasterPairs:
-    """A plan's pixel-face pairs with their terms (no autograd): pixel, face (P,) int32 indices
-    (pixel int64 per chunk: index_add with int32 indices is several times slower on a CPU,
-    where a gather by them is faster); px, py (P,) the pixel centres (the backward's, where
-    from the pixels they took ten integer passes); coverage, depth (P,) ``pair_terms``, depth
+class KeptPairs:
+    """The pairs an image is made of: covered (D' > 0) and, for shaded images, not hidden
+    behind a nearer face by more than ``DEPTH_CULL`` blend logits. pixel, face: (P,) int32
+    indices (pixel int64 per chunk: index_add with int32 indices is several times slower on a
+    CPU, where a gather by them is faster);
+    coverage, depth: (P,) ``pair_terms`` and logit: (P,) ``pair_logit`` (no autograd); depth
     None where not asked for (the shaders never read it: a batch's pairs are kept until the
-    backward); logit (P,) ``pair_logit`` where the pair makes the image, -inf (a blend weight
-    of exactly 0) where it does not: uncovered (D' = 0) or, for shaded images, hidden behind
-    a nearer face by more than ``DEPTH_CULL`` blend logits; logit_max (views * S * S,) each
-    pixel's largest blend logit, the background's included (the softmax's shift, a constant
-    for autograd)."""
+    backward, 4 bytes a pair saved);
+    logit_max: (views * S * S,) each pixel's largest blend logit, the background's included
+    (the softmax's shift, a constant for autograd)."""
 
     plan: PairPlan
     pixel: torch.Tensor
     face: torch.Tensor
-    px: torch.Tensor
-    py: torch.Tensor
     coverage: torch.Tensor
     depth: torch.Tensor | None
     logit: torch.Tensor
     logit_max: torch.Tensor
 
-    def _each(self, take: Callable[[torch.Tensor], torch.Tensor]) -> RasterPairs:
-        """``take`` applied to each per-pair array."""
-        per_pair = ("pixel", "face", "px", "py", "coverage", "depth", "logit")
-        taken = {name: getattr(self, name) for name in per_pair}
-        return replace(self, **{k: None if v is None else take(v) for k, v in taken.items()})
-
-    def chunks(self) -> Iterator[RasterPairs]:
+    def chunks(self) -> Iterator[KeptPairs]:
         """The pairs in runs of ``pair_chunk`` pairs, their pixels int64."""
         step = pair_chunk(self.pixel.device)
         for first in range(0, len(self.pixel), step):
-            chunk = self._each(lambda values, part=slice(first, first + step): values[part])
-            yield replace(chunk, pixel=chunk.pixel.long())
+            part = slice(first, first + step)
+            pixel, face = self.pixel[part].long(), self.face[part]
+            depth = None if self.depth is None else self.depth[part]
+            yield KeptPairs(self.plan, pixel, face, self.coverage[part], depth,
+                            self.logit[part], self.logit_max)  # fmt: skip
 
-    def kept(self) -> RasterPairs:
-        """Only the pairs that make the image (one host wait: their count)."""
-        index = torch.nonzero(self.logit > -torch.inf).squeeze(1)
-        return self._each(lambda values: values.index_select(0, index))
+    def centres(self) -> tuple[torch.Tensor, torch.Tensor]:
+        """(px, py) pixel centres in NDC of the pairs."""
+        size, dtype = self.plan.config.image_size, self.coverage.dtype
+        col, row = self.pixel % size, self.pixel // size % size
+        return pixel_centre(col.to(dtype), size), pixel_centre(row.to(dtype), size)
 
 
 @functools.cache
@@ -255,38 +250,43 @@ def coverage_depth(pairs: Pairs, params: torch.Tensor, config: PipelineConfig):
 
 
 @torch.no_grad()
-def raster_pairs(
+def kept_pairs(
     plan: PairPlan, params: torch.Tensor, depth_cull: bool, with_depth: bool = False
-) -> RasterPairs:
-    """The plan's pairs with their terms, no host wait; their depth too where ``with_depth``
-    asks. Those that do not make the image stay in place with a logit of -inf: listing the
-    others took a host wait and a copy of every array (on a CPU about a twentieth of the fine
-    stage's step at B = 32) to drop 5-10% of the loss's pairs. 24 bytes a pair (28 with the
-    depth)."""
+) -> KeptPairs:
+    """The plan's pairs that make the image, listed once: one host wait (their count); their
+    depth too where ``with_depth`` asks.
+
+    Every enumerated pair's terms are kept until each pixel's largest logit is known, then the
+    kept ones gathered; 16 bytes a pair while it runs (20 with the depth)."""
     cfg = plan.config
     total = plan.num_pairs()
     int32 = dict(dtype=torch.int32, device=params.device)
     pixel, face = torch.empty(total, **int32), torch.empty(total, **int32)
-    px, py, coverage, logit = params.new_empty((4, total))
+    coverage, logit = params.new_empty(total), params.new_empty(total)
     depth = params.new_empty(total) if with_depth else None
     shift = params.new_full((plan.num_pixels,), background_logit(cfg))
     start = 0
     for pairs in plan:
         part = slice(start, start + len(pairs.pixel))
-        pixel[part], face[part], px[part], py[part] = pairs.pixel, pairs.face, pairs.px, pairs.py
+        pixel[part], face[part] = pairs.pixel, pairs.face
         coverage[part], pair_depth = coverage_depth(pairs, params, cfg)
         logit[part] = pair_logits(coverage[part], pair_depth, cfg, TORCH_OPS)
         if with_depth:
             depth[part] = pair_depth
         TORCH_OPS.scatter_max(shift, pairs.pixel, logit[part])
         start = part.stop
-    for first in range(0, total, pair_chunk(params.device)):
-        part = slice(first, first + pair_chunk(params.device))
-        dropped = coverage[part] <= 0
-        if depth_cull:
-            dropped |= logit[part] < shift.index_select(0, pixel[part]) - DEPTH_CULL
-        logit[part].masked_fill_(dropped, -torch.inf)
-    return RasterPairs(plan, pixel, face, px, py, coverage, depth, logit, shift)
+    keep = coverage > 0
+    if depth_cull:
+        for first in range(0, total, pair_chunk(params.device)):
+            part = slice(first, first + pair_chunk(params.device))
+            keep[part] &= logit[part] >= shift.index_select(0, pixel[part]) - DEPTH_CULL
+    index = torch.nonzero(keep).squeeze(1)
+    del keep
+    # one array at a time, each enumerated array freed once its kept pairs are taken
+    pixel, face = pixel.index_select(0, index), face.index_select(0, index)
+    coverage, logit = coverage.index_select(0, index), logit.index_select(0, index)
+    depth = depth.index_select(0, index) if with_depth else None
+    return KeptPairs(plan, pixel, face, coverage, depth, logit, shift)
 
 
 class Shader:
@@ -296,19 +296,19 @@ class Shader:
 
     channels: int
 
-    def values(self, pairs: RasterPairs, colors: torch.Tensor) -> torch.Tensor:
+    def values(self, pairs: KeptPairs, colors: torch.Tensor) -> torch.Tensor:
         raise NotImplementedError
 
-    def slopes(self, pairs: RasterPairs, colors: torch.Tensor, grad: torch.Tensor):
+    def slopes(self, pairs: KeptPairs, colors: torch.Tensor, grad: torch.Tensor):
         raise NotImplementedError
 
 
 class _PixelSums(torch.autograd.Function):
-    """Per pixel, the sum over its pairs of a shader's terms. Backward recomputes each chunk's
-    edges and sends the gradient to the faces by ``pair_terms_grad``."""
+    """Per pixel, the sum over its kept pairs of a shader's terms. Backward recomputes each
+    chunk's pair terms and sends the gradient to the faces by ``pair_terms_grad``."""
 
     @staticmethod
-    def forward(ctx, pairs: RasterPairs, shader: Shader, params, colors):
+    def forward(ctx, pairs: KeptPairs, shader: Shader, params, colors):
         sums = params.new_zeros(shader.channels, pairs.plan.num_pixels)
         for chunk in pairs.chunks():
             sums.index_add_(1, chunk.pixel, shader.values(chunk, colors))
@@ -327,8 +327,9 @@ class _PixelSums(torch.autograd.Function):
             pair_grad = grad.index_select(1, chunk.pixel)
             grad_coverage, grad_depth, grad_color = shader.slopes(chunk, colors, pair_grad)
             tri = params.index_select(1, chunk.face)
+            px, py = chunk.centres()
             face = chunk.face.long()
-            parts = terms_grad(tri, chunk.px, chunk.py, chunk.coverage, grad_coverage, grad_depth)
+            parts = terms_grad(tri, px, py, chunk.coverage, grad_coverage, grad_depth)
             grad_parts.index_add_(1, face, parts)
             if grad_color is not None:
                 grad_colors.index_add_(0, face, grad_color)
@@ -336,8 +337,8 @@ class _PixelSums(torch.autograd.Function):
 
 
 def pixel_sums(
-    pairs: RasterPairs, shader: Shader, params: torch.Tensor, colors: torch.Tensor
+    pairs: KeptPairs, shader: Shader, params: torch.Tensor, colors: torch.Tensor
 ) -> torch.Tensor:
-    """(C, views * S * S): per pixel, the sum of the shader's terms over its pairs;
+    """(C, views * S * S): per pixel, the sum of the shader's terms over its kept pairs;
     differentiable with respect to the faces' ``params`` (9, N) and ``colors`` (N,)."""
     return _PixelSums.apply(pairs, shader, params, colors)

@@ -10,7 +10,7 @@ from torch import nn
 from .batch import MeshBatch
 from .cameras import Cameras, make_cameras
 from .config import PipelineConfig
-from .rasterize import PairPlan, RasterPairs, raster_pairs, to_screen
+from .rasterize import KeptPairs, PairPlan, kept_pairs, to_screen
 from .render_math import ScreenFaces
 from .shade import face_shading, silhouette, soft_blend
 
@@ -46,19 +46,19 @@ class Renderer(nn.Module):
 
     def _render(self, meshes: MeshBatch, mode: RenderMode) -> torch.Tensor:
         verts_cam, screen = self.screen(meshes)
-        pairs = raster_pairs(PairPlan(screen, self.config), screen.params, mode == "shaded")
+        pairs = kept_pairs(PairPlan(screen, self.config), screen.params, mode == "shaded")
         if mode == "silhouette":
             return silhouette(pairs, screen.params)
         colors = face_shading(verts_cam, meshes.faces, self.config)
         return soft_blend(pairs, screen.params, colors)
 
     @torch.no_grad()
-    def rasterize(self, verts, faces=None, depth_cull: bool = True) -> RasterPairs:
+    def rasterize(self, verts, faces=None, depth_cull: bool = True) -> KeptPairs:
         """The pixel-face pairs the views are made of (no autograd), for analysis."""
         meshes = MeshBatch.of(verts, faces)
         _, screen = self.screen(meshes)
         plan = PairPlan(screen, self.config)
-        return raster_pairs(plan, screen.params, depth_cull, with_depth=True).kept()
+        return kept_pairs(plan, screen.params, depth_cull, with_depth=True)
 
     def screen(self, meshes: MeshBatch) -> tuple[torch.Tensor, ScreenFaces]:
         """-> (B, K, V, 3) camera-frame vertices and the faces projected into the B * K views,

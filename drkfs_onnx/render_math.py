@@ -166,7 +166,7 @@ def _edges(tri, px, py, ops):
     return parts
 
 
-def step(x, ops):
+def _step(x, ops):
     """1.0 where x > 0, else 0.0, in x's dtype: a mask to multiply by. On a CPU a comparison
     costs torch 3x an arithmetic pass and ``where`` 12x; sign and clip cost one each."""
     return ops.clip(ops.sign(x), 0.0, None)
@@ -191,7 +191,7 @@ def _coverage(edges, config: PipelineConfig, ops):
     dist2 = ops.minimum(ops.minimum(edges[0].d2, edges[1].d2), edges[2].d2)
     # inside: the three edge functions are all positive or all negative, |sum of signs| = 3
     turns = abs(ops.sign(c0) + ops.sign(c1) + ops.sign(c2))
-    side = 2.0 * step(turns - 2.0, ops) - 1.0
+    side = 2.0 * _step(turns - 2.0, ops) - 1.0
     signed = dist2 * side / config.sigma
     eps = config.coverage_eps
     probability = ops.sigmoid(signed)
@@ -202,7 +202,7 @@ def _plane(edges, w, ops):
     """(the guarded doubled area, the face's plane of inverse depth at the pixel)."""
     c0, c1, c2 = (e.c for e in edges)
     area2 = c0 + c1 + c2
-    area_safe = _pick(step(abs(area2) - TINY, ops), area2, TINY)
+    area_safe = _pick(_step(abs(area2) - TINY, ops), area2, TINY)
     return area_safe, (c1 * w[0] + c2 * w[1] + c0 * w[2]) / area_safe
 
 
@@ -254,14 +254,14 @@ def pair_terms_grad(tri, px, py, coverage, grad_coverage, grad_depth, config: Pi
     probability = coverage * (1.0 - eps) + eps
     inside = ops.sign(probability - 0.5)  # 0 only where the distance, and so r, is 0
     # d coverage / d dist2 where the coverage is not cut, times grad_coverage, times -2
-    grad_dist2 = grad_coverage * (-2.0 / ((1.0 - eps) * config.sigma)) * step(coverage, ops)
+    grad_dist2 = grad_coverage * (-2.0 / ((1.0 - eps) * config.sigma)) * _step(coverage, ops)
     grad_dist2 = grad_dist2 * (probability * (1.0 - probability) * inside)
     # the nearest edge, the first at the smallest distance, one-hot; edge i runs from corner i
     # to corner i + 1, so the nearest point's weight on corner k is (1 - t) of edge k's and t
     # of edge k - 1's
     d2 = [e.d2 for e in edges]
-    second = step(d2[0] - d2[1], ops)
-    third = step(ops.minimum(d2[0], d2[1]) - d2[2], ops)
+    second = _step(d2[0] - d2[1], ops)
+    third = _step(ops.minimum(d2[0], d2[1]) - d2[2], ops)
     second = second * (1.0 - third)
     nearest = [grad_dist2 * (1.0 - second - third), grad_dist2 * second, grad_dist2 * third]
     # per edge and axis: the slope in the nearest point, and the share of it its end takes
@@ -278,8 +278,8 @@ def pair_terms_grad(tri, px, py, coverage, grad_coverage, grad_depth, config: Pi
     area_safe, plane = _plane(edges, w, ops)
     lowest = ops.minimum(ops.minimum(w[0], w[1]), w[2])
     highest = ops.maximum(ops.maximum(w[0], w[1]), w[2])
-    above_lowest = step(plane - lowest, ops)
-    inner = above_lowest * step(highest - plane, ops)
+    above_lowest = _step(plane - lowest, ops)
+    inner = above_lowest * _step(highest - plane, ops)
     grad_plane = grad_depth * inner / area_safe
     # lambda_k = c_(k + 1) / area
     parts += [grad_plane * edges[1].c, grad_plane * edges[2].c, grad_plane * edges[0].c]
@@ -301,14 +301,14 @@ def face_params_grad(params, parts, ops):
     ex0, ey0, ex1, ey1, ex2, ey2 = x1 - x0, y1 - y0, x2 - x1, y2 - y1, x0 - x2, y0 - y2
     # the doubled area as the pairs' edge functions sum to it, guarded as they guard it
     area2 = ex0 * ey1 - ey0 * ex1
-    area_safe = _pick(step(abs(area2) - TINY, ops), area2, TINY)
+    area_safe = _pick(_step(abs(area2) - TINY, ops), area2, TINY)
     # grad f, the plane's screen gradient: c_i's slope in px is -ey_i, in py ex_i
     slope_x = -(ey1 * w[0] + ey2 * w[1] + ey0 * w[2]) / area_safe
     slope_y = (ex1 * w[0] + ex2 * w[1] + ex0 * w[2]) / area_safe
     lowest = ops.minimum(ops.minimum(w[0], w[1]), w[2])
     highest = ops.maximum(ops.maximum(w[0], w[1]), w[2])
-    at_lowest = _first([1.0 - step(wk - lowest, ops) for wk in w])
-    at_highest = _first([1.0 - step(highest - wk, ops) for wk in w])
+    at_lowest = _first([1.0 - _step(wk - lowest, ops) for wk in w])
+    at_highest = _first([1.0 - _step(highest - wk, ops) for wk in w])
     grads = []
     for k in range(3):
         grads += [parts[2 * k] - slope_x * parts[6 + k], parts[2 * k + 1] - slope_y * parts[6 + k]]
@@ -326,7 +326,7 @@ def pair_logits(coverage, depth, config: PipelineConfig, ops):
     """The logits each pixel's largest is taken over, one an enumerated pair: ``pair_logit``
     where the pair is covered, the background's (every pixel's floor) where it is not; not
     log 0 = -inf, whose log costs torch 6x a finite one's on a CPU."""
-    covered = step(coverage, ops)
+    covered = _step(coverage, ops)
     logit = pair_logit(coverage + (1.0 - covered), depth, config, ops)
     return _pick(covered, logit, background_logit(config))
 

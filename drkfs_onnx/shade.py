@@ -1,4 +1,4 @@
-"""Shaders of a screen's pixel-face pairs (torch): grey Lambertian faces with SoftRas' soft
+"""Shaders of a screen's kept pixel-face pairs (torch): grey Lambertian faces with SoftRas' soft
 blend, and silhouettes. The equations are ``render_math``'s, shared with the numpy renderer;
 the pairs' sums and their backward are ``rasterize.pixel_sums``'."""
 
@@ -8,7 +8,7 @@ import torch
 
 from . import render_math
 from .config import PipelineConfig
-from .rasterize import TORCH_OPS, RasterPairs, Shader, pixel_sums
+from .rasterize import TORCH_OPS, KeptPairs, Shader, pixel_sums
 
 SATURATED = 1.0 - 1e-6
 
@@ -27,22 +27,20 @@ class Blend(Shader):
 
     channels = 2
 
-    def _weight(self, pairs: RasterPairs) -> torch.Tensor:
+    def _weight(self, pairs: KeptPairs) -> torch.Tensor:
         shift = pairs.logit_max.index_select(0, pairs.pixel)
         return render_math.blend_weight(pairs.logit, shift, TORCH_OPS)
 
-    def values(self, pairs: RasterPairs, colors: torch.Tensor) -> torch.Tensor:
+    def values(self, pairs: KeptPairs, colors: torch.Tensor) -> torch.Tensor:
         weight = self._weight(pairs)
         return torch.stack([weight * colors.index_select(0, pairs.face), weight])
 
-    def slopes(self, pairs: RasterPairs, colors: torch.Tensor, grad: torch.Tensor):
+    def slopes(self, pairs: KeptPairs, colors: torch.Tensor, grad: torch.Tensor):
         weight, color = self._weight(pairs), colors.index_select(0, pairs.face)
         # d/d logit of grad_n * w * C + grad_d * w, with logit = log D' + depth / gamma
         grad_logit = weight * (grad[0] * color + grad[1])
         gamma = pairs.plan.config.gamma
-        # a dropped pair weighs 0 and may cover nothing: 0 / 1 where D' = 0, not 0 / 0
-        coverage = pairs.coverage + (1.0 - render_math.step(pairs.coverage, TORCH_OPS))
-        return grad_logit / coverage, grad_logit / gamma, grad[0] * weight
+        return grad_logit / pairs.coverage, grad_logit / gamma, grad[0] * weight
 
 
 class Silhouette(Shader):
@@ -50,17 +48,17 @@ class Silhouette(Shader):
 
     channels = 1
 
-    def values(self, pairs: RasterPairs, colors: torch.Tensor) -> torch.Tensor:
+    def values(self, pairs: KeptPairs, colors: torch.Tensor) -> torch.Tensor:
         return torch.log1p(-pairs.coverage.clamp_max(SATURATED))[None]
 
-    def slopes(self, pairs: RasterPairs, colors: torch.Tensor, grad: torch.Tensor):
+    def slopes(self, pairs: KeptPairs, colors: torch.Tensor, grad: torch.Tensor):
         coverage = pairs.coverage
         slope = torch.where(coverage < SATURATED, -1.0 / (1.0 - coverage), 0.0)
         return grad[0] * slope, torch.zeros_like(coverage), None
 
 
-def soft_blend(pairs: RasterPairs, params: torch.Tensor, face_colors: torch.Tensor) -> torch.Tensor:
-    """SoftRas aggregation of the pairs -> (views, S, S) grey images
+def soft_blend(pairs: KeptPairs, params: torch.Tensor, face_colors: torch.Tensor) -> torch.Tensor:
+    """SoftRas aggregation of the kept pairs -> (views, S, S) grey images
     (``render_math.blend_image``)."""
     config, size = pairs.plan.config, pairs.plan.config.image_size
     numerator, denominator = pixel_sums(pairs, Blend(), params, face_colors)
@@ -68,8 +66,8 @@ def soft_blend(pairs: RasterPairs, params: torch.Tensor, face_colors: torch.Tens
     return image.reshape(pairs.plan.num_views, size, size)
 
 
-def silhouette(pairs: RasterPairs, params: torch.Tensor) -> torch.Tensor:
-    """alpha = 1 - prod_j (1 - D_j) over every covered pair (rasterised without depth cull) ->
+def silhouette(pairs: KeptPairs, params: torch.Tensor) -> torch.Tensor:
+    """alpha = 1 - prod_j (1 - D_j) over every covered pair (kept without depth cull) ->
     (views, S, S)."""
     size = pairs.plan.config.image_size
     (total,) = pixel_sums(pairs, Silhouette(), params, params.new_zeros(0))
