@@ -231,7 +231,7 @@ def pair_terms_grad(tri, px, py, coverage, grad_coverage, grad_depth, config: Pi
     given the pairs' coverage (``pair_terms``' own) and the gradients of their coverage and
     depth (P,); ``face_params_grad`` turns the parts, summed over each face's pairs, into the
     faces' (9, N) gradient. Written out so that a backward pass costs one recomputation of the
-    pairs' edges, not autograd's graph of them; its masks are ``step``s multiplied in. What is
+    pairs' edges, not autograd's graph of them; its masks are ``_step``s multiplied in. What is
     the same for every pair of a face (the plane's screen gradient, the corners at the depth
     clamps) multiplies the face's sums once, not each pair.
 
@@ -264,15 +264,15 @@ def pair_terms_grad(tri, px, py, coverage, grad_coverage, grad_depth, config: Pi
     third = _step(ops.minimum(d2[0], d2[1]) - d2[2], ops)
     second = second * (1.0 - third)
     nearest = [grad_dist2 * (1.0 - second - third), grad_dist2 * second, grad_dist2 * third]
-    # per edge and axis: the slope in the nearest point, and the share of it its end takes
-    slopes = [
-        [(s, s * e.t) for s in (g * e.rx, g * e.ry)] for e, g in zip(edges, nearest, strict=True)
-    ]
-    parts = []
-    for k in range(3):  # corner k: edge k's start, edge k - 1's end
-        for axis in range(2):
-            (start, end), before_end = slopes[k][axis], slopes[k - 1][axis][1]
-            parts.append(start - end + before_end)
+    # the slope in each edge's nearest point, per axis (index 2 i + axis), shared between the
+    # edge's start (1 - t) and end (t); corner k is edge k's start and edge k - 1's end
+    at_start, at_end = [], []
+    for edge, weight in zip(edges, nearest, strict=True):
+        for r in (edge.rx, edge.ry):
+            slope = weight * r
+            at_end.append(slope * edge.t)
+            at_start.append(slope - at_end[-1])
+    parts = [at_start[i] + at_end[i - 2] for i in range(6)]
 
     w = tri[6:9]
     area_safe, plane = _plane(edges, w, ops)
