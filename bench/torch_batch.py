@@ -18,6 +18,8 @@ study's chair, forward+backward:
   git into a temporary folder and run in a child process), where git has it;
 - **batched_compiled** (CPU, ``--compiled-sizes``): the batched call with the rasteriser's
   equations compiled (``DRKFS_COMPILE=1``; a GPU compiles them by default);
+- **batched_tf32** (CUDA): the batched call with the nets' convolutions in TF32
+  (``conv_precision="tf32"``; the default is IEEE float32);
 - **chamfer_l2**: Chamfer-L2 of the same batch, 5,000 points a mesh against 5,000 on the chair,
   by ``torch.cdist``, forward+backward.
 
@@ -25,7 +27,9 @@ Each batched case runs in a child process of its own, so its peak memory (CPU: t
 maximum resident set over the step) is its own. Ratios are taken within the run; absolute times
 are noisy here. With ``--rounds N`` a case's children (batched, compiled, loop, before) run in
 turn N times and each keeps its fastest round: these cores drift by 10-30% over minutes, and a
-ratio of two times taken minutes apart drifts with them.
+ratio of two times taken minutes apart drifts with them. ``--out`` is written after each row,
+so a run stopped by a time limit keeps the rows it finished (on an H100 the first five cases of
+the default sizes took 330 s: ``--sizes 32`` fits a short session).
 """
 
 from __future__ import annotations
@@ -57,7 +61,7 @@ from drkfs_onnx.loss import DrkfsLoss
 
 prediction, faces, truth = torch.load(CASE_FILE, weights_only=True)
 nudges = 0.01 * torch.randn(SIZE, *prediction.shape, generator=torch.Generator().manual_seed(1))
-loss = DrkfsLoss.pretrained().to(DEVICE)
+loss = DrkfsLoss.pretrained(**OPTIONS).to(DEVICE)
 faces, truth = faces.to(DEVICE), tuple(t.to(DEVICE) for t in truth)
 preds = (prediction[None] + nudges).to(DEVICE)
 target = loss.target(*truth)
@@ -223,18 +227,22 @@ def case_rows(device: str, stage: str, size: int, args, old: Path | None, case: 
     threads = "import torch\n" + (
         f"torch.set_num_threads({args.threads})\n" if device == "cpu" else ""
     )
-    runs = {"batched": {}}  # name: the environment it adds
+    # name: the environment it adds and DrkfsLoss.pretrained's options
+    runs = {"batched": ({}, {})}
     if device == "cpu" and size in [int(s) for s in args.compiled_sizes.split(",") if s]:
-        runs["batched_compiled"] = {"DRKFS_COMPILE": "1"}
+        runs["batched_compiled"] = ({"DRKFS_COMPILE": "1"}, {})
+    if device == "cuda":
+        runs["batched_tf32"] = ({}, {"conv_precision": "tf32"})
     loops = {}
     if size in [int(s) for s in args.loop_sizes.split(",") if s]:
         loops = {"loop": ROOT} if old is None else {"loop": ROOT, "before": old}
     rounds = {name: [] for name in [*runs, *loops]}
     for _ in range(args.rounds):
-        for name, env in runs.items():
-            rounds[name].append(child(threads + CASE + BATCHED, ROOT, env, **values))
+        for name, (env, options) in runs.items():
+            code = threads + CASE + BATCHED
+            rounds[name].append(child(code, ROOT, env, OPTIONS=options, **values))
         for name, path in loops.items():
-            rounds[name].append(child(threads + CASE + LOOP, path, **values))
+            rounds[name].append(child(threads + CASE + LOOP, path, OPTIONS={}, **values))
     fastest = {name: min(found, key=lambda r: r["seconds"]) for name, found in rounds.items()}
     batched = fastest["batched"]
     row = {
@@ -245,15 +253,16 @@ def case_rows(device: str, stage: str, size: int, args, old: Path | None, case: 
         "chamfer_l2_seconds": chamfer_seconds(device, size, args.repeats),
     }
     row["batched_over_chamfer"] = batched["seconds"] / row["chamfer_l2_seconds"]
-    if "batched_compiled" in fastest:
-        compiled = fastest["batched_compiled"]
-        row["batched_compiled"] = {**compiled, "seconds_per_mesh": compiled["seconds"] / size}
+    variants = [name for name in runs if name != "batched"]
+    for name in variants:
+        found = fastest[name]
+        row[name] = {**found, "seconds_per_mesh": found["seconds"] / size}
+        row[f"{name}_over_chamfer"] = found["seconds"] / row["chamfer_l2_seconds"]
     for name in loops:
         seconds = fastest[name]["seconds"]
         row[name] = {"seconds": seconds, "seconds_per_mesh": seconds / size}
-        row[f"batched_over_{name}"] = batched["seconds"] / seconds
-        if "batched_compiled" in row:
-            row[f"batched_compiled_over_{name}"] = row["batched_compiled"]["seconds"] / seconds
+        for run in ["batched", *variants]:
+            row[f"{run}_over_{name}"] = row[run]["seconds"] / seconds
     return row
 
 
@@ -277,7 +286,24 @@ def main() -> None:
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
     devices = [d for d in args.devices.split(",") if d != "cuda" or torch.cuda.is_available()]
-    rows = []
+    result = {
+        "command": "python bench/torch_batch.py " + " ".join(sys.argv[1:]),
+        "before_commit": BEFORE if not args.no_before else None,
+        "machine": {
+            "processor": platform.processor() or platform.machine(),
+            "cpu_threads": args.threads,
+            "torch": torch.__version__,
+            "gpu": torch.cuda.get_device_name() if "cuda" in devices else None,
+        },
+        "rows": [],
+    }
+
+    def save() -> None:
+        """The file holds every row so far: a run stopped by a time limit keeps what it did."""
+        if args.out is not None:
+            args.out.parent.mkdir(parents=True, exist_ok=True)
+            args.out.write_text(json.dumps(result, indent=2) + "\n")
+
     with tempfile.TemporaryDirectory() as folder:
         old = None if args.no_before else before_tree(Path(folder), args.before_archive)
         prediction, faces, truth, _ = loss_step_case()
@@ -288,25 +314,11 @@ def main() -> None:
             for stage in args.stages.split(","):
                 for size in sizes:
                     row = case_rows(device, stage, size, args, old, case)
-                    rows.append(row)
+                    result["rows"].append(row)
                     print(json.dumps(row), flush=True)
-    result = {
-        "command": "python bench/torch_batch.py " + " ".join(sys.argv[1:]),
-        "before_commit": BEFORE if not args.no_before else None,
-        "machine": {
-            "processor": platform.processor() or platform.machine(),
-            "cpu_threads": args.threads,
-            "torch": torch.__version__,
-            "gpu": torch.cuda.get_device_name() if "cuda" in devices else None,
-        },
-        "rows": rows,
-    }
-    text = json.dumps(result, indent=2)
+                    save()
     if args.out is None:
-        print(text)
-    else:
-        args.out.parent.mkdir(parents=True, exist_ok=True)
-        args.out.write_text(text + "\n")
+        print(json.dumps(result, indent=2))
 
 
 if __name__ == "__main__":

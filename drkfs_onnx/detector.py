@@ -6,24 +6,28 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+from . import precision
 from .config import PipelineConfig
 
 
 class _FrozenConv(torch.autograd.Function):
     """conv2d(x, weight, bias) for fixed weights, differentiable with respect to ``x`` only;
-    its backward a transposed conv of the channels-last gradient: on a CPU 2x faster than the
-    conv's own input gradient for a one-channel image and a 9 x 9 kernel."""
+    its backward a transposed conv of the channels-last gradient (on a CPU 2x faster than the
+    conv's own input gradient for a one-channel image and a 9 x 9 kernel), at the forward's
+    ``precision``."""
 
     @staticmethod
     def forward(ctx, x, weight, bias):
         ctx.save_for_backward(weight)
+        ctx.precision = precision.current()
         return F.conv2d(x, weight, bias)
 
     @staticmethod
     def backward(ctx, grad):
         (weight,) = ctx.saved_tensors
         grad = grad.contiguous(memory_format=torch.channels_last)
-        return F.conv_transpose2d(grad, weight).contiguous(), None, None
+        with precision.conv_precision(ctx.precision):
+            return F.conv_transpose2d(grad, weight).contiguous(), None, None
 
 
 class PoIDetector(nn.Module):

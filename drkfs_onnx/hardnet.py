@@ -5,6 +5,7 @@ from __future__ import annotations
 import torch
 from torch import nn
 
+from . import precision
 from .config import PipelineConfig
 
 L2NET_CHANNELS = (32, 32, 64, 64, 128, 128)
@@ -93,7 +94,8 @@ class _FrozenHardNet(torch.autograd.Function):
     autograd keeps every conv's input: most of a batch's training-step memory) and sends the
     gradient back through each conv as a transposed conv and through the last as a matmul. On a
     CPU those run 1.3-4x faster than the convs' own input gradients (the stride-2 convs' and the
-    last's most). One node for every group, so that their backwards share buffers.
+    last's most). One node for every group, so that their backwards share buffers. The backward
+    runs at the forward's ``precision``.
 
     ``layers``: (weight, bias, stride, padding) of each folded conv, in order; a ReLU follows
     all but the last."""
@@ -105,6 +107,7 @@ class _FrozenHardNet(torch.autograd.Function):
             passed.append([])
             parts.append(_conv_stack(part, layers, passed[-1]))
         ctx.layers, ctx.passed, ctx.group, ctx.input_size = layers, passed, group, x.shape[-2:]
+        ctx.precision = precision.current()
         return torch.cat(parts)
 
     @staticmethod
@@ -116,10 +119,11 @@ class _FrozenHardNet(torch.autograd.Function):
         # once would hold all of a GPU's patches' masks as floats (one group there)
         largest = max(mask.numel() for mask in ctx.passed[0])
         floats = grad.new_empty(largest)
-        grads = [
-            _stack_input_grad(part, ctx.layers, masks, floats, ctx.input_size)
-            for part, masks in zip(grad.split(ctx.group), ctx.passed, strict=True)
-        ]
+        with precision.conv_precision(ctx.precision):
+            grads = [
+                _stack_input_grad(part, ctx.layers, masks, floats, ctx.input_size)
+                for part, masks in zip(grad.split(ctx.group), ctx.passed, strict=True)
+            ]
         return torch.cat(grads), None, None
 
 

@@ -93,9 +93,14 @@ class DrkfsLoss(nn.Module):
         stages: tuple[Stage, ...] = COARSE_TO_FINE,
         soft: SoftMatch | None = None,
         normalization: str = "joint",
+        conv_precision: str = "ieee",
     ) -> DrkfsLoss:
-        """The shipped nets at each stage's config (``DRKFS.pretrained``)."""
-        metrics = [DRKFS.pretrained(s.config, normalization=normalization) for s in stages]
+        """The shipped nets at each stage's config (``DRKFS.pretrained``); ``conv_precision``
+        as ``DRKFS``'s."""
+        metrics = [
+            DRKFS.pretrained(s.config, normalization=normalization, conv_precision=conv_precision)
+            for s in stages
+        ]
         return cls(metrics, stages, soft)
 
     @classmethod

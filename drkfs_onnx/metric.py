@@ -16,6 +16,7 @@ from .hardnet import HardNet
 from .matching import best_match_distances, match_score, window_index
 from .mesh import Mesh, check_normalization, normalize_pair, place_by, reference_frame
 from .patches import nonempty_patches, select_patches
+from .precision import check_conv_precision, conv_precision
 from .render import Renderer
 from .weights import RANDOM_SEED, load_shipped_state
 
@@ -24,6 +25,10 @@ from .weights import RANDOM_SEED, load_shipped_state
 # At 256 the fine stage's step at B = 32 read 8.5-10.6 s against 8.2-8.9 s at 128 (alternating
 # runs), its 16 MB gradients more often taking fresh pages from the system
 CPU_PATCH_GROUP = 128
+# On a GPU: one group of a batch's every patch held each conv's output for all of them at once
+# (the fine stage on an H100: B = 32's peak 3.32 -> 2.32 GB in groups of 2,048, B = 128's
+# 13.3 -> 5.8 GB; 59.3 -> 61.1 ms a step at B = 32, 1,024-4,096 alike)
+GPU_PATCH_GROUP = 2048
 
 
 class MissingWeights(ValueError):
@@ -73,13 +78,21 @@ class DRKFS(nn.Module):
     ``score_to(verts, faces, target)`` each step: the truth is rendered and described once.
 
     The detector and descriptor are frozen and always run in evaluation mode; use
-    ``DRKFS.pretrained()`` for the shipped weights.
+    ``DRKFS.pretrained()`` for the shipped weights. ``conv_precision`` is their convolutions'
+    on a GPU: 'ieee' (float32; a batch's gradient that of the per-mesh loop) or 'tf32'
+    (faster; ``precision.CONV_PRECISIONS`` says by how much and what it costs).
     """
 
-    def __init__(self, config: PipelineConfig | None = None, normalization: str = "joint"):
+    def __init__(
+        self,
+        config: PipelineConfig | None = None,
+        normalization: str = "joint",
+        conv_precision: str = "ieee",
+    ):
         super().__init__()
         self.config = config or PipelineConfig()
         self.normalization = check_normalization(normalization)
+        self.conv_precision = check_conv_precision(conv_precision)
         self.renderer = Renderer(self.config)
         self.detector = PoIDetector(self.config)
         # channels-last convs run ~1.4x faster on CPU for HardNet's many small patches
@@ -140,6 +153,10 @@ class DRKFS(nn.Module):
         patch goes through HardNet and the empty ones take the shared descriptor: listing the
         others would wait for the host, which costs it more than their convolutions.
         """
+        with conv_precision(self.conv_precision):
+            return self._describe(images)
+
+    def _describe(self, images: torch.Tensor) -> torch.Tensor:
         dtype = next(self.detector.parameters()).dtype
         images = images.to(dtype)
         seen = nonempty_patches(images, self.config)
@@ -151,7 +168,8 @@ class DRKFS(nn.Module):
         if images.is_cuda:
             every = torch.arange(len(seen), device=images.device)
             patches = select_patches(self.detector(images), every, self.config)
-            described = self.descriptor(patches.contiguous(memory_format=torch.channels_last))
+            patches = patches.contiguous(memory_format=torch.channels_last)
+            described = self.descriptor(patches, GPU_PATCH_GROUP)
             return torch.where(seen[:, None], described, empty)
         index = torch.nonzero(seen).squeeze(1)
         descriptors = empty.expand(len(seen), -1)

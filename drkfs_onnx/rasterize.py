@@ -219,12 +219,6 @@ class KeptPairs:
             yield KeptPairs(self.plan, pixel, face, self.coverage[part], depth,
                             self.logit[part], self.logit_max)  # fmt: skip
 
-    def centres(self) -> tuple[torch.Tensor, torch.Tensor]:
-        """(px, py) pixel centres in NDC of the pairs."""
-        size, dtype = self.plan.config.image_size, self.coverage.dtype
-        col, row = self.pixel % size, self.pixel // size % size
-        return pixel_centre(col.to(dtype), size), pixel_centre(row.to(dtype), size)
-
 
 @functools.cache
 def _fused(equation: Callable, config: PipelineConfig, device_type: str) -> Callable:
@@ -243,10 +237,23 @@ def _fused(equation: Callable, config: PipelineConfig, device_type: str) -> Call
     return torch.compile(eager, dynamic=True)
 
 
-def coverage_depth(pairs: Pairs, params: torch.Tensor, config: PipelineConfig):
-    """(P,) coverage D' and normalised inverse depth of a chunk of pairs (``pair_terms``)."""
-    terms = _fused(pair_terms, config, params.device.type)
-    return terms(params.index_select(1, pairs.face), pairs.px, pairs.py)
+def _terms_and_logits(params, face, px, py, config: PipelineConfig, ops):
+    """A chunk's coverage D', normalised inverse depth (``pair_terms``) and blend logit
+    (``pair_logits``), (P,) each, from the screen's params (9, N) and the pairs' faces: compiled
+    as one, the faces' gather and the logit are fused with the terms (on a GPU 9 floats a pair
+    and a pass per step of the logit less)."""
+    coverage, depth = pair_terms(params.index_select(1, face), px, py, config, ops)
+    return coverage, depth, pair_logits(coverage, depth, config, ops)
+
+
+def _terms_grad_at(params, face, pixel, coverage, grad_coverage, grad_depth, config, ops):
+    """``pair_terms_grad`` of a chunk of kept pairs from the screen's params, the pairs' faces
+    and flat pixel indices: the gather and the pixel centres fused with it where compiled."""
+    size = config.image_size
+    px = pixel_centre((pixel % size).to(params.dtype), size)
+    py = pixel_centre((pixel // size % size).to(params.dtype), size)
+    tri = params.index_select(1, face)
+    return pair_terms_grad(tri, px, py, coverage, grad_coverage, grad_depth, config, ops)
 
 
 @torch.no_grad()
@@ -265,12 +272,12 @@ def kept_pairs(
     coverage, logit = params.new_empty(total), params.new_empty(total)
     depth = params.new_empty(total) if with_depth else None
     shift = params.new_full((plan.num_pixels,), background_logit(cfg))
+    terms = _fused(_terms_and_logits, cfg, params.device.type)
     start = 0
     for pairs in plan:
         part = slice(start, start + len(pairs.pixel))
         pixel[part], face[part] = pairs.pixel, pairs.face
-        coverage[part], pair_depth = coverage_depth(pairs, params, cfg)
-        logit[part] = pair_logits(coverage[part], pair_depth, cfg, TORCH_OPS)
+        coverage[part], pair_depth, logit[part] = terms(params, pairs.face, pairs.px, pairs.py)
         if with_depth:
             depth[part] = pair_depth
         TORCH_OPS.scatter_max(shift, pairs.pixel, logit[part])
@@ -322,14 +329,13 @@ class _PixelSums(torch.autograd.Function):
         pairs, shader, config = ctx.pairs, ctx.shader, ctx.pairs.plan.config
         grad_parts = params.new_zeros(PAIR_GRAD_PARTS, params.shape[1])
         grad_colors = torch.zeros_like(colors)
-        terms_grad = _fused(pair_terms_grad, config, params.device.type)
+        terms_grad = _fused(_terms_grad_at, config, params.device.type)
         for chunk in pairs.chunks():
             pair_grad = grad.index_select(1, chunk.pixel)
             grad_coverage, grad_depth, grad_color = shader.slopes(chunk, colors, pair_grad)
-            tri = params.index_select(1, chunk.face)
-            px, py = chunk.centres()
             face = chunk.face.long()
-            parts = terms_grad(tri, px, py, chunk.coverage, grad_coverage, grad_depth)
+            parts = terms_grad(params, chunk.face, chunk.pixel, chunk.coverage, grad_coverage,
+                               grad_depth)  # fmt: skip
             grad_parts.index_add_(1, face, parts)
             if grad_color is not None:
                 grad_colors.index_add_(0, face, grad_color)

@@ -43,6 +43,40 @@ def test_each_stage_runs_until_its_share_of_training_and_scores_a_mesh_zero_agai
     assert value.item() > 0 and torch.isfinite(moved.grad).all() and moved.grad.abs().sum() > 0
 
 
+@pytest.mark.parametrize("asked", [None, "tf32"])
+def test_a_training_step_runs_every_convolution_at_the_asked_precision(monkeypatch, asked):
+    """cuDNN's TF32 (torch's own default for convolutions) turned a GPU batch's gradient away
+    from the per-mesh loop's: the nets' convolutions, forward and backward, run in IEEE float32
+    unless TF32 is asked for, and leave torch's setting as they found it."""
+    import torch.nn.functional as F
+
+    setting = torch.backends.cudnn.conv
+    seen = []
+
+    def recording(name, conv):
+        def call(*args, **kwargs):
+            seen.append((name, setting.fp32_precision))
+            return conv(*args, **kwargs)
+
+        return call
+
+    for name in ("conv2d", "conv_transpose2d"):
+        monkeypatch.setattr(F, name, recording(name, getattr(F, name)))
+    loss = DrkfsLoss.pretrained() if asked is None else DrkfsLoss.pretrained(conv_precision=asked)
+    verts, faces = _mesh("chair.obj")
+    target = loss.target(verts, faces)
+    before = setting.fp32_precision
+    seen.clear()
+    moved = (verts + 0.01).requires_grad_(True)
+    loss(moved, faces, target, 1.0).backward()
+    expected = asked or "ieee"
+    # the convs forward, their transposes backward
+    assert set(seen) == {("conv2d", expected), ("conv_transpose2d", expected)}
+    assert setting.fp32_precision == before
+    with pytest.raises(ValueError, match="conv_precision 'bf16'; use one of ieee, tf32"):
+        DrkfsLoss.pretrained(conv_precision="bf16")
+
+
 def test_a_schedule_must_end_with_a_stage_that_runs_to_the_end():
     with pytest.raises(ValueError, match="last stage"):
         DrkfsLoss([], (Stage(PipelineConfig.loss(), 0.5),), None)
