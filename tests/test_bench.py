@@ -299,7 +299,7 @@ def test_missing_graphs_are_exported_once_before_the_bench_scores(tmp_path, monk
 
     monkeypatch.setattr(onnx_files, "export_shipped", export_shipped)
     monkeypatch.setattr(methods, "models_dir", lambda: tmp_path / "empty")
-    built = methods.build_methods(tmp_path / "run", threads=1, views=2)
+    built = methods.build_methods(tmp_path / "run", threads=1, quick=True)
     assert calls == [tmp_path / "run"]
     onnx = [m for m in built if isinstance(m, methods.DrkfsOnnx)]
     assert onnx and all(

@@ -13,6 +13,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 
 
+@pytest.mark.slow  # .ci/run runs the script itself too; 17 s of the default run's 5 minutes
 def test_the_script_runs_every_check_on_the_committed_results():
     script = ROOT / "bench" / "check_results.py"
     result = subprocess.run([sys.executable, script], capture_output=True, text=True, cwd=ROOT)

@@ -33,7 +33,6 @@ from .methods import (
 from .peers import LightField, find_lfd
 from .torch_checks import gradient_check, self_score, slide
 
-QUICK_VIEWS = 6  # the quick run caps every DR-KFS config at this camera count
 CHARTED = "invisible_vs_structural"  # the accuracy on the chart's y axis
 
 
@@ -266,7 +265,7 @@ def run_bench(
     jod = add_human(bench, human) if human is not None else None
     bench.write(out / "set")
     progress(f"{len(bench.shapes)} meshes, {len(bench.comparisons)} comparisons written")
-    methods = build_methods(out / "models", threads, QUICK_VIEWS if quick else None)
+    methods = build_methods(out / "models", threads, quick)
     peers, peer_notes = peer_methods()
     try:
         scores, costs = score_everything(bench, [*methods, *peers], progress)
