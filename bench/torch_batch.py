@@ -237,10 +237,10 @@ def case_rows(device: str, stage: str, size: int, args, old: Path | None, case: 
     if size in [int(s) for s in args.loop_sizes.split(",") if s]:
         loops = {"loop": ROOT} if old is None else {"loop": ROOT, "before": old}
     rounds = {name: [] for name in [*runs, *loops]}
+    batched_code = threads + CASE + BATCHED
     for _ in range(args.rounds):
         for name, (env, options) in runs.items():
-            code = threads + CASE + BATCHED
-            rounds[name].append(child(code, ROOT, env, OPTIONS=options, **values))
+            rounds[name].append(child(batched_code, ROOT, env, OPTIONS=options, **values))
         for name, path in loops.items():
             rounds[name].append(child(threads + CASE + LOOP, path, OPTIONS={}, **values))
     fastest = {name: min(found, key=lambda r: r["seconds"]) for name, found in rounds.items()}

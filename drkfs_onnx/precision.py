@@ -30,11 +30,12 @@ def current() -> str:
 @contextlib.contextmanager
 def conv_precision(precision: str) -> Iterator[None]:
     """cuDNN's float32 convolutions at ``precision`` inside (no effect on a CPU); the setting
-    is process-wide while it lasts."""
-    conv = torch.backends.cudnn.conv
-    before = conv.fp32_precision
-    conv.fp32_precision = check_conv_precision(precision)
+    is process-wide while it lasts. ``precision`` is any of torch's values ('none' too, as a
+    backward restores what its forward ran at); a user's choice is checked where it is made
+    (``check_conv_precision``)."""
+    before = current()
+    torch.backends.cudnn.conv.fp32_precision = precision
     try:
         yield
     finally:
-        conv.fp32_precision = before
+        torch.backends.cudnn.conv.fp32_precision = before
