@@ -12,7 +12,7 @@ from . import match_rules
 from .batch import MeshBatch, over_batch
 from .config import PipelineConfig
 from .detector import PoIDetector
-from .hardnet import HardNet
+from .hardnet import HardNet, conv_layout
 from .matching import best_match_distances, match_score, window_index
 from .mesh import Mesh, check_normalization, normalize_pair, place_by, reference_frame
 from .patches import nonempty_patches, select_patches
@@ -168,7 +168,7 @@ class DRKFS(nn.Module):
         if images.is_cuda:
             every = torch.arange(len(seen), device=images.device)
             patches = select_patches(self.detector(images), every, self.config)
-            patches = patches.contiguous(memory_format=torch.channels_last)
+            patches = patches.contiguous(memory_format=conv_layout(patches.device))
             described = self.descriptor(patches, GPU_PATCH_GROUP)
             return torch.where(seen[:, None], described, empty)
         index = torch.nonzero(seen).squeeze(1)
@@ -176,7 +176,7 @@ class DRKFS(nn.Module):
         if len(index) == 0:
             return descriptors
         patches = select_patches(self.detector(images), index, self.config)
-        patches = patches.contiguous(memory_format=torch.channels_last)
+        patches = patches.contiguous(memory_format=conv_layout(patches.device))
         # on a CPU in groups whose activations stay in cache, forward and backward
         described = self.descriptor(patches, CPU_PATCH_GROUP)
         return descriptors.index_put((index,), described)

@@ -234,7 +234,22 @@ def _fused(equation: Callable, config: PipelineConfig, device_type: str) -> Call
     wanted = os.environ.get("DRKFS_COMPILE", "auto")
     if wanted == "0" or (wanted == "auto" and device_type != "cuda"):
         return eager
-    return torch.compile(eager, dynamic=True)
+    return torch.compile(eager, dynamic=True, options=_compile_options())
+
+
+# Inductor's GPU kernels contract a * b + c into one rounding (FMA) and divide approximately,
+# where eager torch, and so the CPU, rounds each step and divides exactly. A pair's depth comes
+# from edge functions that cancel, and at the paper's gamma = 1e-4 its blend logit (depth /
+# gamma) carried the difference into the gradient: the paper config (6 views of 128 px) on an
+# H200, the gradient's cosine to the CPU's was 0.991 with inductor's defaults and 1.000000 with
+# these (the B = 32 step as fast: coarse 52.0 -> 50.9 ms, fine 66.8 -> 61.4 ms)
+EAGER_NUMERICS = {"emulate_precision_casts": True, "eager_numerics.division_rounding": True}
+
+
+def _compile_options() -> dict:
+    """``EAGER_NUMERICS``' settings that this torch's inductor has."""
+    known = torch._inductor.config.get_config_copy()
+    return {name: value for name, value in EAGER_NUMERICS.items() if name in known}
 
 
 def _terms_and_logits(params, face, px, py, config: PipelineConfig, ops):

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from types import SimpleNamespace
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -150,6 +150,21 @@ def pixel_centre(index, size: int):
     return (2 * index + 1) / size - 1.0
 
 
+class _Edge(NamedTuple):
+    """One edge's terms for each pair (``_edges``); a NamedTuple, which ``torch.compile``
+    traces (a SimpleNamespace broke its graph, and the equations then ran one op at a time)."""
+
+    qx: Any
+    qy: Any
+    ex: Any
+    ey: Any
+    c: Any
+    t: Any
+    rx: Any
+    ry: Any
+    d2: Any
+
+
 def _edges(tri, px, py, ops):
     """Per edge i of each pair's triangle (corner i to corner i + 1): the edge (ex, ey), the
     pixel from its start (qx, qy), the edge function c_i = e x q, the clipped projection t of q
@@ -161,8 +176,7 @@ def _edges(tri, px, py, ops):
         qx, qy = px - ax, py - ay
         t = ops.clip((qx * ex + qy * ey) / (ex * ex + ey * ey + TINY), 0.0, 1.0)
         rx, ry = qx - t * ex, qy - t * ey
-        parts.append(SimpleNamespace(qx=qx, qy=qy, ex=ex, ey=ey, c=ex * qy - ey * qx, t=t,
-                                     rx=rx, ry=ry, d2=rx * rx + ry * ry))  # fmt: skip
+        parts.append(_Edge(qx, qy, ex, ey, ex * qy - ey * qx, t, rx, ry, rx * rx + ry * ry))
     return parts
 
 

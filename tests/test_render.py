@@ -200,3 +200,39 @@ def test_pair_terms_grad_is_autograds_gradient_of_pair_terms(sigma):
     found = face_params_grad(tri, parts, TORCH_OPS)
     # within 1e-8 of the largest: the written-out slope of t leaves out TINY in its denominator
     assert torch.allclose(found, leaf.grad, rtol=1e-8, atol=1e-8 * float(leaf.grad.abs().max()))
+
+
+@pytest.mark.parametrize("equation", ["_terms_and_logits", "_terms_grad_at"])
+def test_the_compiled_pair_equations_trace_as_one_graph(equation):
+    """A GPU compiles the rasteriser's per-pair equations (``rasterize._fused``); a graph break
+    in them leaves torch.compile running the pieces between breaks one op at a time (a
+    SimpleNamespace in ``render_math._edges`` once did: about a thousand unfused kernels a
+    step). Traced only, so no compiler is needed."""
+    import drkfs_onnx.rasterize as rasterize
+
+    config, count = PipelineConfig(), 500
+    generator = torch.Generator().manual_seed(0)
+    params = torch.rand(9, 100, generator=generator)
+    face = torch.randint(0, 100, (count,), generator=generator, dtype=torch.int32)
+    pair_values = torch.rand(4, count, generator=generator)
+    pixel = torch.randint(0, config.num_views * config.image_size**2, (count,))
+    inputs = {
+        "_terms_and_logits": (params, face, pair_values[0], pair_values[1]),
+        "_terms_grad_at": (params, face, pixel, *pair_values[:3]),
+    }[equation]
+    function = getattr(rasterize, equation)
+
+    def traced(*tensors):
+        return function(*tensors, config, rasterize.TORCH_OPS)
+
+    explained = torch._dynamo.explain(traced)(*inputs)
+    assert (explained.graph_count, explained.graph_break_count) == (1, 0), explained.break_reasons
+
+
+def test_the_compiled_pair_equations_keep_eager_numerics():
+    """Inductor's GPU defaults (fused multiply-adds, approximate division) turned the paper
+    config's gradient from the CPU's (cosine 0.991 on an H200); the pinned torch knows the
+    settings that keep each step's rounding, so the compiled equations ask for all of them."""
+    import drkfs_onnx.rasterize as rasterize
+
+    assert rasterize._compile_options() == rasterize.EAGER_NUMERICS
