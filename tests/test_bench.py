@@ -307,6 +307,33 @@ def test_missing_graphs_are_exported_once_before_the_bench_scores(tmp_path, monk
     )
 
 
+def test_configs_that_differ_only_in_their_match_describe_a_mesh_once(monkeypatch):
+    """The structure preset has the default's nets and cameras: it takes the default's
+    descriptors of a mesh, charged what they cost; other nets describe it anew."""
+    verts, faces = assemble(FAMILIES["chair"](np.random.default_rng(0)), 1)
+    placed = Placed("chair", place(verts, frame_of(verts)), faces)
+    default, structure, previous = (
+        DrkfsOnnx(name, config, None, threads=1)
+        for name, config in [
+            ("default", PipelineConfig()),
+            ("structure", PipelineConfig.structure()),
+            ("previous", PipelineConfig.structure(nets="correspondence")),
+        ]
+    )
+    described = []
+    for method in (default, structure, previous):
+        describe = method.scorer.describe
+        monkeypatch.setattr(
+            method.scorer,
+            "describe",
+            lambda images, f=describe, m=method: described.append(m) or f(images),
+        )
+    (features, seconds), (shared, charged) = default.prepare(placed), structure.prepare(placed)
+    assert shared is features and charged == seconds
+    own, _ = previous.prepare(placed)
+    assert described == [default, previous] and own.config != features.config
+
+
 def _geometric_folder(folder, faces: dict[str, dict[str, float]]):
     """A Geo-metric-like folder: each face's stimuli (the example chair, shifted per level) and
     a JODPerMesh.csv with the given JOD per level in every setting."""

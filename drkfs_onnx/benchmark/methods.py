@@ -1,8 +1,8 @@
 """The compared methods. Each prepares one mesh (already placed in its frame) and compares two
 prepared meshes into distances: lower is closer, so similarities enter as 1 - value.
 
-A method's seconds per mesh include the renders it uses even when another method rendered the
-same views first (``Placed.views`` shares images and remembers what they cost).
+A method's seconds per mesh include the renders and descriptors it uses even when another
+method made them first (``Placed.shared`` keeps each and remembers what it cost).
 """
 
 from __future__ import annotations
@@ -24,6 +24,7 @@ from ..weights import models_dir
 from .point_metrics import iou, is_watertight, occupancy, sample_surface, surface_distances
 
 SURFACE_SAMPLES = 100_000  # per mesh, as OccNet
+QUICK_SURFACE_SAMPLES = 20_000  # in the quick run (the tests' set), where 100,000 took 14 of 46 s
 # retrieval's all-pairs search: 100k samples take ~1 s per pair of different shapes, so the
 # 5,460 pairs of 105 shapes would take hours
 RETRIEVAL_SAMPLES = 10_000
@@ -35,21 +36,23 @@ PREVIOUS_NAME = "DR-KFS previous default"  # before issue 30: correspondence net
 
 @dataclass
 class Placed:
-    """A mesh in the frame it is compared in, with the views rendered of it so far."""
+    """A mesh in the frame it is compared in, with what methods made of it so far."""
 
     key: str
     verts: np.ndarray
     faces: np.ndarray
-    _views: dict = field(default_factory=dict)
+    _made: dict = field(default_factory=dict)
+
+    def shared(self, key: tuple, make) -> tuple[object, float]:
+        """``make()``'s value for this mesh and the seconds it took, made once per ``key``."""
+        if key not in self._made:
+            self._made[key] = _timed(make)
+        return self._made[key]
 
     def views(self, renderer: NumpyRenderer) -> tuple[np.ndarray, float]:
         """(K, S, S) images from the renderer's cameras, and the seconds they took to render."""
-        key = (renderer.config.num_views, renderer.config.image_size)
-        if key not in self._views:
-            start = time.perf_counter()
-            images = renderer.render(self.verts, self.faces)
-            self._views[key] = (images, time.perf_counter() - start)
-        return self._views[key]
+        key = ("views", renderer.config.num_views, renderer.config.image_size)
+        return self.shared(key, lambda: renderer.render(self.verts, self.faces))
 
 
 class Method:
@@ -83,10 +86,12 @@ class DrkfsOnnx(Method):
         self.outputs = (name,)
         self.scorer = Scorer(config, model, threads=threads)
         self.symmetric = config.direction == "both"  # match(a, b) == match(b, a)
+        # configs that differ only in their match describe a mesh alike
+        self.features_key = ("features", config.features_part(), model)
 
     def prepare(self, placed):
         images, render_s = placed.views(self.scorer.renderer)
-        features, seconds = _timed(self.scorer.describe, images)
+        features, seconds = placed.shared(self.features_key, lambda: self.scorer.describe(images))
         return features, render_s + seconds
 
     def compare(self, a, b):
@@ -144,6 +149,11 @@ class Surface(Method):
 
     def __init__(self, samples: int = SURFACE_SAMPLES):
         self.samples = samples
+
+    @classmethod
+    def of_bench(cls, quick: bool) -> Surface:
+        """At the benchmark's samples a mesh, or its quick run's."""
+        return cls(QUICK_SURFACE_SAMPLES if quick else SURFACE_SAMPLES)
 
     def prepare(self, placed):
         return _timed(sample_surface, placed.verts, placed.faces, self.samples)
@@ -206,9 +216,10 @@ def drkfs_configs(quick: bool = False) -> dict[str, PipelineConfig]:
 
 
 def build_methods(models: Path, threads: int, quick: bool = False) -> list[Method]:
-    """Every method; DR-KFS in the configs of ``drkfs_configs(quick)``. When a config's feature
-    graph is not shipped (weights retrained but not exported), ``drkfs export``'s function runs
-    once, before any scoring, and writes every graph of the current weights into ``models``."""
+    """Every method; DR-KFS in the configs of ``drkfs_configs(quick)``, the surface metrics at
+    ``Surface.of_bench(quick)``'s samples. When a config's feature graph is not shipped
+    (weights retrained but not exported), ``drkfs export``'s function runs once, before any
+    scoring, and writes every graph of the current weights into ``models``."""
     from ..export.onnx_files import export_shipped
 
     configs = drkfs_configs(quick)
@@ -230,6 +241,6 @@ def build_methods(models: Path, threads: int, quick: bool = False) -> list[Metho
         DrkfsTorch("DR-KFS torch", metric),
         ImageMSE("pixel MSE", renderer, None),
         ImageMSE("PoI-map MSE", renderer, metric.detector),
-        Surface(),
+        Surface.of_bench(quick),
         VolumeIoU(),
     ]
