@@ -8,7 +8,6 @@ from torch import nn
 
 from . import precision
 from .config import PipelineConfig
-from .hardnet import conv_layout
 
 
 class _FrozenConv(torch.autograd.Function):
@@ -26,7 +25,7 @@ class _FrozenConv(torch.autograd.Function):
     @staticmethod
     def backward(ctx, grad):
         (weight,) = ctx.saved_tensors
-        grad = grad.contiguous(memory_format=conv_layout(grad.device))
+        grad = grad.contiguous(memory_format=precision.conv_layout(grad.device))
         with precision.conv_precision(ctx.precision):
             return F.conv_transpose2d(grad, weight).contiguous(), None, None
 

@@ -11,17 +11,6 @@ from .config import PipelineConfig
 L2NET_CHANNELS = (32, 32, 64, 64, 128, 128)
 L2NET_STRIDES = (1, 1, 2, 1, 2, 1)
 
-# The activations' layout on a GPU: cuDNN's float32 convs ran faster in NCHW than channels-last
-# (H100, the training step at B = 32: coarse 62.1 -> 57.5 ms and 3.06 -> 2.92 GB, fine 82.8 ->
-# 69.5 ms and 2.82 -> 2.66 GB). On a CPU always channels-last: mkldnn ran HardNet's many small
-# patches ~1.4x faster in it
-GPU_LAYOUT = torch.contiguous_format
-
-
-def conv_layout(device: torch.device) -> torch.memory_format:
-    """The memory layout the nets' convolutions run in on ``device``."""
-    return GPU_LAYOUT if device.type == "cuda" else torch.channels_last
-
 
 def l2_normalize(x: torch.Tensor, eps: float = 1e-10) -> torch.Tensor:
     """x / |x| along dim 1, written as ONNX-friendly primitives (no expand in the graph)."""
@@ -35,22 +24,22 @@ def _whole_map_matrix(weight: torch.Tensor) -> torch.Tensor:
 
 
 def _patches_in_layout(x: torch.Tensor) -> torch.Tensor:
-    """(N, 1, H, W) patches -> the same values in ``conv_layout``'s layout. Channels-last (a
-    CPU's) sets the strides by hand: for one channel
+    """(N, 1, H, W) patches -> the same values in ``precision.conv_layout``'s layout.
+    Channels-last (a CPU's) sets the strides by hand: for one channel
     ``contiguous(memory_format=torch.channels_last)`` keeps the other layout's strides (both
     describe the same memory), and mkldnn then runs the first conv on that layout and returns
     its output in it (on a CPU 8x slower, with the copy to channels-last after it)."""
     _, _, height, width = x.shape
-    if conv_layout(x.device) != torch.channels_last:
+    if precision.conv_layout(x.device) != torch.channels_last:
         return x.contiguous()
     return x.contiguous().as_strided(x.shape, (height * width, 1, width, 1))
 
 
 def _conv_stack(x: torch.Tensor, layers: list, passed: list | None = None) -> torch.Tensor:
     """HardNet's folded convs (``layers``: (weight, bias, stride, padding) each) in order, a ReLU
-    after all but the last. The activations are in ``conv_layout``'s layout from the first conv on
-    (its one-channel input can leave its output in the other): a gradient and a mask in
-    different layouts multiplied 8x slower on a CPU.
+    after all but the last. The activations are in ``precision.conv_layout``'s layout from the
+    first conv on (its one-channel input can leave its output in the other): a gradient and a
+    mask in different layouts multiplied 8x slower on a CPU.
 
     ``passed``, where given (the fixed nets' training step), collects where each ReLU passed
     (0 or 1, int8: a byte an activation), and the last conv, which covers its whole input map,
@@ -65,7 +54,7 @@ def _conv_stack(x: torch.Tensor, layers: list, passed: list | None = None) -> to
             return torch.addmm(bias, rows, _whole_map_matrix(weight))[:, :, None, None]
         x = nn.functional.conv2d(x, weight, bias, stride, padding)
         if k == 0:
-            x = x.contiguous(memory_format=conv_layout(x.device))
+            x = x.contiguous(memory_format=precision.conv_layout(x.device))
         if k + 1 < len(layers):  # in place: the conv's output is not needed for its backward
             x = torch.relu_(x)
             if passed is not None:
@@ -85,7 +74,7 @@ def _stack_input_grad(
     n, channels, height, width = passed[-1].shape
     grad = grad.flatten(1) @ _whole_map_matrix(layers[-1][0]).t()
     grad = grad.view(n, height, width, channels).permute(0, 3, 1, 2)  # channels-last
-    grad = grad.contiguous(memory_format=conv_layout(grad.device))  # the masks' layout
+    grad = grad.contiguous(memory_format=precision.conv_layout(grad.device))  # the masks' layout
     # each conv's input size: the patches', then each ReLU's output but the last
     sizes = [size, *(mask.shape[-2:] for mask in passed[:-1])]
     steps = zip(layers[:-1], passed, sizes, strict=True)
@@ -192,7 +181,7 @@ class HardNet(nn.Module):
                 norm = modules[i + 1]
                 scale = torch.rsqrt(norm.running_var + norm.eps)
                 weight, bias = conv.weight * scale[:, None, None, None], -norm.running_mean * scale
-                weight = weight.contiguous(memory_format=conv_layout(weight.device))
+                weight = weight.contiguous(memory_format=precision.conv_layout(weight.device))
                 layers.append((weight, bias, conv.stride, conv.padding))
         # fixed nets on an input that needs a gradient (a training loss): the lean backward
         if x.requires_grad and not any(p.requires_grad for p in self.parameters()):

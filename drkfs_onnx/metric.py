@@ -12,11 +12,11 @@ from . import match_rules
 from .batch import MeshBatch, over_batch
 from .config import PipelineConfig
 from .detector import PoIDetector
-from .hardnet import HardNet, conv_layout
+from .hardnet import HardNet
 from .matching import best_match_distances, match_score, window_index
 from .mesh import Mesh, check_normalization, normalize_pair, place_by, reference_frame
 from .patches import nonempty_patches, select_patches
-from .precision import check_conv_precision, conv_precision
+from .precision import check_conv_precision, conv_layout, conv_precision
 from .render import Renderer
 from .weights import RANDOM_SEED, load_shipped_state
 
