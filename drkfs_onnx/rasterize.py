@@ -243,11 +243,15 @@ def _fused(equation: Callable, config: PipelineConfig, device_type: str) -> Call
 # gamma) carried the difference into the gradient: the paper config (6 views of 128 px) on an
 # H200, the gradient's cosine to the CPU's was 0.991 with inductor's defaults and 1.000000 with
 # these (the B = 32 step as fast: coarse 52.0 -> 50.9 ms, fine 66.8 -> 61.4 ms)
-EAGER_NUMERICS = {"emulate_precision_casts": True, "eager_numerics.division_rounding": True}
+EAGER_NUMERICS = {
+    "emulate_precision_casts": True,  # no FMA contraction
+    "eager_numerics.division_rounding": True,
+    "emulate_divison_rounding": True,  # the division's setting in older torch, so spelt
+}
 
 
 def _compile_options() -> dict:
-    """``EAGER_NUMERICS``' settings that this torch's inductor has."""
+    """``EAGER_NUMERICS``' settings that this torch's inductor has (by either name)."""
     known = torch._inductor.config.get_config_copy()
     return {name: value for name, value in EAGER_NUMERICS.items() if name in known}
 
