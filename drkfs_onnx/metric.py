@@ -16,7 +16,7 @@ from .hardnet import HardNet
 from .matching import best_match_distances, match_score, window_index
 from .mesh import Mesh, check_normalization, normalize_pair, place_by, reference_frame
 from .patches import nonempty_patches, select_patches
-from .precision import check_conv_precision, conv_layout, conv_precision
+from .precision import check_conv_precision, conv_precision
 from .render import Renderer
 from .weights import RANDOM_SEED, load_shipped_state
 
@@ -168,7 +168,6 @@ class DRKFS(nn.Module):
         if images.is_cuda:
             every = torch.arange(len(seen), device=images.device)
             patches = select_patches(self.detector(images), every, self.config)
-            patches = patches.contiguous(memory_format=conv_layout(patches.device))
             described = self.descriptor(patches, GPU_PATCH_GROUP)
             return torch.where(seen[:, None], described, empty)
         index = torch.nonzero(seen).squeeze(1)
@@ -176,7 +175,6 @@ class DRKFS(nn.Module):
         if len(index) == 0:
             return descriptors
         patches = select_patches(self.detector(images), index, self.config)
-        patches = patches.contiguous(memory_format=conv_layout(patches.device))
         # on a CPU in groups whose activations stay in cache, forward and backward
         described = self.descriptor(patches, CPU_PATCH_GROUP)
         return descriptors.index_put((index,), described)
