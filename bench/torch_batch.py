@@ -3,7 +3,7 @@
     python bench/torch_batch.py [--out bench/results/torch_batch.json] [--devices cpu,cuda]
                                 [--sizes 1,8,32] [--stages coarse,fine] [--threads 2]
                                 [--repeats 3] [--rounds 1] [--no-before] [--loop-sizes 1,8,32]
-                                [--compiled-sizes 32] [--before-archive TAR]
+                                [--eager-sizes 32] [--before-archive TAR]
 
 For each device (CUDA where torch sees one), each stage of ``DrkfsLoss.pretrained()`` (coarse:
 progress 0; fine: progress 1) and each batch size B (128 too on CUDA), B predictions (the
@@ -16,8 +16,9 @@ study's chair, forward+backward:
 - **loop**: the same code called mesh by mesh, as a user without batches would;
 - **before**: the per-mesh loop of the code before batches (commit ``BEFORE``, exported from
   git into a temporary folder and run in a child process), where git has it;
-- **batched_compiled** (CPU, ``--compiled-sizes``): the batched call with the rasteriser's
-  equations compiled (``DRKFS_COMPILE=1``; a GPU compiles them by default);
+- **batched_eager** (CPU, ``--eager-sizes``): the batched call with the rasteriser's
+  equations eager (``DRKFS_COMPILE=0``; by default a CPU compiles them for a training step,
+  and the batched and loop rows' first, untimed step pays the compile);
 - **batched_tf32** (CUDA): the batched call with the nets' convolutions in TF32
   (``conv_precision="tf32"``; the default is IEEE float32);
 - **chamfer_l2**: Chamfer-L2 of the same batch, 5,000 points a mesh against 5,000 on the chair,
@@ -155,7 +156,8 @@ if DEVICE == "cuda":
     base = torch.cuda.memory_allocated()
     step()
     found["peak_memory_bytes"] = torch.cuda.max_memory_allocated() - base
-else:  # the resident set's rise over the first step (one-time allocations too), sampled
+else:  # the resident set's rise over the first step (one-time allocations too: the compile's
+    # about 135 MB), sampled
     def resident():
         with open("/proc/self/statm") as statm:
             return int(statm.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
@@ -232,8 +234,8 @@ def case_rows(device: str, stage: str, size: int, args, old: Path | None, case: 
     )
     # name: the environment it adds and DrkfsLoss.pretrained's options
     runs = {"batched": ({}, {})}
-    if device == "cpu" and size in [int(s) for s in args.compiled_sizes.split(",") if s]:
-        runs["batched_compiled"] = ({"DRKFS_COMPILE": "1"}, {})
+    if device == "cpu" and size in [int(s) for s in args.eager_sizes.split(",") if s]:
+        runs["batched_eager"] = ({"DRKFS_COMPILE": "0"}, {})
     if device == "cuda":
         runs["batched_tf32"] = ({}, {"conv_precision": "tf32"})
     loops = {}
@@ -277,7 +279,7 @@ def main() -> None:
     parser.add_argument("--stages", default="coarse,fine")
     parser.add_argument("--loop-sizes", default="1,8,32", help="the sizes the loops run at")
     parser.add_argument(
-        "--compiled-sizes", default="32", help="CPU sizes also timed with DRKFS_COMPILE=1"
+        "--eager-sizes", default="32", help="CPU sizes also timed with DRKFS_COMPILE=0"
     )
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--repeats", type=int, default=3)

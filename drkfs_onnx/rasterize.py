@@ -20,14 +20,15 @@ pixels x faces, and a batch of B meshes' K views is one screen of B * K views:
    autograd's graph of every pair (14 GB for 32 meshes on a GPU).
 
 A step waits for the host three times whatever the batch: the plan's box rows and chunks, and
-the kept pairs' count. On a GPU the equations are compiled (``_fused``). The equations are
-``render_math``'s, shared with the numpy renderer.
+the kept pairs' count. The equations are compiled on a GPU, and on a CPU for a training step
+(``_compiles``). They are ``render_math``'s, shared with the numpy renderer.
 """
 
 from __future__ import annotations
 
 import functools
 import os
+import warnings
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from types import SimpleNamespace
@@ -220,21 +221,61 @@ class KeptPairs:
                             self.logit[part], self.logit_max)  # fmt: skip
 
 
+# DRKFS_COMPILE's values: where the rasteriser's per-pair equations are compiled
+COMPILE_SETTINGS = ("auto", "0", "1")
+
+
+def _compiles(device_type: str, differentiable: bool) -> bool:
+    """Whether ``DRKFS_COMPILE`` asks for compiled equations: 'auto' (default) on a GPU, and on
+    a CPU where the render is differentiable (a training step, whose many steps repay the
+    compile: about 20 s once on 2 cores, then 2-3 s a process from inductor's disk cache, for
+    a coarse step 1.7x and a fine one 1.2x faster at B = 32); '1' everywhere; '0' nowhere.
+    A CPU's evaluation-only renders stay eager: one score would wait for the compiler."""
+    wanted = os.environ.get("DRKFS_COMPILE", "auto")
+    if wanted not in COMPILE_SETTINGS:
+        raise ValueError(f"DRKFS_COMPILE={wanted!r}: use one of {', '.join(COMPILE_SETTINGS)}")
+    return wanted == "1" or (wanted == "auto" and (device_type == "cuda" or differentiable))
+
+
+class _CompiledOrEager:
+    """An equation compiled by ``torch.compile``, or eager from the first call whose compile
+    fails (a CPU without a working C++ compiler, say), with one warning that says why. An error
+    of the equation itself is the eager call's, raised as it is."""
+
+    def __init__(self, eager: Callable):
+        self.eager = eager
+        self.compiled = torch.compile(eager, dynamic=True, options=_compile_options())
+
+    def __call__(self, *tensors):
+        if self.compiled is None:
+            return self.eager(*tensors)
+        try:
+            return self.compiled(*tensors)
+        except Exception as error:  # compilers fail in many ways; the eager call tells them apart
+            result = self.eager(*tensors)
+            self.compiled = None
+            reason = (str(error).strip().splitlines() or [type(error).__name__])[0]
+            warnings.warn(
+                f"the rasteriser's equations run eagerly, slower: torch.compile failed "
+                f"({reason[:300]}); DRKFS_COMPILE=0 skips the attempt",
+                RuntimeWarning,
+                stacklevel=2,
+            )
+            return result
+
+
 @functools.cache
-def _fused(equation: Callable, config: PipelineConfig, device_type: str) -> Callable:
-    """``equation(*tensors, config, TORCH_OPS)`` as a function of its tensors, compiled by
-    ``torch.compile`` where ``DRKFS_COMPILE`` asks: its hundred-odd elementwise steps fused into
-    a few kernels, where eagerly each is a pass over memory (and on a GPU a launch) of its own.
-    'auto' (default): on a GPU; '1': everywhere (on a CPU it needs a C++ compiler, and the first
-    call of each stage takes a minute on 2 cores); '0': nowhere."""
+def _fused(
+    equation: Callable, config: PipelineConfig, device_type: str, differentiable: bool
+) -> Callable:
+    """``equation(*tensors, config, TORCH_OPS)`` as a function of its tensors, compiled where
+    ``_compiles`` says: its hundred-odd elementwise steps fused into a few kernels, where
+    eagerly each is a pass over memory (and on a GPU a launch) of its own."""
 
     def eager(*tensors):
         return equation(*tensors, config, TORCH_OPS)
 
-    wanted = os.environ.get("DRKFS_COMPILE", "auto")
-    if wanted == "0" or (wanted == "auto" and device_type != "cuda"):
-        return eager
-    return torch.compile(eager, dynamic=True, options=_compile_options())
+    return _CompiledOrEager(eager) if _compiles(device_type, differentiable) else eager
 
 
 # Inductor's GPU kernels contract a * b + c into one rounding (FMA) and divide approximately,
@@ -291,7 +332,7 @@ def kept_pairs(
     coverage, logit = params.new_empty(total), params.new_empty(total)
     depth = params.new_empty(total) if with_depth else None
     shift = params.new_full((plan.num_pixels,), background_logit(cfg))
-    terms = _fused(_terms_and_logits, cfg, params.device.type)
+    terms = _fused(_terms_and_logits, cfg, params.device.type, params.requires_grad)
     start = 0
     for pairs in plan:
         part = slice(start, start + len(pairs.pixel))
@@ -348,7 +389,7 @@ class _PixelSums(torch.autograd.Function):
         pairs, shader, config = ctx.pairs, ctx.shader, ctx.pairs.plan.config
         grad_parts = params.new_zeros(PAIR_GRAD_PARTS, params.shape[1])
         grad_colors = torch.zeros_like(colors)
-        terms_grad = _fused(_terms_grad_at, config, params.device.type)
+        terms_grad = _fused(_terms_grad_at, config, params.device.type, True)
         for chunk in pairs.chunks():
             pair_grad = grad.index_select(1, chunk.pixel)
             grad_coverage, grad_depth, grad_color = shader.slopes(chunk, colors, pair_grad)

@@ -9,6 +9,26 @@ import trimesh
 
 from drkfs_onnx.benchmark.sets import real_mesh
 
+# Tests run the rasteriser's equations eagerly, their subprocesses too: compiling them for each
+# test's config would cost CI's 2 cores about 10 s a graph. The default, compiled where a
+# training step or a GPU asks (rasterize._compiles), has its own tests in test_render.py, and
+# test_cuda.py runs under it.
+os.environ.setdefault("DRKFS_COMPILE", "0")
+
+
+@pytest.fixture
+def compile_setting(monkeypatch):
+    """``compile_setting(value)`` sets DRKFS_COMPILE for one test; the rasteriser's cache of
+    equations forgets what it made under another setting, before and after."""
+    import drkfs_onnx.rasterize as rasterize
+
+    def use(value: str) -> None:
+        monkeypatch.setenv("DRKFS_COMPILE", value)
+        rasterize._fused.cache_clear()
+
+    yield use
+    rasterize._fused.cache_clear()
+
 
 @pytest.fixture(scope="session")
 def real_meshes() -> Path:

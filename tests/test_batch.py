@@ -221,7 +221,7 @@ def test_the_batch_benchmark_writes_its_rows(tmp_path):
     script = Path(__file__).resolve().parents[1] / "bench" / "torch_batch.py"
     out = tmp_path / "batch.json"
     args = ["--devices", "cpu", "--sizes", "2", "--stages", "fine", "--repeats", "1"]
-    args += ["--no-before", "--loop-sizes", "", "--compiled-sizes", "", "--out", str(out)]
+    args += ["--no-before", "--loop-sizes", "", "--eager-sizes", "", "--out", str(out)]
     subprocess.run([sys.executable, str(script), *args], check=True, capture_output=True)
     (row,) = json.loads(out.read_text())["rows"]
     assert (row["device"], row["stage"], row["batch"]) == ("cpu", "fine", 2)

@@ -12,6 +12,12 @@ from drkfs_onnx.loss import DrkfsLoss
 pytestmark = pytest.mark.skipif(not torch.cuda.is_available(), reason="no CUDA device")
 
 
+@pytest.fixture(autouse=True)
+def _default_compile(compile_setting):
+    """The default's compiled equations (the rest of the tests run them eagerly)."""
+    compile_setting("auto")
+
+
 def _assert_agree(on, prediction: torch.Tensor) -> None:
     """``on(device)``: the score of vertices on that device. Its value and gradient on CUDA must
     be computed there and agree with the CPU's."""

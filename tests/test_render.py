@@ -1,5 +1,7 @@
 """The soft rasteriser: sparse pairs equal the dense definition, gradients are right and finite."""
 
+import warnings
+
 import numpy as np
 import pytest
 import torch
@@ -239,3 +241,73 @@ def test_the_compiled_pair_equations_keep_eager_numerics():
     options = rasterize._compile_options()
     assert options.pop("emulate_precision_casts") is True
     assert list(options.values()) == [True]  # the division's setting, under one of its names
+
+
+def test_a_cpu_compiles_the_equations_for_training_steps_only(monkeypatch):
+    """DRKFS_COMPILE='auto' (the default) compiles the per-pair equations on a GPU, and on a CPU
+    where the render is differentiable: a training step repays the compile, one evaluation on
+    a CPU would wait for it. '0' and '1' decide on every device; anything else is refused."""
+    from drkfs_onnx.rasterize import _compiles
+
+    wanted = {"auto": [False, True, True, True], "0": [False] * 4, "1": [True] * 4}
+    for setting, expected in wanted.items():
+        monkeypatch.setenv("DRKFS_COMPILE", setting)
+        found = [_compiles(d, grad) for d in ("cpu", "cuda") for grad in (False, True)]
+        assert found == expected, setting
+    monkeypatch.setenv("DRKFS_COMPILE", "yes")
+    with pytest.raises(ValueError, match="DRKFS_COMPILE='yes': use one of auto, 0, 1"):
+        _compiles("cpu", True)
+
+
+def _render_with_gradient(config: PipelineConfig) -> tuple[torch.Tensor, torch.Tensor]:
+    verts, faces = _tensors(*_chair(), dtype=torch.float32)
+    verts.requires_grad_(True)
+    images = Renderer(config).render(verts, faces)
+    (images * torch.linspace(0, 1, images.numel()).view(images.shape)).sum().backward()
+    return images.detach(), verts.grad
+
+
+def test_equations_that_fail_to_compile_run_eagerly_after_one_warning(monkeypatch, compile_setting):
+    """Where torch.compile fails (a CPU without a C++ compiler, say), each equation warns once,
+    with the reason, and runs eagerly from then on: the same images and gradient as eager."""
+    config = PipelineConfig(num_views=2, image_size=32)
+    compile_setting("0")
+    expected = _render_with_gradient(config)
+
+    def no_compiler(function, **options):
+        def fails(*tensors):
+            raise RuntimeError("InvalidCxxCompiler: No working C++ compiler found\ndetails")
+
+        return fails
+
+    monkeypatch.setattr(torch, "compile", no_compiler)
+    compile_setting("1")
+    with pytest.warns(RuntimeWarning) as caught:
+        found = _render_with_gradient(config)
+        found_again = _render_with_gradient(config)
+    messages = [str(w.message) for w in caught]
+    assert len(messages) == 2  # the forward's equation and the backward's, once each
+    assert all("torch.compile failed (InvalidCxxCompiler: No working C++" in m for m in messages)
+    for a, b, c in zip(expected, found, found_again, strict=True):
+        assert torch.equal(a, b) and torch.equal(a, c)
+
+
+@pytest.mark.slow  # a cold compile takes CI's 2 cores about 30 s
+def test_a_cpu_training_step_compiles_its_equations_and_agrees_with_eager(compile_setting):
+    """The default on a CPU: a differentiable render runs the compiled equations (no fallback
+    warning) and gives eager's images and gradient to float32 rounding."""
+    import drkfs_onnx.rasterize as rasterize
+
+    config = PipelineConfig(num_views=2, image_size=32)
+    compile_setting("0")
+    eager = _render_with_gradient(config)
+    compile_setting("auto")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        compiled = _render_with_gradient(config)
+    for equation in (rasterize._terms_and_logits, rasterize._terms_grad_at):
+        fused = rasterize._fused(equation, config, "cpu", True)
+        assert isinstance(fused, rasterize._CompiledOrEager) and fused.compiled is not None
+    torch.testing.assert_close(compiled[0], eager[0], rtol=1e-6, atol=1e-6)
+    gradients = torch.stack([eager[1].flatten(), compiled[1].flatten()])
+    assert float(torch.nn.functional.cosine_similarity(*gradients, dim=0)) > 0.99999
