@@ -95,8 +95,8 @@ class DRKFS(nn.Module):
         self.conv_precision = check_conv_precision(conv_precision)
         self.renderer = Renderer(self.config)
         self.detector = PoIDetector(self.config)
-        # channels-last convs run ~1.4x faster on CPU for HardNet's many small patches
-        self.descriptor = HardNet(self.config).to(memory_format=torch.channels_last)
+        # its convs' layout is HardNet._folded's (precision.conv_layout), set on every call
+        self.descriptor = HardNet(self.config)
         table = window_index(self.config, torch.device("cpu"))
         self.register_buffer("window_table", table, persistent=False)
         self.requires_grad_(False)
