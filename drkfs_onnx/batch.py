@@ -50,7 +50,9 @@ class MeshBatch:
         _check_verts(verts, "verts", (2, 3), device)
         _check_faces(faces, "faces", (2, 3) if verts.ndim == 3 else (2,), verts.device)
         if verts.ndim == 2:
-            _check_range(faces[None], torch.full((1,), len(verts), device=verts.device))
+            _check_values(
+                verts[None], faces[None], torch.full((1,), len(verts), device=verts.device)
+            )
             return cls(verts[None], faces[None].long(), None, single=True)
         if faces.ndim == 3 and len(faces) != len(verts):
             raise ValueError(
@@ -58,7 +60,7 @@ class MeshBatch:
                 f"vertices; got {tuple(faces.shape)}"
             )
         faces = (faces.expand(len(verts), -1, -1) if faces.ndim == 2 else faces).long()
-        _check_range(faces, torch.full((len(verts),), verts.shape[1], device=verts.device))
+        _check_values(verts, faces, torch.full((len(verts),), verts.shape[1], device=verts.device))
         return cls(verts, faces)
 
     @classmethod
@@ -110,8 +112,9 @@ class MeshBatch:
         padded_faces = torch.nn.utils.rnn.pad_sequence([f.long() for f in faces], batch_first=True)
         face_counts = torch.tensor([len(f) for f in faces], device=device)
         valid = torch.arange(padded_faces.shape[1], device=device)[None] < face_counts[:, None]
-        _check_range(padded_faces, counts)
-        return cls(padded_verts.reshape(len(verts), width, 3), padded_faces, valid)
+        padded_verts = padded_verts.reshape(len(verts), width, 3)
+        _check_values(padded_verts, padded_faces, counts)
+        return cls(padded_verts, padded_faces, valid)
 
     def split(self, size: int) -> list[MeshBatch]:
         """Runs of at most ``size`` meshes, in order."""
@@ -183,14 +186,20 @@ def _check_faces(faces, name: str, ndims: tuple[int, ...], device: torch.device)
         )
 
 
-def _check_range(faces: torch.Tensor, vertex_counts: torch.Tensor) -> None:
-    """Every face index within its mesh's vertices (one host wait for the whole batch)."""
+def _check_values(verts: torch.Tensor, faces: torch.Tensor, vertex_counts: torch.Tensor) -> None:
+    """(B, V, 3) vertices all finite, and (B, F, 3) face indices within each mesh's
+    ``vertex_counts``: one host wait for the whole batch. A NaN or infinite vertex would
+    otherwise drop its faces from every view and leave a finite, wrong score."""
     if faces.numel() == 0:
         raise ValueError("faces: expected at least one face; got none")
     low, high = faces.amin(dim=(1, 2)), faces.amax(dim=(1, 2))
-    bad = (low < 0) | (high >= vertex_counts)
-    if bad.any():  # the one wait; the message is built only for a bad batch
-        first = int(torch.nonzero(bad)[0])
-        raise ValueError(
-            f"faces: mesh {first} has face indices outside its {int(vertex_counts[first])} vertices"
-        )
+    outside = (low < 0) | (high >= vertex_counts)
+    nonfinite = ~torch.isfinite(verts.detach()).flatten(1).all(dim=1)
+    if (outside | nonfinite).any():  # the one wait; the message is built only for a bad batch
+        first = int(torch.nonzero(outside | nonfinite)[0])
+        if outside[first]:
+            raise ValueError(
+                f"faces: mesh {first} has face indices outside its "
+                f"{int(vertex_counts[first])} vertices"
+            )
+        raise ValueError(f"verts: mesh {first} has NaN or infinite coordinates")

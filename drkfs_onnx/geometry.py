@@ -62,10 +62,15 @@ def chamfer(
     if targets.device != points.device:
         raise ValueError(f"targets: expected a tensor on {points.device}; got {targets.device}")
     single = points.ndim == 2
-    points = points if not single else points[None]
-    # the |a|^2 + |b|^2 - 2ab form: cdist's sqrt has no finite gradient at coincident points
-    squared = (points * points).sum(-1)[..., :, None] + (targets * targets).sum(-1)[..., None, :]
-    squared = (squared - 2 * points @ targets.transpose(-1, -2)).clamp_min(0.0)
+    # float32 at least, autocast off: under a caller's mixed precision the product below would
+    # run in float16 or bfloat16, whose 8-11 bits cancel away the distances between near points
+    dtype = torch.promote_types(torch.promote_types(points.dtype, targets.dtype), torch.float32)
+    points, targets = (points if not single else points[None]).to(dtype), targets.to(dtype)
+    with torch.autocast(points.device.type, enabled=False):
+        # the |a|^2 + |b|^2 - 2ab form: cdist's sqrt has no finite gradient at coincident points
+        squared = (points * points).sum(-1)[..., :, None]
+        squared = squared + (targets * targets).sum(-1)[..., None, :]
+        squared = (squared - 2 * points @ targets.transpose(-1, -2)).clamp_min(0.0)
     near_a, near_b = squared.min(-1).values, squared.min(-2).values
     if norm == 1:  # sqrt kept off 0, where its slope is infinite
         near_a, near_b = near_a.clamp_min(1e-12).sqrt(), near_b.clamp_min(1e-12).sqrt()

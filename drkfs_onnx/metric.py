@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+import functools
+from collections.abc import Callable
 from typing import NamedTuple
 
 import torch
@@ -29,6 +31,21 @@ CPU_PATCH_GROUP = 128
 # (the fine stage on an H100: B = 32's peak 3.32 -> 2.32 GB in groups of 2,048, B = 128's
 # 13.3 -> 5.8 GB; 59.3 -> 61.1 ms a step at B = 32, 1,024-4,096 alike)
 GPU_PATCH_GROUP = 2048
+
+
+def _without_autocast(method: Callable) -> Callable:
+    """A ``DRKFS`` method run with autocast off on the metric's device, so that it computes in
+    float32 inside a caller's mixed precision (``torch.autocast``, a network's usual training
+    step): there the renderer's camera transform, the nets and the match would run in float16
+    or bfloat16, too coarse for the renderer's screen distances, and the rasteriser's sums
+    then failed on the mixed dtypes."""
+
+    @functools.wraps(method)
+    def run(self: DRKFS, *args, **kwargs):
+        with torch.autocast(self.window_table.device.type, enabled=False):
+            return method(self, *args, **kwargs)
+
+    return run
 
 
 class MissingWeights(ValueError):
@@ -141,11 +158,13 @@ class DRKFS(nn.Module):
         self.descriptor.eval()
         return self
 
+    @_without_autocast
     def render(self, verts, faces=None) -> torch.Tensor:
         """(V, 3), (F, 3) -> (K, 1, S, S) grey views; a batch -> (B * K, 1, S, S)."""
         meshes = self._meshes(verts, faces)
         return self.renderer.render(meshes).unsqueeze(1)
 
+    @_without_autocast
     def describe(self, images: torch.Tensor) -> torch.Tensor:
         """(N, 1, S, S) views -> (N * P, D) patch descriptors, row-major per view.
 
@@ -179,6 +198,7 @@ class DRKFS(nn.Module):
         described = self.descriptor(patches, CPU_PATCH_GROUP)
         return descriptors.index_put((index,), described)
 
+    @_without_autocast
     def features(self, verts, faces=None) -> torch.Tensor:
         """Descriptors of a mesh already in the metric's frame: (V, 3), (F, 3) -> (K * P, D);
         a batch -> (B, K * P, D)."""
@@ -207,6 +227,7 @@ class DRKFS(nn.Module):
                 )
             )
 
+    @_without_autocast
     def target(self, verts, faces=None) -> Target:
         """The reference mesh B, (V, 3), (F, 3), placed and described; a batch of references
         (one per prediction) -> a batched ``Target``. Differentiable like ``forward``; call it
@@ -218,6 +239,7 @@ class DRKFS(nn.Module):
             frame = tuple(meshes.unbatch(t) for t in frame)
         return Target(frame, meshes.unbatch(features))
 
+    @_without_autocast
     def score_to(
         self,
         verts,
@@ -238,6 +260,7 @@ class DRKFS(nn.Module):
     def _table(self) -> torch.Tensor | None:
         return self.window_table if self.config.matching == "window" else None
 
+    @_without_autocast
     def patch_distances(self, verts, faces, target: Target) -> dict[str, torch.Tensor]:
         """Where mesh A, (V, 3), (F, 3), differs from a prepared reference: {side: (K, n, n)}
         best-match squared distance of each patch of A ('a', searching the reference) and of
@@ -256,6 +279,7 @@ class DRKFS(nn.Module):
             found[side] = distances.reshape(*distances.shape[:-1], *grid)
         return found
 
+    @_without_autocast
     def features_to(self, verts, faces, target: Target) -> torch.Tensor:
         """(K * P, D) descriptors of mesh A, (V, 3), (F, 3), placed as the reference ``target``
         asks (its frame under 'joint'); a batch -> (B, K * P, D)."""

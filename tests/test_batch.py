@@ -154,6 +154,8 @@ def test_bad_input_is_one_value_error_naming_what_was_expected(loss):
     verts, faces = (torch.as_tensor(a) for a in icosphere(1))
     verts = verts.float()
     target = loss.target(verts, faces)
+    diverged = verts.clone()
+    diverged[3, 1] = float("inf")
     cases = [
         (verts[:, :2], faces, r"verts: expected a float tensor \(V, 3\) or \(B, V, 3\)"),
         (verts.long(), faces, r"verts: expected a float tensor"),
@@ -163,12 +165,18 @@ def test_bad_input_is_one_value_error_naming_what_was_expected(loss):
         (verts.to("meta"), faces.to("meta"), r"expected a tensor on cpu"),
         ([verts, verts], [faces], r"a list of 2"),
         ([], faces, r"at least one mesh"),
+        # a NaN or infinite vertex drops its faces: the score would be finite and wrong
+        (torch.full_like(verts, float("nan")), faces, r"verts: mesh 0 has NaN or infinite"),
+        (torch.stack([verts, diverged]), faces, r"verts: mesh 1 has NaN or infinite"),
+        ([verts, verts[:-1], diverged], faces[:10], r"verts: mesh 2 has NaN or infinite"),
     ]
     for bad_verts, bad_faces, message in cases:
         with pytest.raises(ValueError, match=message):
             loss(bad_verts, bad_faces, target)
     with pytest.raises(ValueError, match="unknown reduction 'max'"):
         loss(verts[None], faces, target, reduction="max")
+    with pytest.raises(ValueError, match="verts: mesh 0 has NaN or infinite"):
+        loss.target(diverged, faces)
     batch_target = loss.target(verts[None].expand(2, -1, -1), faces)
     with pytest.raises(ValueError, match="a batch of 2 references needs as many predictions"):
         loss(verts[None].expand(3, -1, -1), faces, batch_target)
@@ -208,6 +216,32 @@ def test_the_geometry_terms_take_batches():
     assert torch.allclose(smooth(batch), (smooth(batch[0]) + smooth(batch[1])) / 2)
     with pytest.raises(ValueError, match="unknown norm 3"):
         chamfer(points, truth, 3)
+
+
+def test_under_a_callers_mixed_precision_the_loss_terms_stay_float32(case, loss):
+    """A forward inside ``torch.autocast`` (a network's mixed-precision step; the backward
+    outside, as torch asks) gives the loss's and Chamfer's float32 values and gradients exactly,
+    and Chamfer takes the half-precision points such a network outputs: under bfloat16 autocast
+    the loss failed and Chamfer-L2 read 400x too large."""
+    target, preds = loss.target(*case.truth), case.preds[:2]
+    points = surface_points(preds, case.faces, 500, torch.Generator().manual_seed(0))
+    truth = surface_points(*case.truth, 500, torch.Generator().manual_seed(1))
+
+    def terms(verts, mixed: bool):
+        with torch.autocast("cpu", dtype=torch.bfloat16, enabled=mixed):
+            moved = points + verts.mean(1, keepdim=True)
+            return torch.cat(
+                [
+                    loss(verts, case.faces, target, reduction="none"),
+                    chamfer(moved, truth, reduction="none"),
+                    chamfer(moved.bfloat16(), truth, reduction="none"),
+                ]
+            )
+
+    plain = _value_and_grad(lambda v: terms(v, False), preds)
+    mixed = _value_and_grad(lambda v: terms(v, True), preds)
+    assert mixed[0].dtype == torch.float32
+    assert torch.equal(mixed[0], plain[0]) and torch.equal(mixed[1], plain[1])
 
 
 def test_the_batch_benchmark_writes_its_rows(tmp_path):
