@@ -37,8 +37,8 @@ def _without_autocast(method: Callable) -> Callable:
     """A ``DRKFS`` method run with autocast off on the metric's device, so that it computes in
     float32 inside a caller's mixed precision (``torch.autocast``, a network's usual training
     step): there the renderer's camera transform, the nets and the match would run in float16
-    or bfloat16, too coarse for the renderer's screen distances, and the rasteriser's sums
-    then failed on the mixed dtypes."""
+    or bfloat16, and the rasteriser's float32 sums failed on the mixed dtypes (bfloat16 on a
+    CPU)."""
 
     @functools.wraps(method)
     def run(self: DRKFS, *args, **kwargs):
@@ -287,6 +287,7 @@ class DRKFS(nn.Module):
         return meshes.unbatch(self._features_to(meshes, target))
 
     def _features_to(self, meshes: MeshBatch, target: Target) -> torch.Tensor:
+        self._check_target(target)
         if target.batch is not None and target.batch != len(meshes):
             raise ValueError(
                 f"target: a batch of {target.batch} references needs as many predictions; got "
@@ -295,6 +296,21 @@ class DRKFS(nn.Module):
         return self._features(
             meshes.moved(place_by(meshes.verts, self.normalization, target.frame))
         )
+
+    def _check_target(self, target: Target) -> None:
+        """A reference prepared by a metric of this config, on this metric's device."""
+        config, features = self.config, target.features
+        shape = (config.num_views * config.patches_per_view, config.descriptor_dim)
+        if tuple(features.shape[-2:]) != shape:
+            raise ValueError(
+                f"target: {tuple(features.shape[-2:])} descriptors, where this metric's config "
+                f"makes {shape}: prepare it with this metric's target()"
+            )
+        if features.device != self.window_table.device:
+            raise ValueError(
+                f"target: on {features.device}, the metric on {self.window_table.device}: move "
+                "it with target.to(), or prepare it after moving the metric"
+            )
 
     def forward(self, verts_a, faces_a, verts_b, faces_b, reduction: str = "mean") -> torch.Tensor:
         return self.score_to(verts_a, faces_a, self.target(verts_b, faces_b), reduction)

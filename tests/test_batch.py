@@ -177,6 +177,12 @@ def test_bad_input_is_one_value_error_naming_what_was_expected(loss):
         loss(verts[None], faces, target, reduction="max")
     with pytest.raises(ValueError, match="verts: mesh 0 has NaN or infinite"):
         loss.target(diverged, faces)
+    with pytest.raises(ValueError, match="target: on meta, the metric on cpu: move it"):
+        loss(verts, faces, target.to("meta"))
+    with pytest.raises(
+        ValueError, match=r"target: \(108, 128\) descriptors, .* makes \(294, 128\)"
+    ):
+        loss(verts, faces, [target[1], target[0]])  # the stages' targets swapped
     batch_target = loss.target(verts[None].expand(2, -1, -1), faces)
     with pytest.raises(ValueError, match="a batch of 2 references needs as many predictions"):
         loss(verts[None].expand(3, -1, -1), faces, batch_target)
