@@ -224,6 +224,22 @@ def test_the_geometry_terms_take_batches():
         chamfer(points, truth, 3)
 
 
+def test_a_degenerate_prediction_leaves_the_rest_of_its_batch_alone(case, loss):
+    """A batch holding a prediction collapsed to a point, one flattened to a plane and one moved
+    out of every view (a network early in training): every value and gradient is finite, and
+    the healthy mesh's loss and gradient are those it has alone."""
+    target, healthy = loss.target(*case.truth), case.preds[0]
+    batch = torch.stack(
+        [healthy, 0 * healthy, healthy * torch.tensor([1.0, 0.0, 1.0]), healthy + 100.0]
+    )
+    values, grads = _value_and_grad(
+        lambda v: loss(v, case.faces, target, 0.0, reduction="none"), batch
+    )
+    assert torch.isfinite(values).all() and torch.isfinite(grads).all()
+    alone = _value_and_grad(lambda v: loss(v, case.faces, target, 0.0)[None], healthy[None])
+    _assert_batch_equals_loop((values[:1], grads[:1]), alone)
+
+
 def test_under_a_callers_mixed_precision_the_loss_terms_stay_float32(case, loss):
     """A forward inside ``torch.autocast`` (a network's mixed-precision step; the backward
     outside, as torch asks) gives the loss's and Chamfer's float32 values and gradients exactly,
