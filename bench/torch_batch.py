@@ -12,7 +12,8 @@ study's chair, forward+backward:
 
 - **batched**: one call for the whole batch: seconds per batch and per mesh, peak memory of
   the step, pixel-face pairs enumerated and kept, host waits (CUDA, counted under
-  ``torch.cuda.set_sync_debug_mode("warn")``) and kernel launches (CUDA);
+  ``torch.cuda.set_sync_debug_mode("warn")``), kernel launches (CUDA) and the 15 ops, by
+  input shapes, whose own kernels took most of the GPU's time under the profiler (CUDA);
 - **loop**: the same code called mesh by mesh, as a user without batches would;
 - **before**: the per-mesh loop of the code before batches (commit ``BEFORE``, exported from
   git into a temporary folder and run in a child process), where git has it;
@@ -136,6 +137,7 @@ def before_tree(folder: Path, archive: Path | None) -> Path | None:
 
 BATCHED = """
 import json, os, threading, time, warnings
+TOP_OPS = 15
 from drkfs_onnx.batch import MeshBatch
 from drkfs_onnx.mesh import place_by
 from drkfs_onnx.rasterize import PairPlan
@@ -189,11 +191,17 @@ if DEVICE == "cuda":
     torch.cuda.set_sync_debug_mode("default")
     sync()
     found["host_waits"] = sum("synchroniz" in str(w.message) for w in caught)
-    with torch.profiler.profile(activities=[torch.profiler.ProfilerActivity.CUDA]) as prof:
+    activities = [torch.profiler.ProfilerActivity.CPU, torch.profiler.ProfilerActivity.CUDA]
+    with torch.profiler.profile(activities=activities, record_shapes=True) as prof:
         step()
     found["kernel_launches"] = sum(
         1 for e in prof.events() if e.device_type == torch.autograd.DeviceType.CUDA
     )
+    # where the GPU's time goes: the ops whose own kernels took most of it, by input shapes
+    ops = sorted(prof.key_averages(group_by_input_shape=True),
+                 key=lambda e: -e.self_device_time_total)[:TOP_OPS]
+    found["top_ops"] = [{"op": e.key, "shapes": str(e.input_shapes)[:160], "calls": e.count,
+                         "device_seconds": e.self_device_time_total / 1e6} for e in ops]
 stage = loss.metrics[loss.stage(PROGRESS)]
 with torch.no_grad():
     placed = place_by(preds, "joint", target[loss.stage(PROGRESS)].frame)
