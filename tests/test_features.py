@@ -122,21 +122,24 @@ def test_evaluation_folds_batchnorm_into_the_convs_without_changing_descriptors(
 @pytest.mark.parametrize(("size", "group"), [(32, None), (20, None), (32, 3)])
 def test_fixed_nets_backward_equals_autograds(size, group):
     """With fixed weights (as in the metric) the detector and HardNet send the patches their
-    gradient by hand-written backwards (transposed convs, the ReLU masks kept as bytes): the
-    same descriptors and gradient as autograd's through the same layers, for any upstream
-    gradient, patch size (20 px: a 5 x 5 map before the last conv) and group of patches per
-    pass (4 patches in groups of 3: the last group shorter)."""
+    gradient by hand-written backwards (transposed convs, the ReLU masks kept as bytes), and a
+    CPU runs the detector's conv in its space-to-depth form: the same maps, descriptors and
+    gradient as autograd's through the plain layers, for any upstream gradient, patch size (20
+    px: a 5 x 5 map before the last conv, and images of no whole 4 x 4 blocks) and group of
+    patches per pass (4 patches in groups of 3: the last group shorter)."""
     torch.manual_seed(0)
     config = PipelineConfig(descriptor_width=0.5, patch_size=size)
     detector, net = PoIDetector(config), HardNet(config).eval()
     images = torch.rand(4, 1, size, size, requires_grad=True)
     upstream = torch.randn(4, config.descriptor_dim)
-    found, described = {}, {}
+    found, described, maps = {}, {}, {}
     for frozen in (False, True):
         detector.requires_grad_(not frozen)
         net.requires_grad_(not frozen)
-        described[frozen] = net(detector(images), group if frozen else None)
+        maps[frozen] = detector(images)
+        described[frozen] = net(maps[frozen], group if frozen else None)
         (found[frozen],) = torch.autograd.grad((described[frozen] * upstream).sum(), images)
+    torch.testing.assert_close(maps[True], maps[False], atol=1e-6, rtol=1e-5)
     torch.testing.assert_close(described[True], described[False], atol=1e-6, rtol=1e-5)
     torch.testing.assert_close(found[True], found[False], atol=1e-6, rtol=1e-5)
     assert found[True].abs().max() > 0
