@@ -229,7 +229,7 @@ def _compiles(device_type: str, differentiable: bool) -> bool:
     """Whether ``DRKFS_COMPILE`` asks for compiled equations: 'auto' (default) on a GPU, and on
     a CPU where the render is differentiable (a training step, whose many steps repay the
     compile: about 20 s once on 2 cores, then 2-3 s a process from inductor's disk cache, for
-    a B = 32 step 1.8x faster in the coarse stage and 1.2-1.7x in the fine one, in
+    a B = 32 step 1.6-1.8x faster in the coarse stage and 1.2-1.7x in the fine one, in
     ``bench/torch_batch.py``); '1' everywhere; '0' nowhere.
     A CPU's evaluation-only renders stay eager: one score would wait for the compiler."""
     wanted = os.environ.get("DRKFS_COMPILE", "auto")
