@@ -195,8 +195,9 @@ def _check_values(verts: torch.Tensor, faces: torch.Tensor, vertex_counts: torch
     low, high = faces.amin(dim=(1, 2)), faces.amax(dim=(1, 2))
     outside = (low < 0) | (high >= vertex_counts)
     nonfinite = ~torch.isfinite(verts.detach()).flatten(1).all(dim=1)
-    if (outside | nonfinite).any():  # the one wait; the message is built only for a bad batch
-        first = int(torch.nonzero(outside | nonfinite)[0])
+    bad = outside | nonfinite
+    if bad.any():  # the one wait; the message is built only for a bad batch
+        first = int(torch.nonzero(bad)[0])
         if outside[first]:
             raise ValueError(
                 f"faces: mesh {first} has face indices outside its "

@@ -102,16 +102,16 @@ class PoIDetector(nn.Module):
         """``forward`` for fixed weights with the conv in its r x r space-to-depth form; the
         PoI map is computed per phase and shuffled back once."""
         b, _, height, width = images.shape
-        pad, m = self.kernel // 2, (self.kernel + r - 2) // r + 1
+        weight = unshuffled_weight(self.conv.weight, r).contiguous(
+            memory_format=torch.channels_last
+        )
+        pad, m = self.kernel // 2, weight.shape[-1]
         rows, columns = -(-height // r), -(-width // r)  # the output's r x r blocks
         # the background pad, then as many rows and columns as the blocks read: beyond the
         # plain pad they reach only outputs the crop below drops
         bottom, right = (rows + m - 1) * r - height - pad, (columns + m - 1) * r - width - pad
         padded = F.pad(images, (pad, right, pad, bottom), value=self.background)
         phases = F.pixel_unshuffle(padded, r).contiguous(memory_format=torch.channels_last)
-        weight = unshuffled_weight(self.conv.weight, r).contiguous(
-            memory_format=torch.channels_last
-        )
         response = _FrozenConv.apply(phases, weight, self.conv.bias.repeat_interleave(r * r))
         maps = self._probability(response.view(b, -1, r * r, rows, columns))[:, 0]
         return F.pixel_shuffle(maps, r)[:, :, :height, :width]

@@ -260,11 +260,7 @@ def test_a_cpu_compiles_the_equations_for_training_steps_only(monkeypatch):
 
 
 def _render_with_gradient(config: PipelineConfig) -> tuple[torch.Tensor, torch.Tensor]:
-    verts, faces = _tensors(*_chair(), dtype=torch.float32)
-    verts.requires_grad_(True)
-    images = Renderer(config).render(verts, faces)
-    (images * torch.linspace(0, 1, images.numel()).view(images.shape)).sum().backward()
-    return images.detach(), verts.grad
+    return _grad_of_render(*_tensors(*_chair(), dtype=torch.float32), config)
 
 
 def test_equations_that_fail_to_compile_run_eagerly_after_one_warning(monkeypatch, compile_setting):
