@@ -19,7 +19,7 @@ from .matching import best_match_distances, match_score, window_index
 from .mesh import Mesh, check_normalization, normalize_pair, place_by, reference_frame
 from .patches import nonempty_patches, select_patches
 from .precision import check_conv_precision, conv_precision
-from .render import Renderer
+from .render import Renderer, RenderMode
 from .weights import RANDOM_SEED, load_shipped_state
 
 # HardNet's patches per call on a CPU: a group's activations (about 70 KB a patch at width 0.5)
@@ -98,7 +98,12 @@ class DRKFS(nn.Module):
     ``DRKFS.pretrained()`` for the shipped weights. ``conv_precision`` is their convolutions'
     on a GPU: 'ieee' (float32; a batch's gradient that of the per-mesh loop) or 'tf32'
     (faster; ``precision.CONV_PRECISIONS`` says by how much and what it costs).
+
+    ``render_mode`` is what the nets see: the grey shaded views (the metric); a subclass may
+    set 'silhouette' (the single-view study's ablation, DR-KFS on silhouettes).
     """
+
+    render_mode: RenderMode = "shaded"
 
     def __init__(
         self,
@@ -162,7 +167,7 @@ class DRKFS(nn.Module):
     def render(self, verts, faces=None) -> torch.Tensor:
         """(V, 3), (F, 3) -> (K, 1, S, S) grey views; a batch -> (B * K, 1, S, S)."""
         meshes = self._meshes(verts, faces)
-        return self.renderer.render(meshes).unsqueeze(1)
+        return self.renderer.render(meshes, mode=self.render_mode).unsqueeze(1)
 
     @_without_autocast
     def describe(self, images: torch.Tensor) -> torch.Tensor:
@@ -206,7 +211,8 @@ class DRKFS(nn.Module):
         return meshes.unbatch(self._features(meshes))
 
     def _features(self, meshes: MeshBatch) -> torch.Tensor:
-        descriptors = self.describe(self.renderer.render(meshes).unsqueeze(1))
+        images = self.renderer.render(meshes, mode=self.render_mode).unsqueeze(1)
+        descriptors = self.describe(images)
         return descriptors.reshape(len(meshes), -1, descriptors.shape[-1])
 
     def _meshes(self, verts, faces) -> MeshBatch:

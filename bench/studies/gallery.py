@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 from matplotlib.figure import Figure
 
 from drkfs_onnx.config import PipelineConfig
@@ -15,7 +16,8 @@ CELL_INCHES = 1.3  # per view
 
 
 def write_gallery(path: Path, columns: list[str], rows: list[tuple[str, list[tuple]]]) -> None:
-    """rows: (problem name, [(verts, faces) per column]); cells stack the VIEWS vertically."""
+    """rows: (problem name, [(verts, faces) or an image (H, W) in [0, 1], per column]); a
+    mesh's cell stacks the VIEWS vertically."""
     renderer = NumpyRenderer(VIEWS)
     size = VIEWS.image_size
     figure = Figure(
@@ -24,9 +26,12 @@ def write_gallery(path: Path, columns: list[str], rows: list[tuple[str, list[tup
     )
     grid = figure.subplots(len(rows), len(columns), squeeze=False)
     for r, (name, meshes) in enumerate(rows):
-        for c, (verts, faces) in enumerate(meshes):
+        for c, cell in enumerate(meshes):
             axes = grid[r, c]
-            images = renderer.render(verts, faces).reshape(-1, size)  # views stacked
+            if isinstance(cell, np.ndarray):
+                images = cell
+            else:
+                images = renderer.render(*cell).reshape(-1, size)  # views stacked
             axes.imshow(images, cmap="gray", vmin=0.0, vmax=1.0)
             axes.set_xticks([])
             axes.set_yticks([])

@@ -85,15 +85,18 @@ class Judge:
         threads: int = 2,
         unseen_views: int = UNSEEN_VIEWS,
         lfd: bool = True,
+        image_judges: bool = True,
     ):
         self.config = config
-        self.metric = DRKFS.pretrained(config)
-        renderer = NumpyRenderer(config, threads=threads)
-        self.visual = [
-            DrkfsTorch("DR-KFS", self.metric),
-            ImageMSE("pixel MSE", renderer, None),
-            ImageMSE("PoI-map MSE", renderer, self.metric.detector),
-        ]
+        self.visual = []
+        if image_judges:  # off where a loss computes them (the single-view study's)
+            metric = DRKFS.pretrained(config)
+            renderer = NumpyRenderer(config, threads=threads)
+            self.visual = [
+                DrkfsTorch("DR-KFS", metric),
+                ImageMSE("pixel MSE", renderer, None),
+                ImageMSE("PoI-map MSE", renderer, metric.detector),
+            ]
         self.silhouettes = SilhouetteJudge(config, unseen_views)
         found = find_lfd() if lfd else "LFD not asked for"
         self.light_field = None if isinstance(found, str) else LightField(*found)

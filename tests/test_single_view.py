@@ -1,0 +1,214 @@
+"""The single-view study (``python bench/single_view.py``, docs/single_view.md): SoftRas' shape
+generator, its regularisers, the views it sees, the split of shapes and views, and (slow) the
+quick plan end to end, resumed, and judged on other test seeds."""
+
+import json
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+import torch
+import trimesh
+from single_view import app
+from studies.network import TEST_SEED as NETWORK_TEST_SEED
+from studies.shape_generator import (
+    FLATTEN_WEIGHT,
+    LAPLACIAN_WEIGHT,
+    SPHERE_RADIUS,
+    Regularisers,
+    ShapeGenerator,
+)
+from studies.single_view import (
+    BASELINES,
+    DRKFS_RECIPES,
+    HELD_OUT_AZIMUTHS,
+    JUDGED,
+    QUICK,
+    TEST_SEED,
+    TRAIN_AZIMUTHS,
+    TRAIN_SEED,
+    VALIDATION_SEED,
+    Networks,
+    SilhouetteDRKFS,
+    draw_batch,
+    iou_loss,
+    shares,
+    validation_choice,
+)
+from studies.views import AZIMUTHS, CHANNELS, ELEVATION, IMAGE_SIZE, VIEW_CONFIG, ViewRenderer
+from typer.testing import CliRunner
+
+from drkfs_onnx.benchmark.point_metrics import is_watertight
+from drkfs_onnx.cameras import Cameras, look_at
+from drkfs_onnx.metric import DRKFS
+from drkfs_onnx.render import Renderer
+
+
+def test_the_generator_starts_as_a_sphere_every_vertex_can_leave_and_every_weight_learns():
+    torch.manual_seed(0)
+    model = ShapeGenerator(CHANNELS, IMAGE_SIZE)
+    template = model.template()
+    assert template.shape == (642, 3) and model.faces.shape == (1280, 3)
+    np.testing.assert_allclose(template.norm(dim=1), SPHERE_RADIUS, rtol=1e-5)
+    assert (template != 0).all()  # a zero coordinate could never move (its sign is 0)
+    verts = model(torch.rand(3, CHANNELS, IMAGE_SIZE, IMAGE_SIZE))
+    assert verts.shape == (3, 642, 3) and verts.abs().max() < 1
+    assert is_watertight(verts[0].detach().double().numpy(), model.faces.numpy())
+    assert not torch.allclose(verts[0], verts[1])  # the mesh depends on the image
+    verts.sum().backward()
+    assert all(p.grad is not None and p.grad.abs().sum() > 0 for p in model.parameters())
+
+
+def test_flatten_is_zero_across_coplanar_faces_and_six_times_sixteen_ninths_on_a_tetrahedron():
+    tetra = trimesh.Trimesh(
+        [[1, 1, 1], [1, -1, -1], [-1, 1, -1], [-1, -1, 1]],
+        [[0, 1, 2], [0, 3, 1], [0, 2, 3], [1, 3, 2]],
+    )
+    verts = torch.tensor(tetra.vertices, dtype=torch.float32)
+    regularisers = Regularisers(verts, torch.as_tensor(tetra.faces))
+    # a regular tetrahedron's faces meet at acos(1/3): (1 + 1/3)^2 on each of its 6 edges
+    assert float(regularisers.flatten(verts[None])) == pytest.approx(6 * 16 / 9, rel=1e-5)
+    flat = verts.clone()
+    flat[:, 2] = 0.0  # squashed: the faces of each side lie in one plane or fold back fully
+    assert float(regularisers.flatten(flat[None])) > float(regularisers.flatten(verts[None]))
+    sphere = trimesh.creation.icosphere(3)
+    smooth = torch.tensor(sphere.vertices, dtype=torch.float32)
+    faces = torch.as_tensor(sphere.faces)
+    sphere_terms = Regularisers(smooth, faces)
+    noisy = smooth + 0.02 * torch.randn(smooth.shape, generator=torch.Generator().manual_seed(0))
+    for term in (sphere_terms.laplacian, sphere_terms.flatten):
+        assert float(term(noisy[None])) > 2 * float(term(smooth[None]))
+    assert float(sphere_terms(noisy[None])) == pytest.approx(
+        LAPLACIAN_WEIGHT * float(sphere_terms.laplacian(noisy[None]))
+        + FLATTEN_WEIGHT * float(sphere_terms.flatten(noisy[None])),
+        rel=1e-6,
+    )
+
+
+def test_a_turned_mesh_seen_from_azimuth_zero_is_the_view_from_its_azimuth():
+    box = trimesh.creation.box((0.8, 0.5, 0.3))
+    box.vertices[:, 0] += 0.2 * box.vertices[:, 1]  # no symmetry a turn could hide
+    verts = torch.tensor(box.vertices, dtype=torch.float32)
+    faces = torch.as_tensor(box.faces)
+    views = ViewRenderer()
+    azimuth = 5
+    angle, e = 2 * math.pi * azimuth / AZIMUTHS, math.radians(ELEVATION)
+    eye = VIEW_CONFIG.camera_distance * np.array(
+        [[math.cos(e) * math.sin(angle), math.sin(e), math.cos(e) * math.cos(angle)]]
+    )
+    camera = Cameras(look_at(eye), eye, views.renderer.cameras.focal)
+    expected = Renderer(VIEW_CONFIG, camera).render(verts, faces)
+    got = views(verts[None], faces, torch.tensor([azimuth]))
+    torch.testing.assert_close(got, expected, atol=1e-4, rtol=0)
+    assert not torch.allclose(got, views(verts[None], faces, torch.tensor([0])), atol=1e-2)
+
+
+def test_shapes_and_input_views_are_split_and_disjoint_from_the_other_studies():
+    seeds = [range(s, s + 100) for s in (TRAIN_SEED, VALIDATION_SEED, TEST_SEED)]
+    assert all(set(a).isdisjoint(b) for i, a in enumerate(seeds) for b in seeds[i + 1 :])
+    assert min(TRAIN_SEED, VALIDATION_SEED, TEST_SEED) > NETWORK_TEST_SEED + 100
+    assert set(TRAIN_AZIMUTHS).isdisjoint(HELD_OUT_AZIMUTHS)
+    assert sorted((*TRAIN_AZIMUTHS, *HELD_OUT_AZIMUTHS)) == list(range(AZIMUTHS))
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        batch = draw_batch(rng, 30, 16)
+        assert len(set(batch.shapes.tolist())) == 16
+        drawn = {*batch.inputs.tolist(), *batch.others.tolist()}
+        assert drawn <= set(TRAIN_AZIMUTHS)
+
+
+def test_soft_iou_loss_is_zero_for_the_same_mask_and_one_for_disjoint_ones():
+    mask = torch.zeros(1, 8, 8)
+    mask[:, :4] = 1.0
+    assert float(iou_loss(mask, mask)) == 0.0
+    assert float(iou_loss(mask, 1 - mask)) == 1.0
+
+
+def test_dr_kfs_on_silhouettes_describes_the_silhouette_not_the_shading():
+    sphere = trimesh.creation.icosphere(2, radius=0.6)
+    verts, faces = torch.tensor(sphere.vertices, dtype=torch.float32), torch.as_tensor(sphere.faces)
+    config = VIEW_CONFIG.replace(num_views=2, image_size=64)
+    shaded, outline = DRKFS(config), SilhouetteDRKFS(config)
+    outline.load_state_dict(shaded.state_dict())
+    assert torch.equal(
+        outline.render(verts, faces), shaded.renderer.render(verts, faces, "silhouette")[:, None]
+    )
+    assert not torch.allclose(outline.render(verts, faces), shaded.render(verts, faces))
+
+
+def test_networks_are_kept_in_half_precision_and_trained_again_under_another_plan(tmp_path):
+    torch.manual_seed(0)
+    model = ShapeGenerator(CHANNELS, IMAGE_SIZE).eval()
+    kept = Networks(tmp_path, QUICK, torch.device("cpu"))
+    kept.put(0, "a loss", {"model": model, "history": [1.0], "seconds_per_step": 0.5})
+    loaded = kept.get(0, "a loss")
+    images = torch.rand(2, CHANNELS, IMAGE_SIZE, IMAGE_SIZE)
+    with torch.no_grad():
+        torch.testing.assert_close(loaded["model"](images), model(images), atol=2e-3, rtol=0)
+    other = Networks(tmp_path, replace(QUICK, steps=3), torch.device("cpu"))
+    assert other.get(0, "a loss") is None and other.get(0, "a loss", any_key=True) is not None
+
+
+def test_the_combination_that_beats_softras_on_most_visual_cells_is_chosen_ties_keep_drkfs():
+    def row(lfd, silhouette, normals):
+        return {"LFD": lfd, "silhouette IoU": silhouette, "normal consistency": normals,
+                "Chamfer-L1": 0.1, "F-score 1%": 0.5, "volumetric IoU": None}  # fmt: skip
+
+    softras = row(5000, 0.5, 0.7)
+    table = {
+        "a": {"SoftRas (silhouette IoU)": softras, "DR-KFS": row(4000, 0.4, 0.8),
+              "DR-KFS + 1 x silhouette IoU": row(4000, 0.6, 0.8),
+              "DR-KFS + 3 x Chamfer-L2": row(6000, 0.6, 0.8)},
+    }  # fmt: skip
+    choice = validation_choice(table)
+    assert choice["chosen"] == "DR-KFS + 1 x silhouette IoU"
+    assert choice["shares_of_visual_cells_beating_softras"]["DR-KFS"] == pytest.approx(2 / 3)
+    table["a"]["DR-KFS + 1 x silhouette IoU"] = row(4000, 0.4, 0.8)
+    assert validation_choice(table)["chosen"] == "DR-KFS"
+    won = shares([table], "DR-KFS", "SoftRas (silhouette IoU)")
+    assert won["LFD"] == {"wins": 1, "cells": 1, "share": 1.0}
+    assert won["volumetric IoU"] == {"wins": 0, "cells": 0, "share": None}
+
+
+@pytest.fixture(scope="module")
+def quick_study(tmp_path_factory):
+    out = tmp_path_factory.mktemp("single-view")
+    result = CliRunner().invoke(app, ["--quick", "--seeds", "0,1", "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    return out, json.loads((out / "results.json").read_text())
+
+
+@pytest.mark.slow
+def test_the_quick_study_judges_every_loss_on_every_test_shape_at_every_seed(quick_study):
+    out, results = quick_study
+    names = [r.name for r in (*BASELINES, *DRKFS_RECIPES)]
+    assert results["plan"]["losses"][: len(names)] == names
+    assert set(results["tables"]) == {"seed 0", "seed 1"}
+    shapes = len(QUICK.families) * QUICK.test_per_family
+    for table in results["tables"].values():
+        assert len(table) == shapes
+        assert all(set(rows) == set(results["plan"]["losses"]) for rows in table.values())
+        assert all(set(row) == set(JUDGED) for rows in table.values() for row in rows.values())
+    pooled = results["shares"]["pooled"]["DR-KFS"]["SoftRas (silhouette IoU)"]
+    assert pooled["silhouette IoU"]["cells"] == 2 * shapes
+    assert results["seconds_per_step"]["DR-KFS"].keys() == {"seed 0", "seed 1"}
+    assert (out / "gallery.png").stat().st_size > 0
+    for seed in (0, 1):
+        for name in results["plan"]["losses"]:
+            assert Networks(out / "networks", QUICK, torch.device("cpu")).get(seed, name)
+
+
+@pytest.mark.slow
+def test_a_rerun_resumes_every_network_and_judges_them_the_same(quick_study):
+    out, results = quick_study
+    again = CliRunner().invoke(app, ["--quick", "--seeds", "0,1", "--out", str(out)])
+    assert again.exit_code == 0, again.output
+    rerun = json.loads((out / "results.json").read_text())
+    assert len(rerun["networks_resumed"]) >= 2 * len(results["plan"]["losses"])
+    assert rerun["tables"] == results["tables"]
+    other = CliRunner().invoke(app, ["--out", str(out), "--test-seeds", "6000"])
+    assert other.exit_code == 0, other.output
+    judged = json.loads((out / "test-seeds-6000.json").read_text())
+    assert judged["test_seeds"] == [6000, 6000]
+    assert set(judged["tables"]["seed 0"]).isdisjoint(results["tables"]["seed 0"])
