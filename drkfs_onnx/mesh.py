@@ -51,7 +51,7 @@ def load_mesh(path: str | Path) -> Mesh:
         raise MeshError(
             source,
             "a features file (drkfs-score features), not a mesh: it can only be the reference "
-            "(mesh B) of drkfs-score pair or batch; give the mesh itself here",
+            "(mesh B) of drkfs-score pair or batch and of Scorer.score; give the mesh itself here",
         )
     try:
         loaded = _read(path)
@@ -64,9 +64,36 @@ def load_mesh(path: str | Path) -> Mesh:
         reason = _range_reason(exc) or f"unreadable ({type(exc).__name__}: {exc})"
         raise MeshError(source, reason) from exc
     if len(faces) == 0:
-        kind = type(loaded).__name__
-        raise MeshError(source, f"no faces (read as {kind}; a point cloud or empty scene?)")
+        raise MeshError(source, _why_no_faces(path, _point_count(loaded)))
     return check_mesh(vertices, faces, source)
+
+
+def _why_no_faces(path: Path, vertices: int) -> str:
+    """What a file that gave no faces holds, as far as its bytes say."""
+    if path.stat().st_size == 0:
+        return "an empty file"
+    if path.suffix.lower() == ".ply" and any(
+        line.split()[:2] == ["element", "tristrips"] for line in _header_lines(path)
+    ):
+        return (
+            "its faces are triangle strips (element tristrips), which trimesh does not read; "
+            "save it with a face list"
+        )
+    if vertices == 0:
+        return f"no vertices and no faces: not a {path.suffix or 'mesh'} file trimesh can read"
+    return f"{vertices} vertices and no faces (a point cloud?)"
+
+
+def _point_count(loaded) -> int:
+    """The vertices trimesh read, whether or not any face uses them."""
+    geometries = loaded.geometry.values() if isinstance(loaded, trimesh.Scene) else [loaded]
+    return sum(len(getattr(g, "vertices", [])) for g in geometries)
+
+
+def _header_lines(path: Path) -> list[str]:
+    """The first 4 KiB of a file as text lines: a PLY's or OFF's header."""
+    with open(path, "rb") as handle:
+        return handle.read(4096).decode("latin-1").splitlines()
 
 
 def declared_faces(path: str | Path) -> int | None:
@@ -76,8 +103,7 @@ def declared_faces(path: str | Path) -> int | None:
     suffix = Path(path).suffix.lower()
     if suffix not in (".ply", ".off") or not Path(path).is_file():
         return None
-    with open(path, "rb") as handle:
-        head = handle.read(4096).decode("latin-1").splitlines()
+    head = _header_lines(Path(path))
     if suffix == ".ply":
         for line in head:
             words = line.split()

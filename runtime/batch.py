@@ -18,7 +18,7 @@ from drkfs_onnx.config import PipelineConfig
 from drkfs_onnx.mesh import MeshError
 
 from .features import MeshFeatures
-from .scorer import Scorer
+from .scorer import Scorer, reference_of
 
 Row = tuple[int, str, str]  # (index in the pairs file, mesh_a, mesh_b)
 # How many rows each Ray worker holds at once: one running, one queued behind it.
@@ -59,11 +59,6 @@ class RowResult:
     score: float | None
     error: str
     seconds: float
-
-
-def reference_of(path: Path) -> Path | MeshFeatures:
-    """A mesh path, or the features file written by ``drkfs-score features``."""
-    return MeshFeatures.load(path) if path.suffix == ".npz" else path
 
 
 def _message(exc: Exception) -> str:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import hashlib
 import json
 import time
 from contextlib import contextmanager
@@ -23,10 +24,10 @@ from drkfs_onnx.options import (
     pick_config,
 )
 
-from .batch import RowScorer, ScorerSpec, ray_results, reference_of, serial_results
+from .batch import RowScorer, ScorerSpec, ray_results, serial_results
 from .output_lock import OutputLocked, output_lock
 from .pairs_file import read_pairs
-from .scorer import MAX_FACES, Scorer
+from .scorer import MAX_FACES, Scorer, reference_of
 from .sessions import ModelMismatch
 
 app = typer.Typer(
@@ -54,7 +55,7 @@ MaxFaces = Annotated[
 ]
 
 BATCH_COLUMNS = [
-    "row", "mesh_a", "mesh_b", "score", "seconds", "error", "settings", "model_version",
+    "row", "mesh_a", "mesh_b", "score", "seconds", "error", "settings", "model_version", "content",
 ]  # fmt: skip
 
 
@@ -206,6 +207,24 @@ def features(
     typer.echo(f"{out}: {len(result.descriptors)} patch descriptors, {result.empty} empty patches")
 
 
+def _write_in_input_order(out, earlier, todo, contents, settings, done, fresh) -> None:
+    """OUT rewritten whole: the records of other settings as they were, then one record per
+    row of ``todo`` in input order (a row done earlier keeps its score under this run's row
+    number and paths). At these settings OUT holds this CSV's rows and no others: a record of
+    what a file held before it was overwritten is gone."""
+    rows = []
+    for index, (a, b) in enumerate(todo):
+        record = fresh.get(index) or done[(contents[index], settings)]
+        rows.append({**record, "row": index, "mesh_a": a, "mesh_b": b})
+    others = [r for r in earlier if r["settings"] != settings]
+    partial = out.with_name(out.name + ".partial")
+    with open(partial, "w", newline="") as handle:
+        writer = csv.DictWriter(handle, BATCH_COLUMNS)
+        writer.writeheader()
+        writer.writerows([*others, *rows])
+    partial.replace(out)
+
+
 def _finished(out: Path) -> list[dict]:
     """The records of an earlier run of OUT that scored (failed ones are tried again); a line cut
     by a kill is dropped. OUT is rewritten with just these, so a rerun appends no duplicates."""
@@ -272,9 +291,12 @@ def batch(
     read from the CSV's folder; other columns are ignored and named; blank rows are skipped and
     reported; a file with no pairs is an error.
 
-    A pair already scored in OUT with the same settings and model is skipped (wherever its row
-    now is); failed rows are tried again and replace their old record; a row that fails records
-    its error and the others go on. Exits 1 when any row failed.
+    A pair already scored in OUT with the same settings and model is skipped: it is found by
+    what its two files hold, wherever its row now is and whichever folder the batch runs from,
+    so a file overwritten since is scored again. Failed rows are tried again and replace their
+    old record; a row that fails records its error and the others go on. When the batch ends,
+    OUT holds one record per row at these settings, in input order (records of other settings
+    stay). Exits 1 when any row failed.
     """
     if out.resolve() == pairs.resolve():
         typer.echo(f"error: --out {out} is the pairs file; results go to another file", err=True)
@@ -300,6 +322,15 @@ def batch(
         _score_rows(out, todo, scorer, spec, ray, workers)
 
 
+def _content(path: str) -> str:
+    """What a row's file holds, as the first 16 hex digits of its sha256 ('-' where it cannot
+    be read: the row is scored and fails, naming why)."""
+    try:
+        return hashlib.sha256(Path(path).read_bytes()).hexdigest()[:16] if path else "-"
+    except OSError:
+        return "-"
+
+
 def _score_rows(
     out: Path,
     todo: list[tuple[str, str]],
@@ -308,11 +339,17 @@ def _score_rows(
     ray: str | None,
     workers: int | None,
 ) -> None:
-    """Score the rows of ``todo`` not yet in OUT and append their records (OUT is locked)."""
+    """Score the rows of ``todo`` whose files' contents OUT holds no score of at these settings,
+    append their records as they come, then rewrite OUT in input order (OUT is locked).
+
+    A pair is found done by what its files hold, not by their path text: a file overwritten
+    since is scored again, and the same CSV run from another folder is not."""
     with _exit_on(ValueError, OSError):
-        done = {(r["mesh_a"], r["mesh_b"], r["settings"]) for r in _finished(out)}
+        earlier = _finished(out)
     settings, version = scorer.settings, scorer.model_version
-    rows = [(i, a, b) for i, (a, b) in enumerate(todo) if (a, b, settings) not in done]
+    contents = [f"{_content(a)}:{_content(b)}" for a, b in todo]
+    done = {(r["content"], r["settings"]): r for r in earlier if "-" not in r["content"].split(":")}
+    rows = [(i, a, b) for i, (a, b) in enumerate(todo) if (contents[i], settings) not in done]
     if ray is None:
         results = serial_results(rows, RowScorer(scorer))
     else:
@@ -322,7 +359,7 @@ def _score_rows(
             typer.echo('error: --ray needs the ray extra: pip install "drkfs-onnx[ray]"', err=True)
             raise typer.Exit(2) from None
         results = ray_results(rows, spec, ray, workers)
-    failed = []
+    failed, fresh = [], {}
     with _exit_on(OSError, ValueError), open(out, "a", newline="") as handle:
         writer = csv.DictWriter(handle, BATCH_COLUMNS)
         if handle.tell() == 0:
@@ -332,11 +369,14 @@ def _score_rows(
                 record = {"row": index, "mesh_a": todo[index][0], "mesh_b": todo[index][1]}
                 record.update(score="" if result.score is None else repr(result.score))
                 record.update(error=result.error, seconds=f"{result.seconds:.4f}")
-                record.update(settings=settings, model_version=version)
-                writer.writerow(record)
+                record.update(settings=settings, model_version=version, content=contents[index])
+                writer.writerow(record)  # flushed row by row: a kill loses no finished row
                 handle.flush()
+                fresh[index] = record
                 if result.error:
                     failed.append(index)
+    with _exit_on(OSError):
+        _write_in_input_order(out, earlier, todo, contents, settings, done, fresh)
     scored, skipped = len(rows) - len(failed), len(todo) - len(rows)
     typer.echo(
         f"{scored} scored, {len(failed)} failed, {skipped} already done; results in {out}",

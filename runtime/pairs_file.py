@@ -5,8 +5,10 @@
   otherwise be scored as a pair).
 - A relative path is relative to the CSV's folder, so a CSV and its meshes move together and
   the batch runs from any directory; absolute paths stay as they are.
-- Other columns are ignored and named in a warning; blank rows (``,`` included) are skipped
-  and their line numbers reported; a row with one path is kept and fails as that row.
+- Blank rows (``,`` included) are skipped and their line numbers reported; a row with one path
+  is kept and fails as that row.
+- Other columns are ignored and named in a warning, and so are a row's fields beyond the
+  header's columns; a byte-order mark (a spreadsheet's UTF-8) is read as no part of the header.
 - A file with no pairs, or one that is not UTF-8 text, is an error naming the file.
 """
 
@@ -52,6 +54,12 @@ def read_pairs(path: Path) -> PairsFile:
         extra = [name or f"column {i + 1}" for i, name in enumerate(header) if i not in (a, b)]
         if extra:
             warnings.append(f"{path}: columns ignored: {', '.join(extra)}")
+        longer = [number for number, row in rows if any(row[len(header) :])]
+        if longer:
+            warnings.append(
+                f"{path}: fields beyond the header's {len(header)} columns ignored (lines "
+                f"{_numbers(longer)})"
+            )
         if not rows:
             raise ValueError(f"{path}: no pairs below the header mesh_a,mesh_b")
     elif all((folder / cell).exists() for cell in header[:2]) and len(header) >= 2:
@@ -72,7 +80,8 @@ def read_pairs(path: Path) -> PairsFile:
 
 def _rows(path: Path) -> list[tuple[int, list[str]]]:
     try:
-        with open(path, newline="", encoding="utf-8") as handle:
+        # utf-8-sig: a spreadsheet's UTF-8 starts with a byte-order mark, not part of the header
+        with open(path, newline="", encoding="utf-8-sig") as handle:
             reader = csv.reader(handle)
             return [(reader.line_num, row) for row in reader]
     except UnicodeDecodeError as exc:

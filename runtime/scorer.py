@@ -48,13 +48,20 @@ JOINT_HINT = (
 )
 
 
+def reference_of(path: str | Path) -> Path | MeshFeatures:
+    """A mesh path, or the features file written by ``drkfs-score features`` (a .npz), loaded."""
+    path = Path(path)
+    return MeshFeatures.load(path) if path.suffix == ".npz" else path
+
+
 class Scorer:
     """DR-KFS between meshes, scored with onnxruntime; torch is never imported.
 
-    ``score(a, b) -> float`` scores A against the reference B (a mesh, a path, or B's
-    ``MeshFeatures``); ``features(mesh) -> MeshFeatures`` describes a reference once. Descriptors
-    are cached by mesh content (after normalisation) and model hash, so many predictions scored
-    against one ground truth render and describe it once.
+    ``score(a, b) -> float`` scores A against the reference B (a mesh, a mesh's path, a
+    features file's path, or B's ``MeshFeatures``: ``MeshFeatures.load("gt.npz")``);
+    ``features(mesh) -> MeshFeatures`` describes a reference once. Descriptors are cached by
+    mesh content (after normalisation) and model hash, so many predictions scored against one
+    ground truth render and describe it once.
 
     threads: onnxruntime intra-op threads and renderer threads (None: all cores); the match's
     BLAS threads follow OPENBLAS_NUM_THREADS.
@@ -160,10 +167,11 @@ class Scorer:
         return self.renderer.render(place(mesh.vertices, frame), mesh.faces)
 
     def describe(
-        self, images: np.ndarray, frame: tuple[np.ndarray, float] = (np.zeros(3), 1.0)
+        self, images: np.ndarray, frame: tuple[np.ndarray, float] | None = None
     ) -> MeshFeatures:
         """Features of rendered views (K, S, S), e.g. ``self.renderer``'s, of a mesh placed in
-        ``frame``."""
+        ``frame`` (default: where it is, centre 0 and scale 1)."""
+        frame = (np.zeros(3), 1.0) if frame is None else frame
         index = np.flatnonzero(nonempty_patches(images, self.config))
         return MeshFeatures(
             descriptors=self._describe_views(images, index),
@@ -179,6 +187,8 @@ class Scorer:
     def score(self, a: MeshLike, b: MeshLike | MeshFeatures) -> float:
         """DR-KFS of A against the reference B (0 for identical meshes)."""
         a = self.load(a)  # a bad A fails before B's work
+        if isinstance(b, (str, Path)):
+            b = reference_of(b)
         reference = b if isinstance(b, MeshFeatures) else self.features(b)
         # before A's work
         check_features(reference, self.config, self.features_graph.sha256, self.normalization)

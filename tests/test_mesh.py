@@ -49,7 +49,21 @@ def test_unreadable_file(tmp_path):
 def test_point_cloud_has_no_faces(tmp_path):
     path = tmp_path / "cloud.ply"
     trimesh.PointCloud(np.random.default_rng(0).random((20, 3))).export(path)
-    assert "no faces" in _error(path).reason
+    assert _error(path).reason == "20 vertices and no faces (a point cloud?)"
+
+
+def test_a_file_without_faces_says_what_it_holds(tmp_path):
+    empty, noise, strips = tmp_path / "empty.obj", tmp_path / "noise.obj", tmp_path / "strips.ply"
+    empty.write_bytes(b"")
+    noise.write_bytes(np.random.default_rng(0).integers(0, 256, 2000, dtype=np.uint8).tobytes())
+    strips.write_text(
+        "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+        "property float z\nelement tristrips 1\nproperty list int int vertex_indices\n"
+        "end_header\n0 0 0\n1 0 0\n0 1 0\n1 1 0\n4 0 1 2 3\n"
+    )
+    assert _error(empty).reason == "an empty file"
+    assert _error(noise).reason == "no vertices and no faces: not a .obj file trimesh can read"
+    assert "triangle strips (element tristrips)" in _error(strips).reason
 
 
 def test_nan_and_inf_vertices(tmp_path):

@@ -66,3 +66,18 @@ def test_a_file_that_is_not_utf8_text_is_refused_naming_it(tmp_path):
     pairs.write_bytes(b"ply\n\x96")
     with pytest.raises(ValueError, match=r"big\.ply: not a CSV of mesh pairs"):
         read_pairs(pairs)
+
+
+def test_a_spreadsheets_byte_order_mark_is_no_part_of_the_header(tmp_path):
+    pairs = _csv(tmp_path, "")
+    pairs.write_bytes("\ufeffmesh_a,mesh_b\na.obj,b.obj\n".encode())
+    read = read_pairs(pairs)
+    assert read.pairs == [(str(tmp_path / "a.obj"), str(tmp_path / "b.obj"))]
+    assert read.warnings == []
+
+
+def test_a_rows_fields_beyond_the_header_are_named_by_line(tmp_path):
+    pairs = _csv(tmp_path, "mesh_a,mesh_b\na.obj,b.obj\na.obj,b.obj,0.5\na.obj,b.obj,\n")
+    read = read_pairs(pairs)
+    assert len(read.pairs) == 3
+    assert read.warnings == [f"{pairs}: fields beyond the header's 2 columns ignored (lines 3)"]

@@ -74,6 +74,9 @@ def test_precomputed_reference_features_round_trip(scorer, tmp_path):
     loaded = MeshFeatures.load(tmp_path / "chair.npz")
     a = EXAMPLES / "chair_no_leg.obj"
     assert scorer.score(a, loaded) == scorer.score(a, reference)
+    # the features file's path is a reference too, as drkfs-score pair takes it
+    assert scorer.score(a, tmp_path / "chair.npz") == scorer.score(a, str(tmp_path / "chair.npz"))
+    assert scorer.score(a, str(tmp_path / "chair.npz")) == scorer.score(a, loaded)
     config = PipelineConfig()
     assert len(loaded.descriptors) + loaded.empty == config.num_views * config.patches_per_view
 

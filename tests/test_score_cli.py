@@ -115,8 +115,13 @@ def test_a_model_for_another_config_is_refused(tmp_path):
 
 
 def _records(path: Path) -> dict[int, dict]:
+    return {int(r["row"]): r for r in _record_list(path)}
+
+
+def _record_list(path: Path) -> list[dict]:
+    """OUT's records in the file's order."""
     with open(path, newline="") as handle:
-        return {int(r["row"]): r for r in csv.DictReader(handle)}
+        return list(csv.DictReader(handle))
 
 
 def test_batch_records_errors_goes_on_and_resumes_after_a_kill(tmp_path):
@@ -375,3 +380,47 @@ def test_explain_without_matplotlib_names_the_extra(tmp_path):
     assert result.stderr.strip() == (
         'error: explain draws with matplotlib: pip install "drkfs-onnx[plot]"'
     )
+
+
+def test_a_resumed_batch_scores_again_a_file_overwritten_since(tmp_path):
+    pred, pairs, out = tmp_path / "pred.obj", tmp_path / "pairs.csv", tmp_path / "scores.csv"
+    shutil.copy(NO_LEG, pred)
+    pairs.write_text("mesh_a,mesh_b\npred.obj,chair.obj\n")
+    shutil.copy(CHAIR, tmp_path / "chair.obj")
+    assert _run("batch", pairs, "--out", out, *FAST).exit_code == 0
+    first = float(_records(out)[0]["score"])
+    shutil.copy(NO_BACK, pred)  # the same path now holds another mesh
+    rerun = _run("batch", pairs, "--out", out, *FAST)
+    assert "1 scored, 0 failed, 0 already done" in rerun.output, rerun.output
+    (record,) = _record_list(out)
+    fresh = float(_run("pair", pred, tmp_path / "chair.obj", *FAST).stdout)  # 5 digits
+    assert float(record["score"]) == pytest.approx(fresh, rel=1e-4)
+    assert abs(fresh - first) > 0.01  # no leg 0.81, no back 0.89 at this width
+
+
+def test_the_same_csv_run_from_another_folder_is_already_done_and_written_once(
+    tmp_path, monkeypatch
+):
+    (tmp_path / "data").mkdir()
+    for mesh in (NO_LEG, CHAIR):
+        shutil.copy(mesh, tmp_path / "data" / mesh.name)
+    pairs, out = tmp_path / "data" / "pairs.csv", tmp_path / "scores.csv"
+    pairs.write_text(f"mesh_a,mesh_b\n{NO_LEG.name},{CHAIR.name}\n")
+    monkeypatch.chdir(tmp_path)
+    assert _run("batch", "data/pairs.csv", "--out", out, *FAST).exit_code == 0
+    monkeypatch.chdir(tmp_path / "data")
+    again = _run("batch", "pairs.csv", "--out", out, *FAST)
+    assert "0 scored, 0 failed, 1 already done" in again.output, again.output
+    assert len(_record_list(out)) == 1
+
+
+def test_after_a_resume_with_retried_rows_the_results_are_in_input_order(tmp_path):
+    pairs, out, late = tmp_path / "pairs.csv", tmp_path / "scores.csv", tmp_path / "late.obj"
+    pairs.write_text(f"mesh_a,mesh_b\n{late},{CHAIR}\n{NO_LEG},{CHAIR}\n{NO_BACK},{CHAIR}\n")
+    assert _run("batch", pairs, "--out", out, *FAST).exit_code == 1  # row 0 fails
+    shutil.copy(NO_LEG, late)
+    assert _run("batch", pairs, "--out", out, *FAST).exit_code == 0
+    records = _record_list(out)
+    assert [r["row"] for r in records] == ["0", "1", "2"]
+    assert [r["mesh_a"] for r in records] == [str(late), str(NO_LEG), str(NO_BACK)]
+    assert all(r["error"] == "" for r in records)
