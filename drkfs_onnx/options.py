@@ -18,6 +18,16 @@ PRESETS = {
 Normalize = Annotated[
     str, typer.Option(help=f"Frame of the two meshes: {', '.join(NORMALIZATIONS)}.")
 ]
+# drkfs-score features describes one mesh: the frame is the one its later pairs will use
+ReferenceNormalize = Annotated[
+    str,
+    typer.Option(
+        "--normalize",
+        help="The frame of the pairs this reference will be scored in: joint (predictions "
+        "placed in its frame), each (every mesh in its own) or none; a pair refuses a features "
+        "file made for another.",
+    ),
+]
 Preset = Annotated[
     str,
     typer.Option(
@@ -38,9 +48,11 @@ Reduction = Annotated[
 Symmetric = Annotated[
     bool,
     typer.Option(
-        help="Search both directions (same as --direction both). The score is then order-free "
+        "--symmetric",
+        help="Search both directions (same as --direction both; the default and structure "
+        "presets already do, the paper preset searches forward). The score is then order-free "
         "under --normalize each or none; under joint both meshes are placed in the second "
-        "mesh's frame, so swapping them can change it."
+        "mesh's frame, so swapping them can change it.",
     ),
 ]
 
@@ -63,4 +75,10 @@ def pick_config(
         direction = "both"
     picked = dict(matching=matching, window=window, direction=direction, reduction=reduction)
     changes.update({key: value for key, value in picked.items() if value is not None})
-    return PRESETS[preset]().replace(**changes)
+    config = PRESETS[preset]().replace(**changes)
+    if window is not None and config.matching != "window":
+        raise ValueError(
+            f"--window {window} sets the window match's radius, but the {preset} preset "
+            f"matches {config.matching}ly: add --matching window"
+        )
+    return config

@@ -3,6 +3,7 @@ and names what went wrong."""
 
 import csv
 import json
+import re
 import shutil
 import subprocess
 from pathlib import Path
@@ -282,12 +283,28 @@ def test_options_are_accepted_and_a_mesh_scores_zero_against_itself(option):
     ("options", "message"),
     [(["--reduction", "max"], "unknown reduction 'max'"),
      (["--preset", "fast"], "unknown preset 'fast'"),
-     (["--symmetric", "--direction", "forward"], "--symmetric searches both directions")],
+     (["--symmetric", "--direction", "forward"], "--symmetric searches both directions"),
+     (["--preset", "paper", "--window", "1"], "the paper preset matches globally: add "
+      "--matching window"),
+     (["--no-symmetric"], "No such option: --no-symmetric")],
 )  # fmt: skip
 def test_bad_match_options_are_named(options, message):
     result = _run("pair", NO_LEG, CHAIR, *options, *FAST)
     assert result.exit_code == 2
     assert message in result.output
+
+
+def test_symmetric_changes_the_paper_preset_alone_and_features_help_speaks_of_one_mesh():
+    scores = {
+        preset: [float(_run("pair", NO_LEG, CHAIR, "--preset", preset, *extra, *FAST).stdout)
+                 for extra in ((), ("--symmetric",))]
+        for preset in ("default", "paper")
+    }  # fmt: skip
+    assert scores["default"][0] == scores["default"][1]  # it already searches both ways
+    assert scores["paper"][0] != scores["paper"][1]
+    boxed = _run("features", "--help").output  # rich draws the options in a box
+    help_text = " ".join(re.sub("[│╭╮╰╯─]", " ", boxed).split())
+    assert "the two meshes" not in help_text and "this reference will be scored in" in help_text
 
 
 def test_json_report_carries_the_config_it_scored_with():

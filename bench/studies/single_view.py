@@ -46,7 +46,9 @@ TRAIN_SEED, VALIDATION_SEED, TEST_SEED = 5000, 5400, 5500
 # input azimuths held out of training: a test shape is reconstructed from one of them
 HELD_OUT_AZIMUTHS = (3, 9, 15, 21)
 TRAIN_AZIMUTHS = tuple(a for a in range(AZIMUTHS) if a not in HELD_OUT_AZIMUTHS)
-CHAMFER_SAMPLES, TARGET_SAMPLES = 2000, 5000
+# points drawn on each prediction each step, and on each target once: at 2,000 and 5,000 the
+# (B, N, M) distances took 3.1 s a step at B = 16 on 2 cores, at these 0.55 s
+CHAMFER_SAMPLES, TARGET_SAMPLES = 1000, 2000
 
 IOU, PIXEL, CHAMFER, DRKFS_SHADED, DRKFS_SILHOUETTE = (
     "silhouette IoU", "pixel MSE", "Chamfer-L2", "DR-KFS", "DR-KFS on silhouettes",
