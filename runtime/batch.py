@@ -127,6 +127,8 @@ def ray_results(
         except ConnectionError as exc:
             raise ConnectionError(f"--ray {address}: {exc}") from exc
     try:
+        if address != "local":
+            check_workers(ray, address)
         available = int(ray.cluster_resources().get("CPU", 0))
         workers = workers or max(1, available // threads)
         if workers * threads > available:
@@ -137,6 +139,29 @@ def ray_results(
         yield from _schedule(ray, rows, spec, workers, threads)
     finally:
         ray.shutdown()
+
+
+def _can_score() -> str:
+    """What a Ray worker answers when it can import the scorer: the package's folder."""
+    import drkfs_onnx.runtime
+
+    return str(Path(drkfs_onnx.runtime.__file__).parent)
+
+
+def check_workers(ray, address: str, timeout: float = 120.0) -> None:
+    """Refuse a Ray instance whose workers cannot import drkfs-onnx (another program's, or a
+    cluster whose nodes lack the package) before any row is sent: there every row would fail
+    with Ray's 'The actor never ran'."""
+    try:
+        ray.get(ray.remote(num_cpus=0)(_can_score).remote(), timeout=timeout)
+    except Exception as exc:  # Ray raises many types for a worker that cannot start the task
+        reason = [line for line in str(exc).splitlines() if line.strip()]
+        raise ConnectionError(
+            f"--ray {address}: joined a Ray instance whose workers cannot run drkfs-score "
+            f"({reason[-1].strip() if reason else type(exc).__name__}); start Ray from this "
+            "environment (ray start --head) with drkfs-onnx installed on every node, or use "
+            "--ray local"
+        ) from exc
 
 
 def _schedule(ray, rows: list[Row], spec: ScorerSpec, workers: int, threads: int):

@@ -68,3 +68,14 @@ def test_the_default_run_leaves_out_only_the_slow_studies_and_ci_runs_them():
     assert "-m 'not slow'" in options["addopts"]
     ci = (ROOT / ".ci" / "run").read_text()
     assert "python -m pytest -q -m slow" in ci and "python bench/check_results.py" in ci
+
+
+def test_the_usage_pages_batches_example_runs_as_written_and_its_forms_agree(tmp_path, monkeypatch):
+    text = (ROOT / "docs" / "usage.md").read_text()
+    code = re.search(r"<!-- batches example -->\s*```python\n(.*?)```", text, re.S).group(1)
+    namespace: dict = {}
+    monkeypatch.chdir(tmp_path)
+    exec(compile(code, "docs/usage.md", "exec"), namespace)
+    metric, gt = namespace["metric"], (namespace["gt_verts"], namespace["gt_faces"])
+    ragged = metric([namespace["v0"], namespace["v1"]], [namespace["f0"], namespace["f1"]], *gt)
+    assert float(metric(namespace["packed"], None, *gt)) == float(ragged) > 0

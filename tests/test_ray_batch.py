@@ -70,3 +70,33 @@ def test_ray_options_name_what_is_missing(tmp_path, monkeypatch):
     monkeypatch.setitem(sys.modules, "ray", None)  # a base install: import ray fails
     result = _run("batch", pairs, "--out", out, "--ray", "local", *FAST)
     assert result.exit_code == 2 and 'pip install "drkfs-onnx[ray]"' in result.output
+
+
+class _RayWhoseWorkersCannotImport:
+    """Stands in for a Ray instance another program started: its workers lack the package."""
+
+    @staticmethod
+    def remote(**options):
+        def wrap(function):
+            class Remote:
+                @staticmethod
+                def remote():
+                    return function
+
+            return Remote
+
+        return wrap
+
+    @staticmethod
+    def get(ref, timeout):
+        raise RuntimeError("The actor never ran\nModuleNotFoundError: No module named 'drkfs_onnx'")
+
+
+def test_a_ray_instance_whose_workers_cannot_import_the_package_is_refused_by_name():
+    from drkfs_onnx.runtime.batch import check_workers
+
+    with pytest.raises(ConnectionError) as error:
+        check_workers(_RayWhoseWorkersCannotImport(), "auto")
+    message = str(error.value)
+    assert message.startswith("--ray auto: joined a Ray instance whose workers cannot run")
+    assert "No module named 'drkfs_onnx'" in message and "--ray local" in message
