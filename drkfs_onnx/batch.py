@@ -16,6 +16,8 @@ from dataclasses import dataclass
 
 import torch
 
+from .mesh import has_area
+
 Tensors = torch.Tensor | Sequence[torch.Tensor]
 
 
@@ -115,6 +117,15 @@ class MeshBatch:
         padded_verts = padded_verts.reshape(len(verts), width, 3)
         _check_values(padded_verts, padded_faces, counts)
         return cls(padded_verts, padded_faces, valid)
+
+    @torch.no_grad()
+    def faces_with_area(self) -> torch.Tensor:
+        """(B, F) bool: the real faces that have area (``mesh.has_area``, the rule by which
+        ``check_mesh`` drops faces on the runtime path), padding False."""
+        corners = torch.take_along_dim(self.verts[:, :, None], self.faces[..., None], dim=1)
+        extent = (self.verts.amax(1) - self.verts.amin(1)).amax(-1)
+        found = has_area(corners, extent)
+        return found if self.face_valid is None else found & self.face_valid
 
     def split(self, size: int) -> list[MeshBatch]:
         """Runs of at most ``size`` meshes, in order."""

@@ -21,7 +21,8 @@ def surface_points(
     ``MeshBatch.of`` takes) -> (B, count, 3).
 
     Differentiable with respect to the vertices through the barycentric combination; which
-    face a point lands on is a draw, not a function of the vertices. The draws come from
+    face a point lands on is a draw, not a function of the vertices (every face alike on a
+    mesh with no area: a prediction collapsed to a point). The draws come from
     ``generator`` (torch's default on the vertices' device when None), on whatever device it
     lives; the points are on the vertices' device.
     """
@@ -30,7 +31,11 @@ def surface_points(
     edges = corners[:, :, 1:] - corners[:, :, :1]  # (B, F, 2, 3)
     area = torch.linalg.cross(edges[:, :, 0], edges[:, :, 1]).norm(dim=-1)  # padding: area 0
     draw_on = generator.device if generator is not None else meshes.verts.device
-    face = torch.multinomial(area.detach().to(draw_on), count, replacement=True,
+    weights = area.detach()
+    # a mesh collapsed to a point or a line has no area to weigh by: every face alike (its
+    # points are then where the mesh is), where multinomial would refuse all-zero weights
+    weights = torch.where(weights.sum(-1, keepdim=True) > 0, weights, 1.0)
+    face = torch.multinomial(weights.to(draw_on), count, replacement=True,
                              generator=generator).to(meshes.verts.device)  # fmt: skip
     u, v = torch.rand(2, len(meshes), count, 1, generator=generator, dtype=meshes.verts.dtype,
                       device=draw_on).to(meshes.verts.device)  # fmt: skip

@@ -110,9 +110,11 @@ class DrkfsLoss(nn.Module):
         stages: tuple[Stage, ...] = COARSE_TO_FINE,
         soft: SoftMatch | None = None,
     ) -> DrkfsLoss:
-        """Copies of ``nets``' detector and HardNet at each stage's config: nets of one's own
-        (fine-tuned for the loss, say) in place of the shipped ones."""
-        metrics = [with_nets(s.config, nets.detector, nets.descriptor) for s in stages]
+        """Copies of ``nets``' detector and HardNet at each stage's config, with its
+        normalisation and conv precision: nets of one's own (fine-tuned for the loss, say) in
+        place of the shipped ones."""
+        options = dict(normalization=nets.normalization, conv_precision=nets.conv_precision)
+        metrics = [with_nets(s.config, nets.detector, nets.descriptor, **options) for s in stages]
         return cls(metrics, stages, soft)
 
     def stage(self, progress: float) -> int:
@@ -132,6 +134,13 @@ class DrkfsLoss(nn.Module):
         progress: float = 1.0,
         reduction: str = "mean",
     ) -> torch.Tensor:
+        staged = isinstance(target, (list, tuple)) and not isinstance(target, Target)
+        if not (staged and len(target) == len(self.stages)
+                and all(isinstance(t, Target) for t in target)):  # fmt: skip
+            raise ValueError(
+                f"target: expected the StagedTarget this loss's target() makes (one Target for "
+                f"each of its {len(self.stages)} stages); got {type(target).__name__}"
+            )
         index = self.stage(progress)
         temperature = None if self.soft is None else self.soft.temperature(progress)
         return self.metrics[index].score_to(verts, faces, target[index], reduction, temperature)

@@ -114,6 +114,23 @@ def match_score(
     return torch.stack(scores).mean(0)
 
 
+# a soft match over a global search differences every query with every target: (..., N, M, D)
+SOFT_GLOBAL_BYTES = 2**31
+
+
+def check_soft_global_size(queries: torch.Tensor, targets: torch.Tensor) -> None:
+    """Refuse a global soft match whose (..., N, M, D) differences pass SOFT_GLOBAL_BYTES (the
+    paper preset's would take about 16 GB a mesh) before it is built."""
+    count = queries[..., :1].numel() * targets.shape[-2] * queries.shape[-1]
+    size = count * queries.element_size()
+    if size > SOFT_GLOBAL_BYTES:
+        raise ValueError(
+            f"a soft match over a global search would build {size / 2**30:.1f} GiB of "
+            f"differences ({tuple(queries.shape[:-1])} queries x {targets.shape[-2]} targets x "
+            f"{queries.shape[-1]} dims): use matching='window' for a soft match, or no soft match"
+        )
+
+
 def soft_match_distances(
     queries: torch.Tensor,
     targets: torch.Tensor,
@@ -130,6 +147,7 @@ def soft_match_distances(
         table = window_index(config, queries.device) if table is None else table
         squared = ((queries[..., None, :] - targets[..., table, :]) ** 2).sum(-1)  # (..., N, W)
     else:
+        check_soft_global_size(queries, targets)
         squared = (queries[..., :, None, :] - targets[..., None, :, :]).pow(2).sum(-1)
     weights = torch.softmax(-squared / temperature, dim=-1)
     return (weights * squared).sum(-1)

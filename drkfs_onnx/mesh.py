@@ -169,6 +169,22 @@ def _geometry(loaded) -> tuple[np.ndarray, np.ndarray]:
     return vertices, faces
 
 
+def has_area(corners, extent):
+    """(..., F, 3, 3) face corners and their mesh's (...) largest box side -> (..., F) bool:
+    whether a face has area, measured in units of its mesh's box (repeated corners have
+    none). The one rule both paths drop faces by: ``check_mesh`` here, the torch renderer
+    (``MeshBatch.faces_with_area``). numpy or torch."""
+    # in units of the box: a mesh in other units (1e-100 or 1e100) is the same shape, and its
+    # squared coordinates would under- or overflow
+    unit = (extent + (extent == 0))[..., None, None]
+    u = (corners[..., 1, :] - corners[..., 0, :]) / unit
+    v = (corners[..., 2, :] - corners[..., 0, :]) / unit
+    x = u[..., 1] * v[..., 2] - u[..., 2] * v[..., 1]
+    y = u[..., 2] * v[..., 0] - u[..., 0] * v[..., 2]
+    z = u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]
+    return x * x + y * y + z * z > AREA_EPS**2
+
+
 def check_mesh(vertices: np.ndarray, faces: np.ndarray, source: str = "<array>") -> Mesh:
     """Validate arrays and drop degenerate triangles (repeated indices or zero area)."""
     vertices = np.asarray(vertices, dtype=np.float64)
@@ -187,10 +203,7 @@ def check_mesh(vertices: np.ndarray, faces: np.ndarray, source: str = "<array>")
         raise MeshError(source, f"{int(bad.sum())} vertices are NaN or infinite")
     # areas relative to the mesh's own size, in units of its box: a mesh in other units (1e-100
     # or 1e100) is the same shape, and its squared coordinates would under- or overflow
-    lower, extent = vertices.min(0), float(np.ptp(vertices, axis=0).max())
-    corners = (vertices[faces] - lower) / (extent if extent > 0 else 1.0)
-    cross = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
-    area_ok = np.linalg.norm(cross, axis=1) > AREA_EPS
+    area_ok = has_area(vertices[faces], np.asarray(np.ptp(vertices, axis=0).max()))
     if not area_ok.any():
         raise MeshError(source, "no non-degenerate triangle left (all faces have zero area)")
     return Mesh(vertices=vertices, faces=faces[area_ok], source=source)
@@ -203,7 +216,8 @@ def _last_max(values):
 
 
 def bounding_frame(lower, upper):
-    """(centre, scale) that map the box [lower, upper] into the unit sphere: v' = (v - c) / s.
+    """(centre, scale) that map the box [lower, upper] into the unit sphere: v' = (v - c) / s
+    (scale 1 for a box of no extent).
 
     (3,) corners give (3,) and (); a batch's (B, 3) give (B, 3) and (B,). Pure arithmetic, so
     numpy arrays and torch tensors (keeping gradients) both work.
@@ -213,7 +227,11 @@ def bounding_frame(lower, upper):
     # the half-diagonal as |extent|_max * |extent / |extent|_max|: squares of very small or very
     # large coordinates would under- or overflow
     largest = _last_max(abs(extent))
-    return centre, largest * (((extent / largest[..., None]) ** 2).sum(-1) ** 0.5)
+    # a mesh collapsed to a point has nothing to scale: its frame keeps scale 1, and the square
+    # root stays off 0, where its slope is infinite (a NaN gradient for a collapsed prediction)
+    point = largest == 0
+    safe = largest + point
+    return centre, safe * ((((extent / safe[..., None]) ** 2).sum(-1) + point) ** 0.5)
 
 
 def check_normalization(mode: str) -> str:

@@ -322,9 +322,12 @@ class DRKFS(nn.Module):
         return self.score_to(verts_a, faces_a, self.target(verts_b, faces_b), reduction)
 
 
-def with_nets(config: PipelineConfig, detector: nn.Module, descriptor: nn.Module) -> DRKFS:
-    """A DRKFS at ``config`` carrying copies of the given detector and HardNet."""
-    metric = DRKFS(config)
+def with_nets(
+    config: PipelineConfig, detector: nn.Module, descriptor: nn.Module, **options
+) -> DRKFS:
+    """A DRKFS at ``config`` carrying copies of the given detector and HardNet; ``options`` as
+    ``DRKFS``'s (normalization, conv_precision)."""
+    metric = DRKFS(config, **options)
     metric.detector.load_state_dict(detector.state_dict())
     metric.descriptor.load_state_dict(descriptor.state_dict())
     return metric

@@ -70,7 +70,7 @@ def _take(values: torch.Tensor, index: torch.Tensor) -> torch.Tensor:
 TORCH_OPS = SimpleNamespace(
     where=torch.where, minimum=torch.minimum, maximum=torch.maximum, clip=torch.clip,
     sign=torch.sign, ceil=torch.ceil, floor=torch.floor, sqrt=torch.sqrt, exp=torch.exp,
-    log=torch.log, sigmoid=torch.sigmoid, stack=torch.stack, einsum=torch.einsum, take=_take,
+    log=torch.log, sigmoid=torch.sigmoid, stack=torch.stack, take=_take,
     scatter_sum=_scatter_sum, scatter_max=_scatter_max,
 )  # fmt: skip
 
@@ -241,7 +241,8 @@ def _compiles(device_type: str, differentiable: bool) -> bool:
 class _CompiledOrEager:
     """An equation compiled by ``torch.compile``, or eager from the first call whose compile
     fails (a CPU without a working C++ compiler, say), with one warning that says why. An error
-    of the equation itself is the eager call's, raised as it is."""
+    of the equation itself is the eager call's, raised as it is; running out of memory is the
+    caller's to handle (a smaller batch), and the equation stays compiled."""
 
     def __init__(self, eager: Callable):
         self.eager = eager
@@ -252,6 +253,8 @@ class _CompiledOrEager:
             return self.eager(*tensors)
         try:
             return self.compiled(*tensors)
+        except torch.OutOfMemoryError:
+            raise
         except Exception as error:  # compilers fail in many ways; the eager call tells them apart
             result = self.eager(*tensors)
             self.compiled = None
@@ -317,6 +320,20 @@ def _terms_grad_at(params, face, pixel, coverage, grad_coverage, grad_depth, con
     return pair_terms_grad(tri, px, py, coverage, grad_coverage, grad_depth, config, ops)
 
 
+INT32_LIMIT = 2**31 - 1
+
+
+def check_index_range(pixels: int, view_faces: int) -> None:
+    """A pair's pixel and face are int32 indices into the batch's B * K * S^2 pixels and
+    B * K * F view-faces: refuse a batch either count overflows, before any index wraps."""
+    for count, name in ((pixels, "pixels (B x K x S^2)"), (view_faces, "faces (B x K x F)")):
+        if count > INT32_LIMIT:
+            raise ValueError(
+                f"the batch's views hold {count:,} {name}, past the rasteriser's int32 indices "
+                f"({INT32_LIMIT:,}): split the batch"
+            )
+
+
 @torch.no_grad()
 def kept_pairs(
     plan: PairPlan, params: torch.Tensor, depth_cull: bool, with_depth: bool = False
@@ -327,6 +344,7 @@ def kept_pairs(
     Every enumerated pair's terms are kept until each pixel's largest logit is known, then the
     kept ones gathered; 16 bytes a pair while it runs (20 with the depth)."""
     cfg = plan.config
+    check_index_range(plan.num_pixels, params.shape[-1])
     total = plan.num_pairs()
     int32 = dict(dtype=torch.int32, device=params.device)
     pixel, face = torch.empty(total, **int32), torch.empty(total, **int32)

@@ -62,12 +62,11 @@ class Renderer(nn.Module):
 
     def screen(self, meshes: MeshBatch) -> tuple[torch.Tensor, ScreenFaces]:
         """-> (B, K, V, 3) camera-frame vertices and the faces projected into the B * K views,
-        padding faces hidden."""
+        padding faces and faces of no area hidden."""
         verts_cam, screen = to_screen(
             meshes.verts, meshes.faces, self.rotations, self.eyes, self.cameras.focal, self.config
         )
-        if meshes.face_valid is not None:
-            views = len(self.cameras)
-            valid = meshes.face_valid[:, None].expand(-1, views, -1).reshape(-1)
-            screen.visible = screen.visible & valid
+        # padding, and faces of no area (as the runtime drops them), cover no pixel
+        valid = meshes.faces_with_area()[:, None].expand(-1, len(self.cameras), -1).reshape(-1)
+        screen.visible = screen.visible & valid
         return verts_cam, screen

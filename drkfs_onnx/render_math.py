@@ -3,7 +3,7 @@
 Torch-free: ``drkfs_onnx.rasterize`` passes ``TORCH_OPS``, the runtime ``NUMPY_OPS``. Each
 function takes the array module's few operations as ``ops``: ``where``, ``minimum``,
 ``maximum``, ``clip``, ``sign``, ``ceil``, ``floor``, ``sqrt``, ``exp``, ``log``, ``sigmoid``,
-``stack``, ``einsum``, ``take(values, index)`` (gather along the last axis, broadcasting the
+``stack``, ``take(values, index)`` (gather along the last axis, broadcasting the
 others), and ``scatter_sum(index, values, length)`` / ``scatter_max(out, index, values)``.
 Only what is not an equation stays apart: autograd's two passes (``rasterize.py``) and the
 numpy renderer's culling (``runtime/candidates.py``).
@@ -53,7 +53,7 @@ def _take(values: np.ndarray, index: np.ndarray) -> np.ndarray:
 NUMPY_OPS = SimpleNamespace(
     where=np.where, minimum=np.minimum, maximum=np.maximum, clip=np.clip, sign=np.sign,
     ceil=np.ceil, floor=np.floor, sqrt=np.sqrt, exp=np.exp, log=np.log, sigmoid=_sigmoid,
-    stack=np.stack, einsum=np.einsum, take=_take, scatter_sum=_scatter_sum,
+    stack=np.stack, take=_take, scatter_sum=_scatter_sum,
     scatter_max=_scatter_max,
 )  # fmt: skip
 
@@ -79,7 +79,13 @@ class ScreenFaces:
 def to_camera(verts, rotations, eyes, ops):
     """(V, 3) world vertices, or a batch (B, V, 3), (K, 3, 3) rotations, (K, 3) eyes -> (K, V, 3)
     camera frame, or (B, K, V, 3)."""
-    return ops.einsum("kij,...knj->...kni", rotations, verts[..., None, :, :] - eyes[:, None])
+    offsets = verts[..., None, :, :] - eyes[:, None]  # (..., K, V, 3)
+    x, y, z = offsets[..., 0], offsets[..., 1], offsets[..., 2]
+    r = rotations[:, None]  # (K, 1, 3, 3)
+    # three products summed in order per coordinate, not a matrix product: BLAS picks its
+    # kernel by the vertex count, so a mesh padded in a batch landed an ulp off the same mesh
+    # alone, and its views 2e-6 off the loop's
+    return ops.stack([x * r[..., i, 0] + y * r[..., i, 1] + z * r[..., i, 2] for i in range(3)], -1)
 
 
 def _corner_values(verts_cam, faces):

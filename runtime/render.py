@@ -15,6 +15,7 @@ import numpy as np
 
 from drkfs_onnx.cameras import Cameras, make_cameras
 from drkfs_onnx.config import PipelineConfig
+from drkfs_onnx.mesh import has_area
 from drkfs_onnx.render_math import (
     DEPTH_CULL,
     NUMPY_OPS,
@@ -53,6 +54,8 @@ class NumpyRenderer:
 
     def render(self, verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
         verts = np.asarray(verts, dtype=np.float64)
+        # faces of no area cover no pixel, as on the torch path (check_mesh drops them too)
+        faces = np.asarray(faces)[has_area(verts[faces], np.asarray(np.ptp(verts, 0).max()))]
         views = len(self.cameras)
         views_per_call = max(1, VIEW_FACES_PER_CALL // max(len(faces), 1))
         calls = max(min(self.threads, views), -(-views // views_per_call))
