@@ -192,7 +192,8 @@ def test_the_quick_study_judges_every_loss_on_every_test_shape_at_every_seed(qui
         assert all(set(row) == set(JUDGED) for rows in table.values() for row in rows.values())
     pooled = results["shares"]["pooled"]["DR-KFS"]["SoftRas (silhouette IoU)"]
     assert pooled["silhouette IoU"]["cells"] == 2 * shapes
-    assert results["seconds_per_step"]["DR-KFS"].keys() == {"seed 0", "seed 1"}
+    assert results["seconds_per_step"]["trainings"]["DR-KFS"].keys() == {"seed 0", "seed 1"}
+    assert all(s > 0 for s in results["seconds_per_step"]["timed"].values())
     assert (out / "gallery.png").stat().st_size > 0
     for seed in (0, 1):
         for name in results["plan"]["losses"]:

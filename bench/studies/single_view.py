@@ -49,6 +49,7 @@ TRAIN_AZIMUTHS = tuple(a for a in range(AZIMUTHS) if a not in HELD_OUT_AZIMUTHS)
 # points drawn on each prediction each step, and on each target once: at 2,000 and 5,000 the
 # (B, N, M) distances took 3.1 s a step at B = 16 on 2 cores, at these 0.55 s
 CHAMFER_SAMPLES, TARGET_SAMPLES = 1000, 2000
+TIMED_STEPS = 5  # a loss's timed steps: 2 at DR-KFS's coarse stage, 3 at its fine one
 
 IOU, PIXEL, CHAMFER, DRKFS_SHADED, DRKFS_SILHOUETTE = (
     "silhouette IoU", "pixel MSE", "Chamfer-L2", "DR-KFS", "DR-KFS on silhouettes",
@@ -78,6 +79,10 @@ COMBINATIONS = (
     Recipe("DR-KFS + 1 x silhouette IoU", ((1.0, DRKFS_SHADED), (1.0, IOU))),
     Recipe("DR-KFS + 3 x Chamfer-L2", ((1.0, DRKFS_SHADED), (3.0, CHAMFER))),
 )
+
+
+def by_name(name: str) -> Recipe:
+    return next(r for r in (*BASELINES, *DRKFS_RECIPES, *COMBINATIONS) if r.name == name)
 
 
 @dataclass(frozen=True)
@@ -443,66 +448,92 @@ def run_single_view(
         seconds.setdefault(recipe.name, {})[f"seed {seed}"] = saved["seconds_per_step"]
         return saved["model"]
 
-    # the paper's comparison first, at every seed; then the ablation; then the combinations
+    # the paper's comparison first, at every seed; then the ablation; judged and written; then
+    # the combinations, chosen on validation shapes, judged and written again
     for seed in seeds:
         for recipe in (*BASELINES, DRKFS_RECIPES[0]):
             trained(seed, recipe)
     for seed in seeds:
         trained(seed, DRKFS_RECIPES[1])
+    recipes = [*BASELINES, *DRKFS_RECIPES]
     judge = Judge(PipelineConfig(), threads, plan.unseen_views, plan.lfd, image_judges=False)
-    try:
-        first = seeds[0]
-        candidates = {
-            r.name: trained(first, r) for r in (BASELINES[0], DRKFS_RECIPES[0], *COMBINATIONS)
-        }
-        progress("validation shapes:")
-        validation = judge_all(
-            judge, candidates, validation_set, views["validation"], plan, progress
-        )
-        choice = validation_choice(validation)
-        recipes = [*BASELINES, *DRKFS_RECIPES]
-        recipes += [r for r in COMBINATIONS if r.name == choice["chosen"]]
-        names = [r.name for r in recipes]
-        progress(f"validation chose {choice['chosen']}; test shapes:")
-        tables = {
-            seed: judge_all(judge, {r.name: trained(seed, r) for r in recipes}, test_set,
+
+    def judged(names: list[str]) -> dict[int, dict]:
+        return {
+            seed: judge_all(judge, {n: trained(seed, by_name(n)) for n in names}, test_set,
                             views["test"], plan, progress)
             for seed in seeds
         }  # fmt: skip
+
+    def write(tables: dict, validation: dict) -> dict:
+        names = [r.name for r in recipes]
+        results = {
+            "command": f"python bench/single_view.py{' --quick' if quick else ''} --seeds "
+            f"{','.join(map(str, seeds))} --device {device} --out {out}",
+            "quick": quick,
+            **machine(),
+            "device": device if dev.type == "cpu" else torch.cuda.get_device_name(dev),
+            "lfd": judge.lfd_note,
+            "plan": {
+                **asdict(plan),
+                "seeds": list(seeds),
+                "losses": names,
+                "train_seeds": [TRAIN_SEED, TRAIN_SEED + plan.train_per_family - 1],
+                "validation_seeds": [
+                    VALIDATION_SEED,
+                    VALIDATION_SEED + plan.validation_per_family - 1,
+                ],
+                "test_seeds": [TEST_SEED, TEST_SEED + plan.test_per_family - 1],
+                "input_azimuths_trained": list(TRAIN_AZIMUTHS),
+                "input_azimuths_tested": list(HELD_OUT_AZIMUTHS),
+                "parameters": sum(
+                    p.numel() for p in ShapeGenerator(CHANNELS, IMAGE_SIZE).parameters()
+                ),
+            },  # fmt: skip
+            "judged": list(JUDGED),
+            "visual": list(VISUAL),
+            "higher_is_better": sorted(HIGHER_IS_BETTER & set(JUDGED)),
+            "validation": validation,
+            "tables": {f"seed {s}": t for s, t in tables.items()},
+            **summarise(tables, test_set, names),
+            "seconds_per_step": {"timed": timing, "trainings": seconds},
+            "networks_resumed": resumed,
+            "seconds_total": time.perf_counter() - start,
+        }
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "results.json").write_text(json.dumps(results, indent=1))
+        draw_gallery(out, plan, networks, seeds[0], names, test_set, views["test"])
+        return results
+
+    # each loss's seconds a step, timed apart from the trainings (which shared the cores with
+    # whatever else ran): TIMED_STEPS steps from seed 0's start, coarse and fine stages both
+    timing = {
+        r.name: train(replace(plan, steps=TIMED_STEPS), r, 0, views["train"], terms, progress)[
+            "seconds_per_step"
+        ]
+        for r in (*BASELINES, *DRKFS_RECIPES, *COMBINATIONS)
+    }
+    try:
+        tables = judged([r.name for r in recipes])
+        write(tables, {"chosen": None, "note": "the combinations are still to be trained"})
+        first = seeds[0]
+        candidates = [BASELINES[0], DRKFS_RECIPES[0], *COMBINATIONS]
+        progress("validation shapes:")
+        validation = judge_all(
+            judge, {r.name: trained(first, r) for r in candidates}, validation_set,
+            views["validation"], plan, progress,
+        )  # fmt: skip
+        choice = validation_choice(validation)
+        progress(f"validation chose {choice['chosen']}")
+        chosen = [r for r in COMBINATIONS if r.name == choice["chosen"]]
+        if chosen:
+            recipes += chosen
+            for seed, rows in judged([chosen[0].name]).items():
+                for shape, row in rows.items():
+                    tables[seed][shape].update(row)
+        return write(tables, {**choice, "table": validation})
     finally:
         judge.close()
-    results = {
-        "command": f"python bench/single_view.py{' --quick' if quick else ''} --seeds "
-        f"{','.join(map(str, seeds))} --device {device} --out {out}",
-        "quick": quick,
-        **machine(),
-        "device": device if dev.type == "cpu" else torch.cuda.get_device_name(dev),
-        "lfd": judge.lfd_note,
-        "plan": {
-            **asdict(plan),
-            "seeds": list(seeds),
-            "losses": names,
-            "train_seeds": [TRAIN_SEED, TRAIN_SEED + plan.train_per_family - 1],
-            "validation_seeds": [VALIDATION_SEED, VALIDATION_SEED + plan.validation_per_family - 1],
-            "test_seeds": [TEST_SEED, TEST_SEED + plan.test_per_family - 1],
-            "input_azimuths_trained": list(TRAIN_AZIMUTHS),
-            "input_azimuths_tested": list(HELD_OUT_AZIMUTHS),
-            "parameters": sum(p.numel() for p in ShapeGenerator(CHANNELS, IMAGE_SIZE).parameters()),
-        },
-        "judged": list(JUDGED),
-        "visual": list(VISUAL),
-        "higher_is_better": sorted(HIGHER_IS_BETTER & set(JUDGED)),
-        "validation": {**choice, "table": validation},
-        "tables": {f"seed {s}": t for s, t in tables.items()},
-        **summarise(tables, test_set, names),
-        "seconds_per_step": seconds,
-        "networks_resumed": resumed,
-    }
-    results["seconds_total"] = time.perf_counter() - start
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "results.json").write_text(json.dumps(results, indent=1))
-    draw_gallery(out, plan, networks, first, names, test_set, views["test"])
-    return results
 
 
 def judge_saved(out: Path, test_seed: int, threads: int = 2, progress=print) -> dict:
@@ -547,3 +578,58 @@ def draw_gallery(out, plan, networks, seed, names, test_set, views) -> None:
         meshes = [(predictions[n][i], faces) for n in names]
         rows.append((test_set[i].name, [image, *meshes, (test_set[i].verts, test_set[i].faces)]))
     write_gallery(out / "gallery.png", ["INPUT", *names, "TRUTH"], rows)
+
+
+COLUMNS = (  # the paper's table's order: CD, F-score, NC, IoU, LFD; then unseen silhouettes
+    ("Chamfer-L1", "CD-L1 ×100", 100.0, 2),
+    ("F-score 1%", "F-score 1% ×100", 100.0, 1),
+    ("normal consistency", "NC", 1.0, 3),
+    ("volumetric IoU", "vol. IoU", 1.0, 3),
+    ("LFD", "LFD", 1.0, 0),
+    ("silhouette IoU", "unseen sil. IoU", 1.0, 3),
+)
+
+
+def _cell(value: float | None, scale: float, digits: int) -> str:
+    return "n/a" if value is None else f"{value * scale:,.{digits}f}"
+
+
+def markdown(results: dict) -> str:
+    """docs/single_view.md's tables from a results.json: the paper's form pooled over seeds,
+    per family and per seed, and the shares of test shapes where each DR-KFS network is
+    closer than each baseline (bench/check_results.py checks the docs hold them)."""
+    names = results["plan"]["losses"]
+    header = "| loss | " + " | ".join(c[1] for c in COLUMNS) + " |"
+    rule = "|---|" + "---:|" * len(COLUMNS)
+    blocks = []
+    means = results["means"]
+    pooled = means["pooled"]
+    for title, rows in (
+        ("pooled over seeds, all families", [(n, pooled["mean"][n]) for n in names]),
+        *(
+            (f"pooled over seeds, {family}", [(n, pooled[family][n]) for n in names])
+            for family in pooled if family != "mean"
+        ),
+        *(
+            (f"{seed}, all families", [(n, means[seed]["mean"][n]) for n in names])
+            for seed in results["tables"]
+        ),
+    ):  # fmt: skip
+        lines = [f"**{title}**", "", header, rule]
+        for name, row in rows:
+            cells = " | ".join(_cell(row[m], s, d) for m, _, s, d in COLUMNS)
+            lines.append(f"| {name} | {cells} |")
+        blocks.append("\n".join(lines))
+    share_lines = [
+        "| DR-KFS network | against | " + " | ".join(c[1] for c in COLUMNS) + " |",
+        "|---|---|" + "---:|" * len(COLUMNS),
+    ]
+    for drkfs, against in results["shares"]["pooled"].items():
+        for baseline, row in against.items():
+            cells = " | ".join(
+                "n/a" if row[m]["share"] is None else f"{row[m]['wins']}/{row[m]['cells']}"
+                for m, *_ in COLUMNS
+            )
+            share_lines.append(f"| {drkfs} | {baseline} | {cells} |")
+    blocks.append("\n".join(share_lines))
+    return "\n\n".join(blocks) + "\n"
