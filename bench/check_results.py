@@ -4,8 +4,9 @@ the committed rows it came from, or holds the code's choices to the study that m
     python bench/check_results.py [--root DIR]
 
 Prints one line a check ("ok", or "FAILED" with the reason) and exits 1 when any failed. These
-checks read only committed files (bench/fit, bench/fit-network, bench/results, the README); the
-tests run the script (tests/test_check_results.py).
+checks read only committed files (bench/fit, bench/fit-network, bench/single_view,
+bench/results, the README, docs/single_view.md); the tests run the script
+(tests/test_check_results.py).
 """
 
 from __future__ import annotations
@@ -20,6 +21,8 @@ from pathlib import Path
 from score_scale import markdown, scale
 from studies.losses import CHAMFER, FORMS, PIXEL, SHIPPED, with_chamfer
 from studies.network import FULL, choose_loss
+from studies.single_view import Shape, summarise, validation_choice
+from studies.single_view import markdown as single_view_tables
 
 from drkfs_onnx.judging.judges import VISUAL
 from drkfs_onnx.judging.rule import brief_share, chamfer_ratios, share
@@ -130,6 +133,23 @@ def network_studies_shares_recompute(root: Path) -> None:
                     assert got[key] == brief_share(merged, name, against, VISUAL), (path, name)
 
 
+def single_view_study_recomputes_and_the_doc_holds_its_tables(root: Path) -> None:
+    """The single-view study's means, shares and goal recompute from its per-seed tables, its
+    combination is validation's choice, and docs/single_view.md holds its tables."""
+    results = _json(root, "bench/single_view/results.json")
+    tables = {int(seed.split()[1]): table for seed, table in results["tables"].items()}
+    # summarise reads the test shapes' names and families ("chair 5500"): the tables' own
+    test_set = [Shape(n, n.split()[0], None, None) for n in next(iter(tables.values()))]
+    again = summarise(tables, test_set, results["plan"]["losses"])
+    for key in ("means", "shares", "goal"):
+        assert again[key] == results[key], f"results.json's {key} do not recompute"
+    validation = results["validation"]
+    if validation.get("table"):
+        assert validation_choice(validation["table"])["chosen"] == validation["chosen"]
+    doc = (root / "docs/single_view.md").read_text()
+    assert single_view_tables(results) in doc, "docs/single_view.md's tables differ"
+
+
 def readme_score_scale_is_the_benchmarks(root: Path) -> None:
     """The README's table of what a score means is bench/score_scale.py's, from the committed
     benchmark."""
@@ -144,6 +164,7 @@ CHECKS: list[Callable[[Path], str | None]] = [
     network_plan_chooses_between_the_loss_studys_two_best,
     candidates_stand_beside_their_studies,
     network_studies_shares_recompute,
+    single_view_study_recomputes_and_the_doc_holds_its_tables,
     readme_score_scale_is_the_benchmarks,
 ]
 
