@@ -302,21 +302,24 @@ def reconstruct(model: ShapeGenerator, views: torch.Tensor, azimuths: list[int])
     return model(images).double().cpu().numpy()
 
 
-def input_azimuths(shapes: list[Shape], plan: Plan) -> list[int]:
+def input_azimuths(shapes: list[Shape]) -> list[int]:
     """Each judged shape's input view, a held-out azimuth, turning with the shape's index."""
     return [HELD_OUT_AZIMUTHS[i % len(HELD_OUT_AZIMUTHS)] for i in range(len(shapes))]
 
 
-def judge_all(judge: Judge, models: dict, shapes, views, plan: Plan, progress) -> dict:
-    """shape -> loss -> judged row, each model's reconstruction from the shape's input view."""
-    azimuths = input_azimuths(shapes, plan)
+def judge_all(judge: Judge, models: dict, shapes, views, targets: dict, progress) -> dict:
+    """shape -> loss -> judged row, each model's reconstruction from the shape's input view.
+    ``targets`` (shape name -> the judge's prepared truth) keeps each truth prepared once
+    across calls: LFD describes a mesh in seconds."""
+    azimuths = input_azimuths(shapes)
     faces = next(iter(models.values())).faces.cpu().numpy()
     predictions = {n: reconstruct(m, views, azimuths) for n, m in models.items()}
     table = {}
     for i, shape in enumerate(shapes):
-        target = judge.prepare(shape.verts, shape.faces)
+        if shape.name not in targets:
+            targets[shape.name] = judge.prepare(shape.verts, shape.faces)
         table[shape.name] = {
-            name: judge.compare(judge.prepare(verts[i], faces), target)
+            name: judge.compare(judge.prepare(verts[i], faces), targets[shape.name])
             for name, verts in predictions.items()
         }
         progress(f"{shape.name}: " + "; ".join(
@@ -456,11 +459,12 @@ def run_single_view(
             trained(seed, recipe)
     recipes = [*BASELINES, DRKFS_RECIPES[0]]
     judge = Judge(PipelineConfig(), threads, plan.unseen_views, plan.lfd, image_judges=False)
+    truths: dict = {}  # every shape's prepared truth, validation's and test's
 
     def judged(names: list[str]) -> dict[int, dict]:
         return {
             seed: judge_all(judge, {n: trained(seed, by_name(n)) for n in names}, test_set,
-                            views["test"], plan, progress)
+                            views["test"], truths, progress)
             for seed in seeds
         }  # fmt: skip
 
@@ -519,7 +523,7 @@ def run_single_view(
         progress("validation shapes:")
         validation = judge_all(
             judge, {r.name: trained(first, r) for r in candidates}, validation_set,
-            views["validation"], plan, progress,
+            views["validation"], truths, progress,
         )  # fmt: skip
         choice = {**validation_choice(validation), "table": validation}
         progress(f"validation chose {choice['chosen']}")
@@ -545,10 +549,11 @@ def judge_saved(out: Path, test_seed: int, threads: int = 2, progress=print) -> 
     networks = Networks(out / "networks", plan, torch.device("cpu"))
     names = study["plan"]["losses"]
     judge = Judge(PipelineConfig(), threads, plan.unseen_views, plan.lfd, image_judges=False)
+    truths: dict = {}
     try:
         tables = {
             seed: judge_all(judge, {n: networks.get(seed, n, any_key=True)["model"] for n in names},
-                            test_set, views, plan, progress)
+                            test_set, views, truths, progress)
             for seed in study["plan"]["seeds"]
         }  # fmt: skip
     finally:
@@ -568,7 +573,7 @@ def draw_gallery(out, plan, networks, seed, names, test_set, views) -> None:
     """OUT/gallery.png: the first test shape of each family, its input image (grey above
     alpha), each loss's reconstruction at ``seed`` and the truth, from the gallery's cameras."""
     picked = [i for i, s in enumerate(test_set) if i % plan.test_per_family == 0]
-    azimuths = input_azimuths(test_set, plan)
+    azimuths = input_azimuths(test_set)
     faces = ShapeGenerator(CHANNELS, IMAGE_SIZE).faces.numpy()
     predictions = {n: reconstruct(networks.get(seed, n)["model"], views, azimuths) for n in names}
     rows = []
