@@ -40,9 +40,9 @@ from studies.views import AZIMUTHS, CHANNELS, ELEVATION, IMAGE_SIZE, VIEW_CONFIG
 from typer.testing import CliRunner
 
 from drkfs_onnx.benchmark.point_metrics import is_watertight
-from drkfs_onnx.cameras import Cameras, look_at
+from drkfs_onnx.contract.cameras import Cameras, look_at
 from drkfs_onnx.metric import DRKFS
-from drkfs_onnx.render import Renderer
+from drkfs_onnx.render.renderer import Renderer
 
 
 def test_the_generator_starts_as_a_sphere_every_vertex_can_leave_and_every_weight_learns():
