@@ -59,7 +59,7 @@ from studies.study import (
     pair_shares,
 )
 
-from drkfs_onnx.config import PipelineConfig
+from drkfs_onnx.contract.config import PipelineConfig
 from drkfs_onnx.judging.judges import Judge
 from drkfs_onnx.judging.rule import chamfer_ratios
 from drkfs_onnx.synthetic.shapes import FAMILIES

@@ -22,7 +22,7 @@ import torch
 from studies.losses import Terms, alone
 from studies.study import FULL, QUICK_STUDY, Fitter, average_ranks, load_problem
 
-from drkfs_onnx.config import PipelineConfig
+from drkfs_onnx.contract.config import PipelineConfig
 from drkfs_onnx.judging.judges import Judge
 from drkfs_onnx.metric import DRKFS
 from drkfs_onnx.synthetic.shapes import FAMILIES

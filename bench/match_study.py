@@ -20,7 +20,6 @@ from pathlib import Path
 
 import numpy as np
 
-from drkfs_onnx import match_rules
 from drkfs_onnx.benchmark import sets
 from drkfs_onnx.benchmark.human import SETTINGS, add_human, human_agreement
 from drkfs_onnx.benchmark.methods import DrkfsOnnx, Method, Placed, Surface, _timed
@@ -31,7 +30,8 @@ from drkfs_onnx.benchmark.run import (
     tier_accuracy,
     verdict,
 )
-from drkfs_onnx.config import PipelineConfig
+from drkfs_onnx.contract import match_rules
+from drkfs_onnx.contract.config import PipelineConfig
 from drkfs_onnx.runtime.match import best_matches
 from drkfs_onnx.runtime.scorer import Scorer
 

@@ -32,8 +32,8 @@ from onnxruntime.quantization.shape_inference import quant_pre_process
 from score import CASES, ROOT, _best  # bench/score.py: the same meshes and timer
 
 from drkfs_onnx import PipelineConfig, check_mesh, load_mesh
-from drkfs_onnx.mesh import frame_of, place
-from drkfs_onnx.model_files import features_file
+from drkfs_onnx.contract.mesh import frame_of, place
+from drkfs_onnx.contract.model_files import features_file
 from drkfs_onnx.runtime import Scorer
 from drkfs_onnx.runtime.render import NumpyRenderer
 from drkfs_onnx.synthetic.shapes import FAMILIES, assemble, random_shape

@@ -22,12 +22,12 @@ from pathlib import Path
 
 import numpy as np
 
-from drkfs_onnx import match_rules
 from drkfs_onnx.benchmark import human, sets
 from drkfs_onnx.benchmark.methods import DrkfsOnnx, Placed
 from drkfs_onnx.benchmark.run import TIER_PAIRS, tier_accuracy
-from drkfs_onnx.config import PipelineConfig
-from drkfs_onnx.mesh import frame_of, place
+from drkfs_onnx.contract import match_rules
+from drkfs_onnx.contract.config import PipelineConfig
+from drkfs_onnx.contract.mesh import frame_of, place
 from drkfs_onnx.runtime.match import best_matches
 
 DEFAULT = PipelineConfig()

@@ -9,7 +9,7 @@ is the row sigma 1e-4, gamma 0.1.
 
 from __future__ import annotations
 
-from drkfs_onnx.config import PipelineConfig
+from drkfs_onnx.contract.config import PipelineConfig
 from drkfs_onnx.metric import DRKFS
 from drkfs_onnx.training.metric_stage import benchmark_rows_script
 

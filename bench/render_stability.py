@@ -16,8 +16,9 @@ from pathlib import Path
 import torch
 
 from drkfs_onnx import PipelineConfig
-from drkfs_onnx.mesh import normalize_pair
-from drkfs_onnx.render import Renderer
+from drkfs_onnx.contract.mesh import normalize_pair
+from drkfs_onnx.render.renderer import Renderer
+from drkfs_onnx.render.torch_ops import TORCH_OPS
 from drkfs_onnx.synthetic.examples import REFERENCE, example_meshes
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -34,7 +35,8 @@ def main() -> None:
     ref_verts = torch.tensor(reference.vertices, dtype=torch.float32)
 
     def render(mesh) -> torch.Tensor:
-        verts, _ = normalize_pair(torch.tensor(mesh.vertices, dtype=torch.float32), ref_verts)
+        verts = torch.tensor(mesh.vertices, dtype=torch.float32)
+        verts, _ = normalize_pair(verts, ref_verts, ops=TORCH_OPS)
         with torch.no_grad():
             return renderer.render(verts, torch.tensor(mesh.faces))
 

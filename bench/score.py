@@ -69,12 +69,12 @@ def _nearest_search(queries: np.ndarray, targets: np.ndarray, repeats: int) -> d
     """Seconds of the nearest search alone, by the Scorer's numpy search and by the exported
     match graph in onnxruntime (both return each query's nearest target), and of the float32
     product of the two sets alone: the search's floor with this BLAS."""
-    from drkfs_onnx.runtime.nearest import lift, nearest_indices
+    from drkfs_onnx.runtime.nearest import lift, nearest_lifted
     from drkfs_onnx.runtime.sessions import open_match
 
     graph = open_match(threads=2).session
     lifted = lift(targets)  # cached per reference mesh by the Scorer
-    numpy_s, by_numpy = _best(lambda: nearest_indices(queries, lifted), repeats)
+    numpy_s, by_numpy = _best(lambda: nearest_lifted(queries, lifted), repeats)
     onnx_s, (by_graph,) = _best(lambda: graph.run(None, {"a": queries, "b": targets}), repeats)
     product_s, _ = _best(lambda: queries @ targets.T, repeats)
     return {
@@ -106,7 +106,7 @@ def _chamfer(mesh, other, repeats: int) -> dict:
 
 def run_case(path: Path, preset: str, repeats: int) -> dict:
     from drkfs_onnx import PipelineConfig, load_mesh
-    from drkfs_onnx.mesh import place
+    from drkfs_onnx.contract.mesh import place
     from drkfs_onnx.runtime import Scorer
 
     config = PipelineConfig.paper() if preset == "paper" else PipelineConfig()
@@ -133,7 +133,7 @@ def run_case(path: Path, preset: str, repeats: int) -> dict:
     import torch
 
     from drkfs_onnx import DRKFS
-    from drkfs_onnx.matching import match_score
+    from drkfs_onnx.match import match_score
 
     torch.set_num_threads(2)
     metric = DRKFS.pretrained(config)

@@ -5,6 +5,8 @@ with each loss at several seeds, judged on held-out shapes and views by metrics 
     python bench/single_view.py --quick                      # seconds: the tests' plan
     python bench/single_view.py --out bench/single_view      # the study (resumable)
     python bench/single_view.py --out bench/single_view --test-seeds 6000   # other test shapes
+    python bench/single_view.py --out bench/single_view --steps 400 --seeds 0 \
+        --losses "SoftRas (silhouette IoU),DR-KFS"                          # more steps
 
 Output: runs/single-view unless --out says otherwise.
 """
@@ -41,12 +43,35 @@ def single_view(
             show_default=False,
         ),
     ] = None,
+    steps: Annotated[
+        int | None,
+        typer.Option(
+            help="Train --losses at the first of --seeds for this many steps (networks beside "
+            "the study's in OUT) and judge them beside the study's networks (writes "
+            "OUT/longer-<steps>-steps.json).",
+            show_default=False,
+        ),
+    ] = None,
+    losses: Annotated[
+        str, typer.Option(help="With --steps: the losses, by name, comma-separated.")
+    ] = "SoftRas (silhouette IoU),DR-KFS",
 ) -> None:
     """Train SoftRas' shape generator with each loss and judge the reconstructions."""
-    from studies.single_view import judge_saved, run_single_view
+    from studies.single_view import judge_saved, run_longer, run_single_view
 
     progress = lambda line: typer.echo(line, err=True)  # noqa: E731
     out = out or RUNS / "single-view"
+    if steps is not None:
+        seed = int(seeds.split(",")[0])
+        try:
+            results = run_longer(
+                out, steps, losses.split(","), seed, quick, device, threads, progress
+            )
+        except ValueError as error:
+            raise typer.BadParameter(str(error), param_hint="--losses") from None
+        for name, row in results["means"]["mean"].items():
+            typer.echo(f"{name}: LFD {row['LFD']:.0f}, Chamfer-L1 {row['Chamfer-L1']:.4f}")
+        return
     if test_seeds is not None:
         results = judge_saved(out, test_seeds, threads, progress)
     else:

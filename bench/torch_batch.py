@@ -138,9 +138,10 @@ def before_tree(folder: Path, archive: Path | None) -> Path | None:
 BATCHED = """
 import json, os, threading, time, warnings
 TOP_OPS = 15
-from drkfs_onnx.batch import MeshBatch
-from drkfs_onnx.mesh import place_by
-from drkfs_onnx.rasterize import PairPlan
+from drkfs_onnx.render.mesh_batch import MeshBatch
+from drkfs_onnx.contract.mesh import place_by
+from drkfs_onnx.render.torch_ops import TORCH_OPS
+from drkfs_onnx.render.pair_plan import PairPlan
 
 def sync():
     if DEVICE == "cuda":
@@ -204,7 +205,7 @@ if DEVICE == "cuda":
                          "device_seconds": e.self_device_time_total / 1e6} for e in ops]
 stage = loss.metrics[loss.stage(PROGRESS)]
 with torch.no_grad():
-    placed = place_by(preds, "joint", target[loss.stage(PROGRESS)].frame)
+    placed = place_by(preds, "joint", target[loss.stage(PROGRESS)].frame, TORCH_OPS)
     _, screen = stage.renderer.screen(MeshBatch.of(placed, faces))
     found["pairs_enumerated"] = PairPlan(screen, stage.config).num_pairs()
     found["pairs_kept"] = len(stage.renderer.rasterize(placed, faces).pixel)

@@ -24,8 +24,9 @@ from studies.network import loss_step_case
 
 from drkfs_onnx import DRKFS, PipelineConfig, load_mesh
 from drkfs_onnx.benchmark.torch_checks import agreement, value_and_gradient
+from drkfs_onnx.contract.mesh import normalize_pair
 from drkfs_onnx.loss import DrkfsLoss
-from drkfs_onnx.mesh import normalize_pair
+from drkfs_onnx.render.torch_ops import TORCH_OPS
 
 sys.path.insert(0, str(Path(__file__).parent))
 from torch_metric import MESHES, _timed  # noqa: E402
@@ -110,7 +111,8 @@ def scoring(meshes: Path, repeats: int) -> list[dict]:
         faces = torch.tensor(mesh.faces)
         generator = torch.Generator().manual_seed(0)
         noise = torch.randn(reference.shape, generator=generator)
-        prediction, _ = normalize_pair(reference + 0.005 * reference.abs().max() * noise, reference)
+        noisy = reference + 0.005 * reference.abs().max() * noise
+        prediction, _ = normalize_pair(noisy, reference, ops=TORCH_OPS)
         cpu = on("cpu", prediction, reference, faces)
         torch.cuda.reset_peak_memory_stats()
         cuda = on("cuda", prediction, reference, faces)

@@ -56,7 +56,8 @@ def run_case(mesh_name: str, width: float, repeats: int, profile: bool) -> dict:
     import torch
 
     from drkfs_onnx import DRKFS, PipelineConfig, load_mesh
-    from drkfs_onnx.mesh import normalize_pair
+    from drkfs_onnx.contract.mesh import normalize_pair
+    from drkfs_onnx.render.torch_ops import TORCH_OPS
 
     baseline_mb = _rss_mb()
     mesh = load_mesh(MESHES / mesh_name)
@@ -67,7 +68,7 @@ def run_case(mesh_name: str, width: float, repeats: int, profile: bool) -> dict:
     faces = torch.tensor(mesh.faces)
     generator = torch.Generator().manual_seed(0)
     pred = ref + 0.005 * ref.abs().max() * torch.randn(ref.shape, generator=generator)
-    placed, _ = normalize_pair(pred, ref)
+    placed, _ = normalize_pair(pred, ref, ops=TORCH_OPS)
 
     def render_forward():
         with torch.no_grad():
@@ -182,7 +183,7 @@ def run_dense_comparison(repeats: int) -> dict:
     from dense_reference import dense_render
 
     from drkfs_onnx import PipelineConfig
-    from drkfs_onnx.render import Renderer
+    from drkfs_onnx.render.renderer import Renderer
 
     config = PipelineConfig.paper(num_views=4, image_size=64)
     sphere = trimesh.creation.icosphere(subdivisions=3, radius=0.8)

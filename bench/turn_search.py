@@ -26,8 +26,8 @@ import numpy as np
 from drkfs_onnx.benchmark import sets
 from drkfs_onnx.benchmark.methods import DrkfsOnnx, Placed
 from drkfs_onnx.benchmark.run import TIER_PAIRS, tier_accuracy
-from drkfs_onnx.config import PipelineConfig
-from drkfs_onnx.mesh import frame_of, place
+from drkfs_onnx.contract.config import PipelineConfig
+from drkfs_onnx.contract.mesh import frame_of, place
 from drkfs_onnx.synthetic.variants import rotation_y
 
 TURN_SETS = {  # name -> degrees about the vertical

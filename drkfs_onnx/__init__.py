@@ -1,14 +1,14 @@
 """DR-KFS: a differentiable visual similarity metric for 3D shapes.
 
 The package root imports no torch, so the server runtime (``drkfs_onnx.runtime``) stays
-torch-free; ``drkfs_onnx.DRKFS`` loads the torch path on first use.
+torch-free; ``drkfs_onnx.DRKFS`` and ``drkfs_onnx.MeshBatch`` load the torch path on first use.
 """
 
-from .config import PipelineConfig
-from .mesh import Mesh, MeshError, check_mesh, load_mesh
+from .contract.config import PipelineConfig
+from .contract.mesh import Mesh, MeshError, check_mesh, load_mesh
 
 __version__ = "0.1.0"
-__all__ = ["DRKFS", "Mesh", "MeshError", "PipelineConfig", "check_mesh", "load_mesh"]
+__all__ = ["DRKFS", "Mesh", "MeshBatch", "MeshError", "PipelineConfig", "check_mesh", "load_mesh"]
 
 
 def __getattr__(name: str):
@@ -16,4 +16,8 @@ def __getattr__(name: str):
         from .metric import DRKFS
 
         return DRKFS
+    if name == "MeshBatch":
+        from .render.mesh_batch import MeshBatch
+
+        return MeshBatch
     raise AttributeError(f"module 'drkfs_onnx' has no attribute {name!r}")

@@ -10,9 +10,7 @@ from typing import Annotated
 
 import typer
 
-from .config import PipelineConfig
-from .mesh import MeshError, load_mesh
-from .options import (
+from .contract.cli_options import (
     Direction,
     Matching,
     Normalize,
@@ -22,6 +20,8 @@ from .options import (
     Window,
     pick_config,
 )
+from .contract.config import PipelineConfig
+from .contract.mesh import MeshError, load_mesh
 from .synthetic.examples import REFERENCE, example_meshes, write_examples
 
 app = typer.Typer(help="DR-KFS visual similarity of 3D meshes (torch path).", no_args_is_help=True)

@@ -1,15 +1,16 @@
 """The geometry terms a training loop puts beside DR-KFS: surface samples, Chamfer distance and
-smoothness, batched like the loss (``batch.MeshBatch``) and made on the input's device.
+smoothness, batched like the loss (``render.mesh_batch.MeshBatch``) and made on the input's
+device.
 
     points = surface_points(pred_verts, faces, 2000, generator)  # (B, 2000, 3)
-    value = chamfer(points, truth_points)  # mean over the batch; reduction="none" -> (B,)
+    value = chamfer(points, truth_points)  # mean over the batch; batch_reduction="none" -> (B,)
 """
 
 from __future__ import annotations
 
 import torch
 
-from .batch import MeshBatch, over_batch
+from .render.mesh_batch import MeshBatch, over_batch
 
 NORMS = (1, 2)
 
@@ -17,14 +18,20 @@ NORMS = (1, 2)
 def surface_points(
     verts, faces, count: int, generator: torch.Generator | None = None
 ) -> torch.Tensor:
-    """Points drawn uniformly by area: one (V, 3) mesh -> (count, 3); a batch (any form
-    ``MeshBatch.of`` takes) -> (B, count, 3).
+    """Points drawn uniformly by area on a mesh's surface.
 
-    Differentiable with respect to the vertices through the barycentric combination; which
-    face a point lands on is a draw, not a function of the vertices (every face alike on a
-    mesh with no area: a prediction collapsed to a point). The draws come from
-    ``generator`` (torch's default on the vertices' device when None), on whatever device it
-    lives; the points are on the vertices' device.
+    Args:
+        verts, faces: one mesh, (V, 3) and (F, 3), or a batch (any form ``MeshBatch.of``
+            takes).
+        count: points per mesh.
+        generator: the draws' source, on whatever device it lives; torch's default on the
+            vertices' device when None.
+
+    Returns:
+        (count, 3) for one mesh, (B, count, 3) for a batch, on the vertices' device.
+        Differentiable with respect to the vertices through the barycentric combination;
+        which face a point lands on is a draw, not a function of the vertices (every face
+        alike on a mesh with no area: a prediction collapsed to a point).
     """
     meshes = MeshBatch.of(verts, faces)
     corners = torch.take_along_dim(meshes.verts[:, :, None], meshes.faces[..., None], dim=1)
@@ -47,14 +54,20 @@ def surface_points(
 
 
 def chamfer(
-    points: torch.Tensor, targets: torch.Tensor, norm: int = 2, reduction: str = "mean"
+    points: torch.Tensor, targets: torch.Tensor, norm: int = 2, batch_reduction: str = "mean"
 ) -> torch.Tensor:
-    """Chamfer distance: the mean distance to the nearest point, both ways, summed.
+    """Chamfer distance: the mean distance to the nearest point, both ways, summed. Builds the
+    (N, M) distance matrix of each mesh, as ``torch.cdist`` does.
 
-    (N, 3), (M, 3) -> (); a batch (B, N, 3) against (B, M, 3) or one shared (M, 3) -> reduced
-    over the batch by ``reduction`` ('mean', 'sum', or 'none': (B,)). ``norm`` 2 takes squared
-    distances (Chamfer-L2, the loss of Pixel2Mesh and PyTorch3D); 1 Euclidean ones (Chamfer-L1).
-    Builds the (N, M) distance matrix of each mesh, as ``torch.cdist`` does.
+    Args:
+        points: (N, 3), or a batch's (B, N, 3).
+        targets: (M, 3), shared by a batch, or one each (B, M, 3); on the points' device.
+        norm: 2 takes squared distances (Chamfer-L2, the loss of Pixel2Mesh and PyTorch3D),
+            1 Euclidean ones (Chamfer-L1).
+        batch_reduction: a batch's values' 'mean', 'sum', or 'none'.
+
+    Returns:
+        () for one cloud; a batch's () mean or sum, or its (B,) values.
     """
     if norm not in NORMS:
         raise ValueError(f"unknown norm {norm!r}; use 1 (Euclidean) or 2 (squared)")
@@ -80,15 +93,20 @@ def chamfer(
     if norm == 1:  # sqrt kept off 0, where its slope is infinite
         near_a, near_b = near_a.clamp_min(1e-12).sqrt(), near_b.clamp_min(1e-12).sqrt()
     values = near_a.mean(-1) + near_b.mean(-1)
-    return over_batch(values, single, reduction)
+    return over_batch(values, single, batch_reduction)
 
 
 class Smoothness:
     """How far a deformed template's offsets are from smooth: mean squared uniform Laplacian
     of (verts - template), so sharp edges the template already has cost nothing.
 
-    ``Smoothness(template (V, 3), faces (F, 3))(verts (V, 3) or (B, V, 3)) -> ()``, the mean
-    over a batch; its tables live on the template's device (``to(device)`` moves them).
+    Args:
+        template: (V, 3) the undeformed vertices; the tables live on its device
+            (``to(device)`` moves them).
+        faces: (F, 3) the template's faces.
+
+    Shape:
+        - call: verts (V, 3) or a batch's (B, V, 3) -> (), the mean over the batch.
     """
 
     def __init__(self, template: torch.Tensor, faces: torch.Tensor):

@@ -5,9 +5,9 @@
     value = loss(pred_verts, pred_faces, target, progress=step / steps)
 
 A batch is one call: predictions as (B, V, 3) vertices with one (F, 3) face tensor, or meshes
-of different sizes (lists, or PyTorch3D-like ``Meshes``; ``batch.MeshBatch``), against one
-shared target or a batch of B targets prepared at once (``loss.target(truths_verts,
-truths_faces)``); ``reduction`` is 'mean' (default), 'sum' or 'none' ((B,) values).
+of different sizes (lists, or PyTorch3D-like ``Meshes``; ``render.mesh_batch.MeshBatch``),
+against one shared target or a batch of B targets prepared at once (``loss.target(truths_verts,
+truths_faces)``); ``batch_reduction`` is 'mean' (default), 'sum' or 'none' ((B,) values).
 
 Early in training (``progress`` below a stage's ``until``) the views are fewer pixels, more
 cameras and a softer renderer, so a patch sees a larger part of the shape and a silhouette
@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import torch
 from torch import nn
 
-from .config import PipelineConfig
+from .contract.config import PipelineConfig
 from .metric import DRKFS, Target, with_nets
 
 
@@ -70,14 +70,24 @@ class StagedTarget(tuple):
 
 
 class DrkfsLoss(nn.Module):
-    """DR-KFS of predictions against prepared ground truths, stage by stage.
+    """DR-KFS of predictions against prepared ground truths, stage by stage; build it with
+    ``pretrained`` (the shipped nets) or ``from_nets``.
 
-    ``target(verts, faces) -> StagedTarget`` (one ``Target`` per stage) and ``forward(verts,
-    faces, target, progress=1.0, reduction='mean')``, differentiable with respect to ``verts``:
-    one (V, 3) mesh -> (); a batch (any form ``MeshBatch.of`` takes) -> its mean, sum or (B,)
-    values. ``progress`` in [0, 1] is how far training has come (1: the last stage). The stages'
-    metrics are a ``ModuleList``, their cameras and match tables buffers: ``.to()``,
-    ``.cuda()`` and ``state_dict()`` behave as for any module.
+    Args:
+        metrics: one ``DRKFS`` per stage, at the stage's config.
+        stages: each stage's config and the ``progress`` it runs until (the last to 1.0).
+        soft: soft best matches whose temperature falls with ``progress``, or None (hard).
+
+    Shape:
+        - target(verts (V, 3), faces (F, 3)) -> ``StagedTarget``, one ``Target`` per stage; a
+          batch of B truths (any form ``MeshBatch.of`` takes) -> B targets, one per prediction.
+        - forward(verts, faces, target, progress=1.0, batch_reduction='mean'): verts (V, 3) and
+          faces (F, 3), or a batch; ``progress`` in [0, 1] is how far training has come.
+        - output: () for one mesh; a batch's () mean or sum, or its (B,) values ('none').
+          Differentiable with respect to ``verts``.
+
+    The stages' metrics are a ``ModuleList``, their cameras and match tables buffers:
+    ``.to()``, ``.cuda()`` and ``state_dict()`` behave as for any module.
     """
 
     def __init__(self, metrics: list[DRKFS], stages: tuple[Stage, ...], soft: SoftMatch | None):
@@ -132,7 +142,7 @@ class DrkfsLoss(nn.Module):
         faces,
         target: StagedTarget | list[Target],
         progress: float = 1.0,
-        reduction: str = "mean",
+        batch_reduction: str = "mean",
     ) -> torch.Tensor:
         staged = isinstance(target, (list, tuple)) and not isinstance(target, Target)
         if not (staged and len(target) == len(self.stages)
@@ -143,4 +153,5 @@ class DrkfsLoss(nn.Module):
             )
         index = self.stage(progress)
         temperature = None if self.soft is None else self.soft.temperature(progress)
-        return self.metrics[index].score_to(verts, faces, target[index], reduction, temperature)
+        metric = self.metrics[index]
+        return metric.score_to(verts, faces, target[index], batch_reduction, temperature)

@@ -10,26 +10,24 @@ from typing import NamedTuple
 import torch
 from torch import nn
 
-from . import match_rules
-from .batch import MeshBatch, over_batch
-from .config import PipelineConfig
-from .detector import PoIDetector
-from .hardnet import HardNet
-from .matching import best_match_distances, match_score, window_index
-from .mesh import Mesh, check_normalization, normalize_pair, place_by, reference_frame
-from .patches import nonempty_patches, select_patches
-from .precision import check_conv_precision, conv_precision
-from .render import Renderer, RenderMode
-from .weights import RANDOM_SEED, load_shipped_state
+from .contract import match_rules
+from .contract.config import PipelineConfig
+from .contract.mesh import Mesh, check_normalization, normalize_pair, place_by, reference_frame
+from .match import best_match_distances, match_score, window_index
+from .nets.detector import PoIDetector
+from .nets.hardnet import HardNet
+from .nets.patches import nonempty_patches_on_device, select_patches
+from .nets.precision import check_conv_precision, conv_precision
+from .nets.weights import RANDOM_SEED, load_shipped_state
+from .render.mesh_batch import MeshBatch, over_batch
+from .render.renderer import Renderer, RenderMode
+from .render.torch_ops import TORCH_OPS
 
-# HardNet's patches per call on a CPU: a group's activations (about 70 KB a patch at width 0.5)
-# stay in a 32 MB cache; the whole batch's did not, and its backward ran 1.5-2x slower a patch.
-# At 256 the fine stage's step at B = 32 read 8.5-10.6 s against 8.2-8.9 s at 128 (alternating
-# runs), its 16 MB gradients more often taking fresh pages from the system
+# HardNet's patches per call on a CPU: a group's activations stay in cache, where the whole
+# batch's do not (docs/design_notes.md)
 CPU_PATCH_GROUP = 128
-# On a GPU: one group of a batch's every patch held each conv's output for all of them at once
-# (the fine stage on an H100: B = 32's peak 3.32 -> 2.32 GB in groups of 2,048, B = 128's
-# 13.3 -> 5.8 GB; 59.3 -> 61.1 ms a step at B = 32, 1,024-4,096 alike)
+# On a GPU: groups bound the peak memory, where one group of a batch's every patch holds each
+# conv's output for all of them at once, at about the same speed (docs/design_notes.md)
 GPU_PATCH_GROUP = 2048
 
 
@@ -78,29 +76,33 @@ class Target(NamedTuple):
 
 
 class DRKFS(nn.Module):
-    """The DR-KFS visual distance between two triangle meshes.
+    """The DR-KFS visual distance between two triangle meshes: render -> describe -> match ->
+    reduce, differentiable with respect to both meshes' vertices.
 
-    ``forward(verts_a (Va, 3), faces_a (Fa, 3), verts_b (Vb, 3), faces_b (Fb, 3)) -> ()`` is
-    differentiable with respect to both vertex tensors. Each side may be a batch of meshes in
-    any form ``MeshBatch.of`` takes (a (B, V, 3) tensor with one (F, 3) face tensor, lists of
-    meshes of different sizes, PyTorch3D-like ``Meshes``): B scores, reduced by ``reduction``
-    ('mean', 'sum', or 'none' for the (B,) scores); a single reference B is shared by a batch
-    of A. The batch's B * K views are rendered, described and matched in one pass each. B is
-    the reference: with
-    ``normalization='joint'`` both meshes are placed by B's bounding box, whichever directions
-    the config's match searches. The config holds every setting of the score (matching,
-    reduction, direction); ``PipelineConfig.paper()`` is the paper's recipe.
+    Args:
+        config: every number of the score (cameras, renderer, nets, match, reduction);
+            ``PipelineConfig()`` by default, ``PipelineConfig.paper()`` the paper's recipe.
+        normalization: 'joint' places both meshes by the reference B's bounding box, 'each'
+            each by its own, 'none' leaves them.
+        conv_precision: the nets' convolutions on a GPU: 'ieee' (float32; a batch's gradient
+            that of the per-mesh loop) or 'tf32' (faster, less exact).
 
-    As a training loss against a fixed ground truth, prepare it once with ``target`` and call
-    ``score_to(verts, faces, target)`` each step: the truth is rendered and described once.
+    Shape:
+        - verts_a, verts_b: (V, 3) one mesh, or a batch in any form ``MeshBatch.of`` takes
+          ((B, V, 3) with shared (F, 3) faces, lists of meshes, PyTorch3D-like ``Meshes``).
+          One reference B is shared by a batch of A.
+        - faces_a, faces_b: (F, 3) int64, or None where the batch form carries its faces.
+        - output: () for one mesh A; for a batch, () under ``batch_reduction`` 'mean' (the
+          default) or 'sum', (B,) under 'none'.
 
-    The detector and descriptor are frozen and always run in evaluation mode; use
-    ``DRKFS.pretrained()`` for the shipped weights. ``conv_precision`` is their convolutions'
-    on a GPU: 'ieee' (float32; a batch's gradient that of the per-mesh loop) or 'tf32'
-    (faster; ``precision.CONV_PRECISIONS`` says by how much and what it costs).
+    The detector and HardNet are frozen and always in evaluation mode: use
+    ``DRKFS.pretrained()`` for the shipped weights. As a training loss against a fixed ground
+    truth, prepare it once (``target``) and call ``score_to`` each step. ``render_mode`` is what
+    the nets see: 'shaded' grey views (the metric), or 'silhouette' in a subclass.
 
-    ``render_mode`` is what the nets see: the grey shaded views (the metric); a subclass may
-    set 'silhouette' (the single-view study's ablation, DR-KFS on silhouettes).
+    Example:
+        >>> metric = DRKFS.pretrained()
+        >>> score = metric(verts_a, faces_a, verts_b, faces_b)  # () tensor
     """
 
     render_mode: RenderMode = "shaded"
@@ -183,7 +185,7 @@ class DRKFS(nn.Module):
     def _describe(self, images: torch.Tensor) -> torch.Tensor:
         dtype = next(self.detector.parameters()).dtype
         images = images.to(dtype)
-        seen = nonempty_patches(images, self.config)
+        seen = nonempty_patches_on_device(images, self.config)
         size = self.config.patch_size
         blank = torch.full(
             (1, 1, size, size), self.config.background, dtype=dtype, device=images.device
@@ -239,8 +241,9 @@ class DRKFS(nn.Module):
         (one per prediction) -> a batched ``Target``. Differentiable like ``forward``; call it
         under ``torch.no_grad()`` for a fixed ground truth."""
         meshes = self._meshes(verts, faces)
-        frame = reference_frame(meshes.verts, self.normalization)
-        features = self._features(meshes.moved(place_by(meshes.verts, self.normalization, frame)))
+        mode = self.normalization
+        frame = reference_frame(meshes.verts, mode, TORCH_OPS)
+        features = self._features(meshes.moved(place_by(meshes.verts, mode, frame, TORCH_OPS)))
         if frame is not None:
             frame = tuple(meshes.unbatch(t) for t in frame)
         return Target(frame, meshes.unbatch(features))
@@ -251,16 +254,26 @@ class DRKFS(nn.Module):
         verts,
         faces,
         target: Target,
-        reduction: str = "mean",
+        batch_reduction: str = "mean",
         temperature: float | None = None,
     ) -> torch.Tensor:
-        """The score of mesh A, (V, 3), (F, 3), against a prepared reference -> (); of a batch,
-        reduced over it by ``reduction`` ('mean', 'sum', or 'none': (B,)). A ``temperature``
-        asks for soft best matches (``matching.soft_match_distances``), a loss form."""
+        """The score of mesh A against a prepared reference.
+
+        Args:
+            verts, faces: mesh A, (V, 3) and (F, 3), or a batch (any form ``MeshBatch.of``
+                takes).
+            target: the reference, from this metric's ``target``.
+            batch_reduction: a batch's scores' 'mean', 'sum', or 'none'.
+            temperature: soft best matches (``match.soft_match_distances``), a loss form;
+                None for the metric's hard ones.
+
+        Returns:
+            () for one mesh; a batch's () mean or sum, or its (B,) scores.
+        """
         meshes = self._meshes(verts, faces)
         features = self._features_to(meshes, target)
         scores = match_score(features, target.features, self.config, temperature, self._table)
-        return over_batch(scores, meshes.single, reduction)
+        return over_batch(scores, meshes.single, batch_reduction)
 
     @property
     def _table(self) -> torch.Tensor | None:
@@ -300,7 +313,7 @@ class DRKFS(nn.Module):
                 f"{len(meshes)} (prepare one reference to share it with a whole batch)"
             )
         return self._features(
-            meshes.moved(place_by(meshes.verts, self.normalization, target.frame))
+            meshes.moved(place_by(meshes.verts, self.normalization, target.frame, TORCH_OPS))
         )
 
     def _check_target(self, target: Target) -> None:
@@ -318,8 +331,11 @@ class DRKFS(nn.Module):
                 "it with target.to(), or prepare it after moving the metric"
             )
 
-    def forward(self, verts_a, faces_a, verts_b, faces_b, reduction: str = "mean") -> torch.Tensor:
-        return self.score_to(verts_a, faces_a, self.target(verts_b, faces_b), reduction)
+    def forward(
+        self, verts_a, faces_a, verts_b, faces_b, batch_reduction: str = "mean"
+    ) -> torch.Tensor:
+        """The score of A against the reference B (the class's Shape)."""
+        return self.score_to(verts_a, faces_a, self.target(verts_b, faces_b), batch_reduction)
 
 
 def with_nets(

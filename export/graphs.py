@@ -8,7 +8,7 @@ import torch
 from torch import nn
 
 from drkfs_onnx.metric import DRKFS
-from drkfs_onnx.patches import select_patches
+from drkfs_onnx.nets.patches import select_patches
 
 
 class FeatureGraph(nn.Module):

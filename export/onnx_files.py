@@ -10,16 +10,16 @@ from pathlib import Path
 import onnx
 import torch
 
-from drkfs_onnx.config import PipelineConfig
-from drkfs_onnx.metric import DRKFS
-from drkfs_onnx.model_files import (
+from drkfs_onnx.contract.config import PipelineConfig
+from drkfs_onnx.contract.model_files import (
     CONFIG_KEY,
     MATCH_FILE,
     VERSION_KEY,
     WEIGHTS_KEY,
     features_file,
+    shipped_weights,
 )
-from drkfs_onnx.weights import shipped_weights
+from drkfs_onnx.metric import DRKFS
 
 from .graphs import FeatureGraph, MatchGraph
 

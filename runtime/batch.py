@@ -14,8 +14,8 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
-from drkfs_onnx.config import PipelineConfig
-from drkfs_onnx.mesh import MeshError
+from drkfs_onnx.contract.config import PipelineConfig
+from drkfs_onnx.contract.mesh import MeshError
 
 from .features import MeshFeatures
 from .scorer import Scorer, reference_of

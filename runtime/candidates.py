@@ -21,11 +21,11 @@ from functools import cached_property
 
 import numpy as np
 
-from drkfs_onnx.config import PipelineConfig
-from drkfs_onnx.render_math import (
+from drkfs_onnx.contract.array_ops import NUMPY_OPS
+from drkfs_onnx.contract.config import PipelineConfig
+from drkfs_onnx.contract.render_equations import (
     DEPTH_CULL,
     LOOSE_RADIUS,
-    NUMPY_OPS,
     TINY_LENGTH,
     background_logit,
     edge_lines,
@@ -116,7 +116,7 @@ def pixel_boxes(params: np.ndarray, visible: np.ndarray, config: PipelineConfig)
 
 
 @dataclass
-class Pairs:
+class CandidatePairs:
     """Listed pairs: flat pixel (view * S * S + row * S + column) and view-face index, the
     float32 logit upper bound (plane depth / gamma), and whether the pair bounds its pixel's
     winning logit from below (``sure``: inside a trusted face)."""
@@ -131,12 +131,14 @@ class Pairs:
         return select(self.logit >= bound[self.pixel] - HIDDEN_BELOW, self.pixel, self.face)
 
     @staticmethod
-    def concat(parts: list[Pairs]) -> Pairs:
+    def concat(parts: list[CandidatePairs]) -> CandidatePairs:
         if not parts:
             empty = np.zeros(0, np.int64)
-            return Pairs(empty, empty, np.zeros(0, np.float32), np.zeros(0, bool))
-        names = [field.name for field in fields(Pairs)]
-        return Pairs(*(np.concatenate([getattr(p, name) for p in parts]) for name in names))
+            return CandidatePairs(empty, empty, np.zeros(0, np.float32), np.zeros(0, bool))
+        names = [field.name for field in fields(CandidatePairs)]
+        return CandidatePairs(
+            *(np.concatenate([getattr(p, name) for p in parts]) for name in names)
+        )
 
 
 def candidate_pairs(
@@ -157,7 +159,7 @@ def candidate_pairs(
     )
     bound = np.full(views * size * size, background_logit(config), dtype=np.float32)
 
-    def raise_bound(pairs: Pairs) -> None:
+    def raise_bound(pairs: CandidatePairs) -> None:
         pixel, logit = select(pairs.sure, pairs.pixel, pairs.logit)
         np.maximum.at(bound, pixel, logit + edge_log_coverage)
 
@@ -219,7 +221,7 @@ def _halve(tiles: np.ndarray) -> np.ndarray:
 
 def _list_pairs(
     ids: np.ndarray, tests: FaceTests, boxes: PixelBoxes, views: int, config: PipelineConfig
-) -> Pairs:
+) -> CandidatePairs:
     """Pairs of faces ``ids`` whose pixel lies within the radius of every edge line, in chunks:
     each box row's columns come as one span, so no pixel outside the span is ever tested."""
     size = config.image_size
@@ -245,8 +247,8 @@ def _list_pairs(
         depth = np.minimum(np.maximum(depth, tests.lowest[pair_face]), tests.highest[pair_face])
         sure = (col >= inner_first[owner]) & (col <= inner_last[owner]) & tests.trusted[pair_face]
         row_start = ((face // faces_per_view) * size + row) * size
-        parts.append(Pairs(row_start[owner] + col, pair_face, depth * inv_gamma, sure))
-    return Pairs.concat(parts)
+        parts.append(CandidatePairs(row_start[owner] + col, pair_face, depth * inv_gamma, sure))
+    return CandidatePairs.concat(parts)
 
 
 def _owners(counts: np.ndarray) -> np.ndarray:

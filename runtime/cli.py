@@ -12,8 +12,7 @@ from typing import Annotated
 
 import typer
 
-from drkfs_onnx.mesh import MeshError
-from drkfs_onnx.options import (
+from drkfs_onnx.contract.cli_options import (
     Direction,
     Matching,
     Normalize,
@@ -24,6 +23,7 @@ from drkfs_onnx.options import (
     Window,
     pick_config,
 )
+from drkfs_onnx.contract.mesh import MeshError
 
 from .batch import RowScorer, ScorerSpec, ray_results, serial_results
 from .output_lock import OutputLocked, output_lock

@@ -10,9 +10,9 @@ from pathlib import Path
 
 import numpy as np
 
-from drkfs_onnx import match_rules
-from drkfs_onnx.config import PipelineConfig
-from drkfs_onnx.mesh import Mesh
+from drkfs_onnx.contract import match_rules
+from drkfs_onnx.contract.config import PipelineConfig
+from drkfs_onnx.contract.mesh import Mesh
 
 from .match import check_features, match, patch_distances
 from .scorer import Scorer

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from drkfs_onnx.config import PipelineConfig
+from drkfs_onnx.contract.config import PipelineConfig
 
 from .nearest import lift, row_hashes
 

@@ -1,15 +1,15 @@
 """The match of two described meshes in numpy: best-match distances per row, reduced into a
-score by the shared contract (``drkfs_onnx.match_rules``)."""
+score by the shared contract (``drkfs_onnx.contract.match_rules``)."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from drkfs_onnx import match_rules
-from drkfs_onnx.config import PipelineConfig
+from drkfs_onnx.contract import match_rules
+from drkfs_onnx.contract.config import PipelineConfig
 
 from .features import MeshFeatures
-from .nearest import exact_copies, nearest_indices
+from .nearest import exact_copies, nearest_lifted
 
 # Query rows per block of window matching: (rows, W, D) float64 differences stay ~10 MiB at W = 9.
 WINDOW_ROWS = 1024
@@ -19,7 +19,7 @@ def global_distances(queries: MeshFeatures, targets: MeshFeatures) -> np.ndarray
     """(R,) squared distance from each of the queries' rows to its nearest target row.
 
     A row with an exact copy among the targets matches at 0 (most rows, for small changes); the
-    others' nearest rows are found in float32 (``nearest_indices``) and the distances to them
+    others' nearest rows are found in float32 (``nearest_lifted``) and the distances to them
     computed in float64.
     """
     rows = queries.rows
@@ -27,7 +27,7 @@ def global_distances(queries: MeshFeatures, targets: MeshFeatures) -> np.ndarray
     rest = np.flatnonzero(~exact_copies(rows, queries.row_hashes, targets.rows, targets.row_hashes))
     if len(rest):
         searched = rows if len(rest) == len(rows) else rows[rest]
-        nearest = targets.rows[nearest_indices(searched, targets.lifted)]
+        nearest = targets.rows[nearest_lifted(searched, targets.lifted)]
         diff = np.subtract(searched, nearest, dtype=np.float64)
         best[rest] = np.einsum("ij,ij->i", diff, diff)
     return best

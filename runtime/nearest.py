@@ -1,9 +1,8 @@
 """Each query descriptor's nearest target, with numpy's BLAS, and its exact copies.
 
-The same float32 ranking as the exported match graph (``models/match.onnx``), which other
-runtimes can use; in onnxruntime on 2 cores the graph is slower (bench/score.py,
-``nearest_search_s``). BLAS threads follow OPENBLAS_NUM_THREADS / OMP_NUM_THREADS, not the
-Scorer's ``threads``.
+The same float32 ranking as the exported match graph (``models/match.onnx``), which other runtimes
+can use; in onnxruntime the graph is slower (bench/score.py, ``nearest_search_s``). BLAS threads
+follow OPENBLAS_NUM_THREADS / OMP_NUM_THREADS, not the Scorer's ``threads``.
 """
 
 from __future__ import annotations
@@ -11,8 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 # Bytes of one block's float32 product: a whole search of up to ~4,000 x 4,000 rows in one BLAS
-# call. Fewer, larger calls were faster than cache-sized blocks (on 2 cores the chair's
-# 2,732 x 2,742 search took 8.9 ms in one block against 10.0 ms in 512-row blocks).
+# call; fewer, larger calls are faster than cache-sized blocks (docs/design_notes.md).
 BLOCK_BYTES = 1 << 26
 HASH_SEED = 20261122
 
@@ -24,7 +22,7 @@ def lift(targets: np.ndarray) -> np.ndarray:
     return np.concatenate([-2.0 * targets, (targets * targets).sum(1, keepdims=True)], axis=1)
 
 
-def nearest_indices(queries: np.ndarray, lifted_targets: np.ndarray) -> np.ndarray:
+def nearest_lifted(queries: np.ndarray, lifted_targets: np.ndarray) -> np.ndarray:
     """(N, D) float32 queries, (M, D + 1) ``lift``-ed targets -> (N,) int64 index of each
     query's nearest target.
 

@@ -1,10 +1,10 @@
 """The torch renderer's evaluation images, in numpy.
 
-The equations are ``drkfs_onnx.render_math``'s, the ones the torch renderer runs (projection,
-coverage and depth, shading, the soft blend, the depth cull), evaluated once without autograd, so
-runtime images equal the torch path's to float rounding. Only the culling is numpy's own: a
-float32 pass (``candidates``) keeps the pixel-face pairs that may be covered and unhidden, and a
-float64 pass computes those exactly, in cache-sized chunks.
+The equations are ``drkfs_onnx.contract.render_equations``', the ones the torch renderer runs
+(projection, coverage and depth, shading, the soft blend, the depth cull), evaluated once
+without autograd, so runtime images equal the torch path's to float rounding. Only the culling
+is numpy's own: a float32 pass (``candidates``) keeps the pixel-face pairs that may be covered
+and unhidden, and a float64 pass computes those exactly, in cache-sized chunks.
 """
 
 from __future__ import annotations
@@ -13,12 +13,12 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
-from drkfs_onnx.cameras import Cameras, make_cameras
-from drkfs_onnx.config import PipelineConfig
-from drkfs_onnx.mesh import has_area
-from drkfs_onnx.render_math import (
+from drkfs_onnx.contract.array_ops import NUMPY_OPS
+from drkfs_onnx.contract.cameras import Cameras, make_cameras
+from drkfs_onnx.contract.config import PipelineConfig
+from drkfs_onnx.contract.mesh import has_area
+from drkfs_onnx.contract.render_equations import (
     DEPTH_CULL,
-    NUMPY_OPS,
     background_logit,
     face_shading,
     pair_logit,
@@ -31,13 +31,12 @@ from drkfs_onnx.render_math import (
 from .candidates import candidate_pairs, select
 
 # Pairs per exact-pass chunk: its float64 temporaries stay in cache, and the chunk is long enough
-# that threads rendering other views seldom wait for the GIL between numpy calls (2 threads:
-# 5-12% faster than 1 << 13; one thread: 2-5% slower).
+# that threads rendering other views seldom wait for the GIL between numpy calls
+# (docs/design_notes.md).
 EXACT_CHUNK = 1 << 14
-# View-faces rendered in one call. Small meshes share a call's fixed cost across views (cow,
-# 6 views: 1.5x faster than a view per call); larger ones render fewer views per call, down to
-# one, so memory follows one view's pixel-face pairs, not all views' (a 500k-face mesh under the
-# paper preset peaked at 6.6 GB with every view in one call, 0.5 GB a view at a time).
+# View-faces rendered in one call. Small meshes share a call's fixed cost across views; larger
+# ones render fewer views per call, down to one, so memory follows one view's pixel-face pairs,
+# not all views' (docs/design_notes.md).
 VIEW_FACES_PER_CALL = 1 << 16
 
 

@@ -15,8 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from drkfs_onnx.config import PipelineConfig
-from drkfs_onnx.mesh import (
+from drkfs_onnx.contract.config import PipelineConfig
+from drkfs_onnx.contract.mesh import (
     Mesh,
     MeshError,
     check_normalization,
@@ -25,7 +25,7 @@ from drkfs_onnx.mesh import (
     load_mesh,
     place,
 )
-from drkfs_onnx.patch_grid import nonempty_patches
+from drkfs_onnx.contract.patch_grid import nonempty_patches
 
 from .features import MeshFeatures
 from .match import check_features, match
@@ -33,9 +33,8 @@ from .render import NumpyRenderer
 from .sessions import open_features
 
 MeshLike = Mesh | str | Path
-# drkfs-score's default bound on a mesh's faces: rendering and describing cost about 0.75 GB
-# and 3.5 s a million faces on 2 cores (the bunny subdivided to 4.4M faces: 3.5 GB peak, 17.6 s;
-# bench/large_mesh.py), so 5M keeps one file under about 4 GB
+# drkfs-score's default bound on a mesh's faces: one file's memory stays under about 4 GB
+# (docs/design_notes.md, bench/large_mesh.py)
 MAX_FACES = 5_000_000
 # meshes with more faces than this say what they are doing before the long part starts
 PROGRESS_FACES = 1_000_000
@@ -57,20 +56,28 @@ def reference_of(path: str | Path) -> Path | MeshFeatures:
 class Scorer:
     """DR-KFS between meshes, scored with onnxruntime; torch is never imported.
 
-    ``score(a, b) -> float`` scores A against the reference B (a mesh, a mesh's path, a
-    features file's path, or B's ``MeshFeatures``: ``MeshFeatures.load("gt.npz")``);
-    ``features(mesh) -> MeshFeatures`` describes a reference once. Descriptors are cached by
-    mesh content (after normalisation) and model hash, so many predictions scored against one
-    ground truth render and describe it once.
+    Args:
+        config: the score's settings; the feature graph must have been exported for them
+            (``ModelMismatch`` otherwise).
+        model: a feature graph's path; None for the shipped one of ``config``.
+        threads: onnxruntime intra-op threads and renderer threads (None: all cores); the
+            match's BLAS threads follow OPENBLAS_NUM_THREADS.
+        normalization: 'joint' (both meshes by the reference's bounding box), 'each', 'none'.
+        view_batch: views per feature-graph run. Memory grows with it, speed does not; the
+            score does not depend on it.
+        cache_size: how many meshes' descriptors are kept, keyed by the placed mesh's content
+            and the model's hash: a ground truth scored against many predictions is described
+            once.
+        max_faces: a mesh with more faces is refused (``MeshError``) before it is rendered;
+            None: no bound.
+        progress: called with a line before and after the work on a mesh of over
+            ``PROGRESS_FACES`` faces.
 
-    threads: onnxruntime intra-op threads and renderer threads (None: all cores); the match's
-    BLAS threads follow OPENBLAS_NUM_THREADS.
-    view_batch: views per feature-graph run (default 1). Memory grows with it (25 views of 256 px
-    at once: 1.8 GB more than one at a time) and speed does not; the score does not depend on it.
-    max_faces: a mesh with more faces is refused (a MeshError) before it is rendered; None: no
-    bound.
-    progress: called with a line before and after the work on a mesh of over PROGRESS_FACES
-    faces.
+    Methods:
+        - ``score(a, b) -> float``: A (a ``Mesh`` or a mesh's path) against the reference B (a
+          mesh, a mesh's path, a features file's path, or ``MeshFeatures``).
+        - ``features(mesh) -> MeshFeatures``: a reference described once; ``save`` it, and
+          score against it later.
     """
 
     def __init__(

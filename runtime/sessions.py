@@ -8,9 +8,14 @@ from pathlib import Path
 
 import onnxruntime as ort
 
-from drkfs_onnx.config import PipelineConfig
-from drkfs_onnx.model_files import CONFIG_KEY, MATCH_FILE, VERSION_KEY, features_file
-from drkfs_onnx.weights import models_dir
+from drkfs_onnx.contract.config import PipelineConfig
+from drkfs_onnx.contract.model_files import (
+    CONFIG_KEY,
+    MATCH_FILE,
+    VERSION_KEY,
+    features_file,
+    models_dir,
+)
 
 
 class ModelMismatch(ValueError):
@@ -18,8 +23,8 @@ class ModelMismatch(ValueError):
 
 
 def session_options(threads: int | None) -> ort.SessionOptions:
-    """Graph optimisation ALL (NCHWc convs: ~1.85x faster than BASIC here); threads=None lets
-    onnxruntime use every core."""
+    """Graph optimisation ALL (NCHWc convs, faster than BASIC: docs/design_notes.md);
+    threads=None lets onnxruntime use every core."""
     options = ort.SessionOptions()
     options.graph_optimization_level = ort.GraphOptimizationLevel.ORT_ENABLE_ALL
     options.execution_mode = ort.ExecutionMode.ORT_SEQUENTIAL

@@ -11,8 +11,8 @@ from drkfs_onnx.benchmark.sets import real_mesh
 
 # Tests run the rasteriser's equations eagerly, their subprocesses too: compiling them for each
 # test's config would cost CI's 2 cores about 10 s a graph. The default, compiled where a
-# training step or a GPU asks (rasterize._compiles), has its own tests in test_render.py, and
-# test_cuda.py runs under it.
+# training step or a GPU asks (render.compile_policy.compiles), has its own tests in
+# test_render.py, and test_cuda.py runs under it.
 os.environ.setdefault("DRKFS_COMPILE", "0")
 
 
@@ -20,14 +20,14 @@ os.environ.setdefault("DRKFS_COMPILE", "0")
 def compile_setting(monkeypatch):
     """``compile_setting(value)`` sets DRKFS_COMPILE for one test; the rasteriser's cache of
     equations forgets what it made under another setting, before and after."""
-    import drkfs_onnx.rasterize as rasterize
+    from drkfs_onnx.render.compile_policy import fused
 
     def use(value: str) -> None:
         monkeypatch.setenv("DRKFS_COMPILE", value)
-        rasterize._fused.cache_clear()
+        fused.cache_clear()
 
     yield use
-    rasterize._fused.cache_clear()
+    fused.cache_clear()
 
 
 @pytest.fixture(scope="session")
@@ -43,6 +43,26 @@ def real_meshes() -> Path:
 def icosphere(subdivisions: int = 1, radius: float = 0.8) -> tuple[np.ndarray, np.ndarray]:
     sphere = trimesh.creation.icosphere(subdivisions=subdivisions, radius=radius)
     return np.asarray(sphere.vertices), np.asarray(sphere.faces)
+
+
+def loss_case():
+    """The case the batched loss is checked on: a prediction as a fresh reconstruction network
+    makes one (a sphere of 1,280 faces, nudged off it) and the example chair it is fit to ->
+    (prediction (V, 3), its faces (F, 3), the chair's (verts (V', 3), faces (F', 3))), float32
+    and int64 tensors in the chair's frame."""
+    import torch
+
+    from drkfs_onnx.contract.mesh import frame_of, place
+    from drkfs_onnx.synthetic.examples import REFERENCE, example_meshes
+
+    chair = example_meshes()[REFERENCE][1]
+    frame = frame_of(np.asarray(chair.vertices))
+    verts, faces = icosphere(3, radius=0.6)
+    generator = torch.Generator().manual_seed(0)
+    prediction = torch.tensor(verts, dtype=torch.float32)
+    prediction += 0.02 * torch.randn(prediction.shape, generator=generator)
+    truth_verts = torch.tensor(place(np.asarray(chair.vertices), frame), dtype=torch.float32)
+    return prediction, torch.as_tensor(faces), (truth_verts, torch.as_tensor(chair.faces))
 
 
 def without(

@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import torch
 
-from drkfs_onnx.cameras import Cameras
-from drkfs_onnx.config import PipelineConfig
+from drkfs_onnx.contract.cameras import Cameras
+from drkfs_onnx.contract.config import PipelineConfig
 
 
 def _segment_distance2(p: torch.Tensor, a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:

@@ -7,23 +7,22 @@ import numpy as np
 import pytest
 import torch
 import trimesh
-from conftest import icosphere
-from studies.network import loss_step_case
+from conftest import icosphere, loss_case
 
 from drkfs_onnx import DRKFS, PipelineConfig
-from drkfs_onnx.batch import MeshBatch
+from drkfs_onnx.contract.patch_grid import nonempty_patches as numpy_nonempty
 from drkfs_onnx.geometry import Smoothness, chamfer, surface_points
 from drkfs_onnx.loss import DrkfsLoss, StagedTarget
-from drkfs_onnx.patch_grid import nonempty_patches as numpy_nonempty
-from drkfs_onnx.patches import nonempty_patches
+from drkfs_onnx.nets.patches import nonempty_patches_on_device
+from drkfs_onnx.render.mesh_batch import MeshBatch
 
 VALUE_RTOL, COSINE = 1e-5, 0.99999
 
 
 @pytest.fixture(scope="module")
 def case():
-    """The loss step's 2,560-face prediction, three nudged copies, and the chair it is fit to."""
-    prediction, faces, truth, _ = loss_step_case()
+    """A 1,280-face prediction, three nudged copies, and the chair it is fit to."""
+    prediction, faces, truth = loss_case()
     nudges = 0.01 * torch.randn(3, *prediction.shape, generator=torch.Generator().manual_seed(1))
     return SimpleNamespace(preds=prediction[None] + nudges, faces=faces, truth=truth)
 
@@ -57,12 +56,12 @@ def test_a_template_batch_equals_the_loop_with_a_shared_target(case, loss, progr
     ]
     loop = (torch.stack([v for v, _ in looped]), torch.stack([g for _, g in looped]))
     batched = _value_and_grad(
-        lambda v: loss(v, case.faces, target, progress, reduction="none"), case.preds
+        lambda v: loss(v, case.faces, target, progress, batch_reduction="none"), case.preds
     )
     assert batched[0].shape == (3,)
     _assert_batch_equals_loop(batched, loop)
     mean = loss(case.preds, case.faces, target, progress)
-    total = loss(case.preds, case.faces, target, progress, reduction="sum")
+    total = loss(case.preds, case.faces, target, progress, batch_reduction="sum")
     assert torch.allclose(mean * 3, total) and torch.allclose(total, batched[0].sum())
 
 
@@ -103,7 +102,7 @@ def test_meshes_of_different_sizes_equal_the_loop_in_every_form(loss):
     }
     for name, form in forms.items():
         leaves = [v.detach().clone().requires_grad_(True) for v in verts]
-        values = loss(*form(leaves), batch_target, 1.0, reduction="none")
+        values = loss(*form(leaves), batch_target, 1.0, batch_reduction="none")
         values.sum().backward()
         assert torch.allclose(values.detach(), loop_values, rtol=VALUE_RTOL, atol=0), name
         for leaf, (_, grad) in zip(leaves, looped, strict=True):
@@ -123,11 +122,11 @@ def test_the_scoring_metric_scores_a_batch_as_the_loop(case, config):
         loop = torch.stack(
             [metric(p, case.faces, r, truth_faces) for p, r in zip(preds, references, strict=True)]
         )
-        batch = metric(preds, case.faces, references, truth_faces, reduction="none")
+        batch = metric(preds, case.faces, references, truth_faces, batch_reduction="none")
     assert torch.allclose(batch, loop, rtol=VALUE_RTOL, atol=0)
     # one reference shared by the batch
     with torch.no_grad():
-        shared = metric(preds, case.faces, truth_verts, truth_faces, reduction="none")
+        shared = metric(preds, case.faces, truth_verts, truth_faces, batch_reduction="none")
         first = metric(preds[0], case.faces, truth_verts, truth_faces)
     assert shared.shape == (2,) and torch.allclose(shared[0], first, rtol=VALUE_RTOL, atol=0)
 
@@ -173,8 +172,8 @@ def test_bad_input_is_one_value_error_naming_what_was_expected(loss):
     for bad_verts, bad_faces, message in cases:
         with pytest.raises(ValueError, match=message):
             loss(bad_verts, bad_faces, target)
-    with pytest.raises(ValueError, match="unknown reduction 'max'"):
-        loss(verts[None], faces, target, reduction="max")
+    with pytest.raises(ValueError, match="unknown batch_reduction 'max'"):
+        loss(verts[None], faces, target, batch_reduction="max")
     with pytest.raises(ValueError, match="verts: mesh 0 has NaN or infinite"):
         loss.target(diverged, faces)
     with pytest.raises(ValueError, match="target: on meta, the metric on cpu: move it"):
@@ -198,7 +197,7 @@ def test_the_devices_empty_patch_mask_is_the_runtimes(case):
     for i, (row, col) in enumerate(np.random.default_rng(0).integers(0, 128, (40, 2))):
         dots[i, 0, row, col] = 0.3
     for views in (images, dots):
-        found = nonempty_patches(views, metric.config)
+        found = nonempty_patches_on_device(views, metric.config)
         expected = numpy_nonempty(views[:, 0].numpy(), metric.config)
         assert np.array_equal(found.numpy(), expected)
 
@@ -215,7 +214,7 @@ def test_the_geometry_terms_take_batches():
     truth = surface_points(verts, faces, 300, torch.Generator().manual_seed(1))
     for norm in (1, 2):
         each = torch.stack([chamfer(p, truth, norm) for p in points])
-        assert torch.allclose(chamfer(points, truth, norm, reduction="none"), each)
+        assert torch.allclose(chamfer(points, truth, norm, batch_reduction="none"), each)
         assert torch.allclose(chamfer(points, truth, norm), each.mean())
     assert chamfer(points[0], truth, 1) < chamfer(points[0], truth, 2) ** 0.5 * 2
     smooth = Smoothness(verts, faces)
@@ -233,7 +232,7 @@ def test_a_degenerate_prediction_leaves_the_rest_of_its_batch_alone(case, loss):
         [healthy, 0 * healthy, healthy * torch.tensor([1.0, 0.0, 1.0]), healthy + 100.0]
     )
     values, grads = _value_and_grad(
-        lambda v: loss(v, case.faces, target, 0.0, reduction="none"), batch
+        lambda v: loss(v, case.faces, target, 0.0, batch_reduction="none"), batch
     )
     assert torch.isfinite(values).all() and torch.isfinite(grads).all()
     alone = _value_and_grad(lambda v: loss(v, case.faces, target, 0.0)[None], healthy[None])
@@ -254,9 +253,9 @@ def test_under_a_callers_mixed_precision_the_loss_terms_stay_float32(case, loss)
             moved = points + verts.mean(1, keepdim=True)
             return torch.cat(
                 [
-                    loss(verts, case.faces, target, reduction="none"),
-                    chamfer(moved, truth, reduction="none"),
-                    chamfer(moved.bfloat16(), truth, reduction="none"),
+                    loss(verts, case.faces, target, batch_reduction="none"),
+                    chamfer(moved, truth, batch_reduction="none"),
+                    chamfer(moved.bfloat16(), truth, batch_reduction="none"),
                 ]
             )
 

@@ -18,8 +18,8 @@ from drkfs_onnx.benchmark.methods import DrkfsOnnx, Placed
 from drkfs_onnx.benchmark.run import TIER_PAIRS, run_bench, tier_accuracy
 from drkfs_onnx.benchmark.sets import STABILITY, _box_with_cavity
 from drkfs_onnx.benchmark.torch_checks import agreement, value_and_gradient
-from drkfs_onnx.config import PipelineConfig
-from drkfs_onnx.mesh import frame_of, load_mesh, place
+from drkfs_onnx.contract.config import PipelineConfig
+from drkfs_onnx.contract.mesh import frame_of, load_mesh, place
 from drkfs_onnx.synthetic.shapes import (
     ALL_FAMILIES,
     FAMILIES,
@@ -286,8 +286,8 @@ def test_missing_graphs_are_exported_once_before_the_bench_scores(tmp_path, monk
     import shutil
 
     from drkfs_onnx.benchmark import methods
+    from drkfs_onnx.contract.model_files import models_dir
     from drkfs_onnx.export import onnx_files
-    from drkfs_onnx.weights import models_dir
 
     shipped, calls = models_dir(), []
 

@@ -8,7 +8,6 @@ from pathlib import Path
 
 import pytest
 import trimesh
-from studies.network import QUICK_NETWORK
 from typer.testing import CliRunner
 
 from drkfs_onnx.cli import app
@@ -18,6 +17,7 @@ from drkfs_onnx.judging.rule import choose
 from drkfs_onnx.synthetic.examples import write_examples
 
 ROOT = Path(__file__).resolve().parents[1]
+QUICK_JUDGE = JUDGE_CONFIG.replace(num_views=2, image_size=64)
 
 
 @pytest.fixture(scope="module")
@@ -34,7 +34,7 @@ def meshes(tmp_path_factory) -> Path:
 
 @pytest.fixture(scope="module")
 def quick_judge():
-    judge = Judge(QUICK_NETWORK.judge_config, unseen_views=2, lfd=False)
+    judge = Judge(QUICK_JUDGE, unseen_views=2, lfd=False)
     yield judge
     judge.close()
 
@@ -139,7 +139,7 @@ def test_the_command_refuses_a_bad_file_before_judging(tmp_path):
 class FailingLightField:
     """A judge whose LFD program fails on one mesh file and judges the others alike."""
 
-    lfd_note, config = "LFD by a stub", QUICK_NETWORK.judge_config
+    lfd_note, config = "LFD by a stub", QUICK_JUDGE
 
     def __init__(self, failing_faces: int):
         self.failing_faces = failing_faces

@@ -5,8 +5,8 @@ import dataclasses
 import numpy as np
 import pytest
 
-from drkfs_onnx.cameras import hemisphere_directions, make_cameras
-from drkfs_onnx.config import PipelineConfig
+from drkfs_onnx.contract.cameras import hemisphere_directions, make_cameras
+from drkfs_onnx.contract.config import PipelineConfig
 
 
 def test_paper_preset_is_the_papers_pipeline():

@@ -3,7 +3,7 @@ agree with the CPU (run where torch sees a GPU; skipped elsewhere, CI included).
 
 import pytest
 import torch
-from studies.network import loss_step_case
+from conftest import loss_case
 
 from drkfs_onnx import DRKFS, PipelineConfig
 from drkfs_onnx.benchmark.torch_checks import agreement, value_and_gradient
@@ -39,7 +39,7 @@ def _assert_agree(on, prediction: torch.Tensor) -> None:
 
 @pytest.mark.parametrize("progress", [0.0, 1.0])  # the coarse stage and the loss preset
 def test_the_loss_runs_on_cuda_and_agrees_with_the_cpu(progress):
-    prediction, faces, truth, _ = loss_step_case()
+    prediction, faces, truth = loss_case()
 
     def on(device: str):
         loss = DrkfsLoss.pretrained().to(device)
@@ -51,7 +51,7 @@ def test_the_loss_runs_on_cuda_and_agrees_with_the_cpu(progress):
 
 
 def test_the_scoring_metric_runs_on_cuda_and_agrees_with_the_cpu():
-    prediction, faces, truth, _ = loss_step_case()
+    prediction, faces, truth = loss_case()
     metric = DRKFS.pretrained(PipelineConfig.paper(num_views=6, image_size=128))
 
     def on(device: str):
@@ -67,7 +67,7 @@ def test_a_batch_on_cuda_equals_the_loop_there_with_few_host_waits():
     and a step waits for the host at most four times (``set_sync_debug_mode``)."""
     import warnings
 
-    prediction, faces, truth, _ = loss_step_case()
+    prediction, faces, truth = loss_case()
     loss = DrkfsLoss.pretrained().to("cuda")
     faces = faces.cuda()
     target = loss.target(*(t.cuda() for t in truth))
@@ -86,7 +86,7 @@ def test_a_batch_on_cuda_equals_the_loop_there_with_few_host_waits():
         try:
             with warnings.catch_warnings(record=True) as caught:
                 warnings.simplefilter("always")
-                values = loss(moved, faces, target, progress, reduction="none")
+                values = loss(moved, faces, target, progress, batch_reduction="none")
                 values.sum().backward()
         finally:
             torch.cuda.set_sync_debug_mode("default")

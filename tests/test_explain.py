@@ -7,8 +7,10 @@ import numpy as np
 import pytest
 import torch
 
-from drkfs_onnx import PipelineConfig, load_mesh, match_rules
+from drkfs_onnx import PipelineConfig, load_mesh
+from drkfs_onnx.contract import match_rules
 from drkfs_onnx.metric import DRKFS
+from drkfs_onnx.render.torch_ops import TORCH_OPS
 from drkfs_onnx.runtime.explain import explain
 from drkfs_onnx.runtime.scorer import Scorer
 
@@ -58,7 +60,9 @@ def test_a_rows_share_is_its_distance_times_the_scores_slope(reduction):
     rng = np.random.default_rng(0)
     distances = torch.tensor(rng.uniform(0.0, 1.0, 12), requires_grad=True)
     weights = torch.tensor(rng.integers(1, 4, 12).astype(np.float64))
-    (slope,) = torch.autograd.grad(match_rules.reduce(distances, weights, config, torch), distances)
+    (slope,) = torch.autograd.grad(
+        match_rules.reduce(distances, weights, config, TORCH_OPS), distances
+    )
     expected = (slope * distances).detach().numpy()
     shares = match_rules.shares(distances.detach().numpy(), weights.numpy(), config)
     assert np.allclose(shares, expected / expected.sum())

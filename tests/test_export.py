@@ -11,10 +11,16 @@ import pytest
 import torch
 
 from drkfs_onnx import DRKFS, PipelineConfig
+from drkfs_onnx.contract.model_files import (
+    CONFIG_KEY,
+    MATCH_FILE,
+    WEIGHTS_KEY,
+    features_file,
+    models_dir,
+    shipped_weights,
+)
 from drkfs_onnx.export import export_features, export_match, weights_digest
-from drkfs_onnx.model_files import CONFIG_KEY, MATCH_FILE, WEIGHTS_KEY, features_file
-from drkfs_onnx.patches import select_patches
-from drkfs_onnx.weights import models_dir, shipped_weights
+from drkfs_onnx.nets.patches import select_patches
 
 CONFIG = PipelineConfig(num_views=4, image_size=96, descriptor_width=0.25)
 

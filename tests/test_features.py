@@ -4,11 +4,11 @@ import pytest
 import torch
 import torch.nn.functional as F
 
-from drkfs_onnx.config import PipelineConfig
-from drkfs_onnx.detector import PoIDetector
-from drkfs_onnx.hardnet import HardNet
-from drkfs_onnx.matching import best_match_distances, match_score, nearest_indices
-from drkfs_onnx.patches import nonempty_patches, select_patches
+from drkfs_onnx.contract.config import PipelineConfig
+from drkfs_onnx.match import best_match_distances, match_score, nearest_indices
+from drkfs_onnx.nets.detector import PoIDetector
+from drkfs_onnx.nets.hardnet import HardNet
+from drkfs_onnx.nets.patches import nonempty_patches_on_device, select_patches
 
 CONFIG = PipelineConfig.paper()
 
@@ -75,7 +75,7 @@ def test_selected_patches_are_unfolds_rows_with_its_gradient(config):
 def test_nonempty_mask_sees_content_within_the_detectors_reach():
     images = torch.zeros(1, 1, 256, 256)
     images[0, 0, 100, 40] = 0.5  # column 40 lies in patch columns 1 and 2 only
-    mask = nonempty_patches(images, CONFIG).view(15, 15)
+    mask = nonempty_patches_on_device(images, CONFIG).view(15, 15)
     reach = CONFIG.detector_kernel // 2
     for row in range(15):
         for col in range(15):
@@ -157,7 +157,7 @@ def _brute_force(a, b):
 
 
 def test_best_match_equals_brute_force_across_chunks(monkeypatch):
-    import drkfs_onnx.matching as matching
+    import drkfs_onnx.match as matching
 
     torch.manual_seed(0)
     a, b = torch.randn(700, 16), torch.randn(300, 16)

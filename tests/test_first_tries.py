@@ -13,8 +13,8 @@ import trimesh
 from conftest import without
 from typer.testing import CliRunner
 
-from drkfs_onnx.config import PipelineConfig
-from drkfs_onnx.mesh import load_mesh
+from drkfs_onnx.contract.config import PipelineConfig
+from drkfs_onnx.contract.mesh import load_mesh
 from drkfs_onnx.runtime.cli import app
 from drkfs_onnx.runtime.scorer import MAX_FACES, Scorer
 

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 import torch
 
-from drkfs_onnx.config import PipelineConfig
+from drkfs_onnx.contract.config import PipelineConfig
 from drkfs_onnx.metric import DRKFS
 from drkfs_onnx.training import graded
 

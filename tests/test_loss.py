@@ -9,7 +9,7 @@ import torch
 
 from drkfs_onnx import PipelineConfig, load_mesh
 from drkfs_onnx.loss import COARSE_TO_FINE, DrkfsLoss, SoftMatch, Stage
-from drkfs_onnx.matching import best_match_distances, soft_match_distances
+from drkfs_onnx.match import best_match_distances, soft_match_distances
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = ROOT / "examples"

@@ -5,9 +5,10 @@ import numpy as np
 import pytest
 import torch
 
-from drkfs_onnx import match_rules
-from drkfs_onnx.config import DIRECTIONS, PipelineConfig
-from drkfs_onnx.matching import match_score
+from drkfs_onnx.contract import match_rules
+from drkfs_onnx.contract.config import DIRECTIONS, PipelineConfig
+from drkfs_onnx.match import match_score
+from drkfs_onnx.render.torch_ops import TORCH_OPS
 from drkfs_onnx.runtime.features import MeshFeatures
 from drkfs_onnx.runtime.match import match
 
@@ -76,7 +77,7 @@ def test_power_and_softmax_follow_their_formulas_and_tend_to_the_maximum():
 def test_every_reduction_is_exactly_zero_on_zero_distances_with_finite_gradients(options):
     config = GRID.replace(**options)
     zeros = torch.zeros(20, dtype=torch.float64, requires_grad=True)
-    value = match_rules.reduce(zeros, torch.ones(20, dtype=torch.float64), config, torch)
+    value = match_rules.reduce(zeros, torch.ones(20, dtype=torch.float64), config, TORCH_OPS)
     value.backward()
     assert value.item() == 0.0
     assert torch.isfinite(zeros.grad).all()

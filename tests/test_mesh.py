@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from drkfs_onnx.mesh import MeshError, check_mesh, load_mesh, normalize_pair
+from drkfs_onnx.contract.mesh import MeshError, check_mesh, load_mesh, normalize_pair
 
 
 @pytest.mark.parametrize("ext", ["obj", "ply", "stl", "off", "glb"])

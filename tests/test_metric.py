@@ -9,9 +9,9 @@ import torch
 from conftest import icosphere
 
 import drkfs_onnx
-import drkfs_onnx.weights as weights
 from drkfs_onnx import DRKFS, PipelineConfig
-from drkfs_onnx.config import NETS
+from drkfs_onnx.contract import model_files
+from drkfs_onnx.contract.config import NETS
 from drkfs_onnx.metric import MissingWeights
 from drkfs_onnx.synthetic.shapes import assemble, chair
 from drkfs_onnx.synthetic.variants import without
@@ -80,7 +80,7 @@ def test_a_prepared_target_scores_like_forward_and_passes_gradients(metric):
 
 def test_skipping_empty_patches_is_exact(metric):
     """Describing only patches that see the mesh equals describing all of them."""
-    from drkfs_onnx.patches import select_patches
+    from drkfs_onnx.nets.patches import select_patches
 
     verts, faces = _mesh()
     images = metric.render(verts - verts.mean(0), faces)
@@ -124,7 +124,7 @@ def test_pretrained_loads_weights_listed_for_its_config(tmp_path, monkeypatch):
     digest = hashlib.sha256((tmp_path / "fast.pt").read_bytes()).hexdigest()
     manifest = {"weights": [{"file": "fast.pt", "sha256": digest, "config": FAST.to_dict()}]}
     (tmp_path / "manifest.json").write_text(json.dumps(manifest))
-    monkeypatch.setattr(weights, "models_dir", lambda: tmp_path)
+    monkeypatch.setattr(model_files, "models_dir", lambda: tmp_path)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         loaded = DRKFS.pretrained(FAST)

@@ -33,8 +33,8 @@ from studies.study import slug
 from typer.testing import CliRunner
 
 from drkfs_onnx.benchmark.point_metrics import iou, is_watertight
-from drkfs_onnx.cameras import make_cameras
-from drkfs_onnx.config import PipelineConfig
+from drkfs_onnx.contract.cameras import make_cameras
+from drkfs_onnx.contract.config import PipelineConfig
 from drkfs_onnx.judging.judges import HIGHER_IS_BETTER, VISUAL, SilhouetteJudge, unseen_cameras
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -26,10 +26,10 @@ ROOT = Path(__file__).resolve().parents[1]
 def test_runtime_imports_where_torch_and_ray_cannot_be_imported():
     code = (
         "import sys; sys.modules['torch'] = sys.modules['ray'] = None\n"
-        "import drkfs_onnx, drkfs_onnx.runtime, drkfs_onnx.runtime.cli, drkfs_onnx.mesh\n"
+        "import drkfs_onnx, drkfs_onnx.runtime, drkfs_onnx.runtime.cli, drkfs_onnx.contract.mesh\n"
         "import drkfs_onnx.runtime.batch\n"
         "from drkfs_onnx import PipelineConfig, load_mesh\n"
-        "from drkfs_onnx.cameras import make_cameras\n"
+        "from drkfs_onnx.contract.cameras import make_cameras\n"
         f"mesh = load_mesh({str(ROOT / 'examples' / 'chair.obj')!r})\n"
         "assert len(make_cameras(PipelineConfig.paper())) == 25 and len(mesh.faces) > 0\n"
         "try:\n    drkfs_onnx.DRKFS\nexcept ImportError:\n    print('torch-free')\n"
@@ -108,7 +108,7 @@ def test_the_runtime_imports_from_the_repository_root_without_the_editable_finde
         "import sys\n"
         "sys.meta_path[:] = [f for f in sys.meta_path if 'Editable' not in repr(f)]\n"
         "from drkfs_onnx.runtime import Scorer\n"
-        "from drkfs_onnx.weights import shipped_weights\n"
+        "from drkfs_onnx.contract.model_files import shipped_weights\n"
         "assert shipped_weights(), 'models/ not found'\n"
         "assert 'torch' not in sys.modules\n"
         "import drkfs_onnx.export\n"

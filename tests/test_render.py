@@ -8,9 +8,9 @@ import torch
 from conftest import icosphere
 from dense_reference import dense_render
 
-from drkfs_onnx.cameras import make_cameras
-from drkfs_onnx.config import PipelineConfig
-from drkfs_onnx.render import Renderer
+from drkfs_onnx.contract.cameras import make_cameras
+from drkfs_onnx.contract.config import PipelineConfig
+from drkfs_onnx.render.renderer import Renderer
 from drkfs_onnx.synthetic.shapes import assemble, chair
 
 SMALL = PipelineConfig(num_views=3, image_size=40)
@@ -130,8 +130,8 @@ def test_retessellation_barely_changes_the_image():
 def test_cost_follows_covered_pairs_not_pixels_times_faces():
     """A mesh far outside every view produces no pixel-face pair at all; inside, the pairs
     enumerated are a small share of pixels x faces and at most three times those covered."""
-    from drkfs_onnx.batch import MeshBatch
-    from drkfs_onnx.rasterize import PairPlan
+    from drkfs_onnx.render.mesh_batch import MeshBatch
+    from drkfs_onnx.render.pair_plan import PairPlan
 
     verts, faces = _tensors(*icosphere(1))
     renderer = Renderer(SMALL)
@@ -151,9 +151,10 @@ def test_pair_plan_lists_every_covered_pair(mesh, sigma):
     """The plan lists, of each face's box, only the columns of each row near its edge lines:
     every pixel-face pair that every pixel against every face finds covered, and far fewer
     uncovered pairs than the boxes hold."""
-    from drkfs_onnx.batch import MeshBatch
-    from drkfs_onnx.rasterize import TORCH_OPS, PairPlan
-    from drkfs_onnx.render_math import pair_terms, pixel_centre, pixel_span
+    from drkfs_onnx.contract.render_equations import pair_terms, pixel_centre, pixel_span
+    from drkfs_onnx.render.mesh_batch import MeshBatch
+    from drkfs_onnx.render.pair_plan import PairPlan
+    from drkfs_onnx.render.torch_ops import TORCH_OPS
 
     config = SMALL.replace(sigma=sigma)
     verts, faces = mesh()
@@ -182,8 +183,8 @@ def test_pair_terms_grad_is_autograds_gradient_of_pair_terms(sigma):
     """The backward pass's written-out gradient equals autograd's through ``pair_terms``, for
     pixels inside, near and far from triangles of every orientation, depths clamped or not
     (each pair a face of its own: its parts are its face's sums)."""
-    from drkfs_onnx.rasterize import TORCH_OPS
-    from drkfs_onnx.render_math import face_params_grad, pair_terms, pair_terms_grad
+    from drkfs_onnx.contract.render_equations import face_params_grad, pair_terms, pair_terms_grad
+    from drkfs_onnx.render.torch_ops import TORCH_OPS
 
     config = PipelineConfig(sigma=sigma)
     generator = torch.Generator().manual_seed(0)
@@ -204,13 +205,13 @@ def test_pair_terms_grad_is_autograds_gradient_of_pair_terms(sigma):
     assert torch.allclose(found, leaf.grad, rtol=1e-8, atol=1e-8 * float(leaf.grad.abs().max()))
 
 
-@pytest.mark.parametrize("equation", ["_terms_and_logits", "_terms_grad_at"])
+@pytest.mark.parametrize("equation", ["terms_and_logits", "terms_grad_at"])
 def test_the_compiled_pair_equations_trace_as_one_graph(equation):
-    """A GPU compiles the rasteriser's per-pair equations (``rasterize._fused``); a graph break
-    in them leaves torch.compile running the pieces between breaks one op at a time (a
-    SimpleNamespace in ``render_math._edges`` once did: about a thousand unfused kernels a
-    step). Traced only, so no compiler is needed."""
-    import drkfs_onnx.rasterize as rasterize
+    """A GPU compiles the rasteriser's per-pair equations (``compile_policy.fused``); a graph
+    break in them leaves torch.compile running the pieces between breaks one op at a time.
+    Traced only, so no compiler is needed."""
+    from drkfs_onnx.render import kept_pairs, pixel_sums
+    from drkfs_onnx.render.torch_ops import TORCH_OPS
 
     config, count = PipelineConfig(), 500
     generator = torch.Generator().manual_seed(0)
@@ -219,13 +220,14 @@ def test_the_compiled_pair_equations_trace_as_one_graph(equation):
     pair_values = torch.rand(4, count, generator=generator)
     pixel = torch.randint(0, config.num_views * config.image_size**2, (count,))
     inputs = {
-        "_terms_and_logits": (params, face, pair_values[0], pair_values[1]),
-        "_terms_grad_at": (params, face, pixel, *pair_values[:3]),
+        "terms_and_logits": (params, face, pair_values[0], pair_values[1]),
+        "terms_grad_at": (params, face, pixel, *pair_values[:3]),
     }[equation]
-    function = getattr(rasterize, equation)
+    function = {"terms_and_logits": kept_pairs, "terms_grad_at": pixel_sums}[equation]
+    function = getattr(function, "_" + equation)
 
     def traced(*tensors):
-        return function(*tensors, config, rasterize.TORCH_OPS)
+        return function(*tensors, config, TORCH_OPS)
 
     explained = torch._dynamo.explain(traced)(*inputs)
     assert (explained.graph_count, explained.graph_break_count) == (1, 0), explained.break_reasons
@@ -236,9 +238,9 @@ def test_the_compiled_pair_equations_keep_eager_numerics():
     config's gradient from the CPU's (cosine 0.991 on an H200); the pinned torch knows the
     settings that keep each step's rounding (the division's by its name in this torch), so the
     compiled equations ask for them."""
-    import drkfs_onnx.rasterize as rasterize
+    from drkfs_onnx.render.compile_policy import compile_options
 
-    options = rasterize._compile_options()
+    options = compile_options()
     assert options.pop("emulate_precision_casts") is True
     assert list(options.values()) == [True]  # the division's setting, under one of its names
 
@@ -247,16 +249,16 @@ def test_a_cpu_compiles_the_equations_for_training_steps_only(monkeypatch):
     """DRKFS_COMPILE='auto' (the default) compiles the per-pair equations on a GPU, and on a CPU
     where the render is differentiable: a training step repays the compile, one evaluation on
     a CPU would wait for it. '0' and '1' decide on every device; anything else is refused."""
-    from drkfs_onnx.rasterize import _compiles
+    from drkfs_onnx.render.compile_policy import compiles
 
     wanted = {"auto": [False, True, True, True], "0": [False] * 4, "1": [True] * 4}
     for setting, expected in wanted.items():
         monkeypatch.setenv("DRKFS_COMPILE", setting)
-        found = [_compiles(d, grad) for d in ("cpu", "cuda") for grad in (False, True)]
+        found = [compiles(d, grad) for d in ("cpu", "cuda") for grad in (False, True)]
         assert found == expected, setting
     monkeypatch.setenv("DRKFS_COMPILE", "yes")
     with pytest.raises(ValueError, match="DRKFS_COMPILE='yes': use one of auto, 0, 1"):
-        _compiles("cpu", True)
+        compiles("cpu", True)
 
 
 def _render_with_gradient(config: PipelineConfig) -> tuple[torch.Tensor, torch.Tensor]:
@@ -292,7 +294,9 @@ def test_equations_that_fail_to_compile_run_eagerly_after_one_warning(monkeypatc
 def test_a_cpu_training_step_compiles_its_equations_and_agrees_with_eager(compile_setting):
     """The default on a CPU: a differentiable render runs the compiled equations (no fallback
     warning) and gives eager's images and gradient to float32 rounding."""
-    import drkfs_onnx.rasterize as rasterize
+    from drkfs_onnx.render.compile_policy import CompiledOrEager, fused
+    from drkfs_onnx.render.kept_pairs import _terms_and_logits
+    from drkfs_onnx.render.pixel_sums import _terms_grad_at
 
     config = PipelineConfig(num_views=2, image_size=32)
     compile_setting("0")
@@ -301,9 +305,10 @@ def test_a_cpu_training_step_compiles_its_equations_and_agrees_with_eager(compil
     with warnings.catch_warnings():
         warnings.simplefilter("error", RuntimeWarning)
         compiled = _render_with_gradient(config)
-    for equation in (rasterize._terms_and_logits, rasterize._terms_grad_at):
-        fused = rasterize._fused(equation, config, "cpu", True)
-        assert isinstance(fused, rasterize._CompiledOrEager) and fused.compiled is not None
+    for equation in (_terms_and_logits, _terms_grad_at):
+        compiled_equation = fused(equation, config, "cpu", True)
+        assert isinstance(compiled_equation, CompiledOrEager)
+        assert compiled_equation.compiled is not None
     torch.testing.assert_close(compiled[0], eager[0], rtol=1e-6, atol=1e-6)
     gradients = torch.stack([eager[1].flatten(), compiled[1].flatten()])
     assert float(torch.nn.functional.cosine_similarity(*gradients, dim=0)) > 0.99999

@@ -8,10 +8,9 @@ import pytest
 import torch
 
 from drkfs_onnx import DRKFS, PipelineConfig, load_mesh
-from drkfs_onnx.mesh import place
-from drkfs_onnx.model_files import features_file
+from drkfs_onnx.contract.mesh import place
+from drkfs_onnx.contract.model_files import features_file, models_dir
 from drkfs_onnx.runtime import MeshFeatures, ModelMismatch, Scorer
-from drkfs_onnx.weights import models_dir
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 VARIANTS = ["chair_retessellated.obj", "chair_leg_shifted.obj", "chair_no_leg.obj"]

@@ -7,7 +7,7 @@ from drkfs_onnx.runtime import nearest
 from drkfs_onnx.runtime.nearest import (
     exact_copies,
     lift,
-    nearest_indices,
+    nearest_lifted,
     row_hashes,
 )
 
@@ -25,14 +25,14 @@ def test_nearest_equals_brute_force_over_several_blocks(monkeypatch):
     near = targets[rng.integers(0, 300, 400)] + 1e-2 * _unit_rows(rng, 400)
     queries = np.concatenate([near, _unit_rows(rng, 200)]).astype(np.float32)
     q, t = queries.astype(np.float64), targets.astype(np.float64)
-    got = nearest_indices(queries, lift(targets))
+    got = nearest_lifted(queries, lift(targets))
     assert got.shape == (len(queries),)
     assert np.array_equal(got, ((q[:, None] - t[None]) ** 2).sum(-1).argmin(1))
 
 
 def test_no_targets_is_an_error():
     with pytest.raises(ValueError, match="no target"):
-        nearest_indices(np.zeros((2, 128), np.float32), lift(np.zeros((0, 128), np.float32)))
+        nearest_lifted(np.zeros((2, 128), np.float32), lift(np.zeros((0, 128), np.float32)))
 
 
 def test_exact_copies_are_bit_identical_rows_only():

@@ -8,9 +8,10 @@ import torch
 from conftest import icosphere
 
 from drkfs_onnx import PipelineConfig
-from drkfs_onnx.cameras import make_cameras
-from drkfs_onnx.render import Renderer
-from drkfs_onnx.render_math import DEPTH_CULL, NUMPY_OPS, pair_terms, project_faces
+from drkfs_onnx.contract.array_ops import NUMPY_OPS
+from drkfs_onnx.contract.cameras import make_cameras
+from drkfs_onnx.contract.render_equations import DEPTH_CULL, pair_terms, project_faces
+from drkfs_onnx.render.renderer import Renderer
 from drkfs_onnx.runtime.candidates import (
     LOOSE_RADIUS,
     _row_spans,

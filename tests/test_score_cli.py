@@ -14,7 +14,7 @@ from conftest import without
 from typer.testing import CliRunner
 
 from drkfs_onnx import PipelineConfig, load_mesh
-from drkfs_onnx.model_files import features_file
+from drkfs_onnx.contract.model_files import features_file
 from drkfs_onnx.runtime.cli import app
 from drkfs_onnx.runtime.output_lock import lock_path
 

@@ -40,9 +40,9 @@ from studies.views import AZIMUTHS, CHANNELS, ELEVATION, IMAGE_SIZE, VIEW_CONFIG
 from typer.testing import CliRunner
 
 from drkfs_onnx.benchmark.point_metrics import is_watertight
-from drkfs_onnx.cameras import Cameras, look_at
+from drkfs_onnx.contract.cameras import Cameras, look_at
 from drkfs_onnx.metric import DRKFS
-from drkfs_onnx.render import Renderer
+from drkfs_onnx.render.renderer import Renderer
 
 
 def test_the_generator_starts_as_a_sphere_every_vertex_can_leave_and_every_weight_learns():
@@ -215,3 +215,22 @@ def test_a_rerun_resumes_every_network_and_judges_them_the_same(quick_study):
     judged = json.loads((out / "test-seeds-6000.json").read_text())
     assert judged["test_seeds"] == [6000, 6000]
     assert set(judged["tables"]["seed 0"]).isdisjoint(results["tables"]["seed 0"])
+
+
+@pytest.mark.slow
+def test_more_steps_train_beside_the_studys_networks_and_are_judged_with_them(quick_study):
+    out, _ = quick_study
+    saved = {p: p.read_bytes() for p in (out / "networks").rglob("*.pt")}
+    args = ["--quick", "--out", str(out), "--steps", "3", "--seeds", "0"]
+    result = CliRunner().invoke(app, [*args, "--losses", "SoftRas (silhouette IoU)"])
+    assert result.exit_code == 0, result.output
+    longer = json.loads((out / "longer-3-steps.json").read_text())
+    rows = {"SoftRas (silhouette IoU), 3 steps", "SoftRas (silhouette IoU), 2 steps"}
+    assert set(longer["means"]["mean"]) == rows
+    assert all(set(judged) == rows for judged in longer["table"].values())
+    assert {p: p.read_bytes() for p in (out / "networks").rglob("*.pt")} == saved
+    assert Networks(out / "networks-3-steps", replace(QUICK, steps=3), torch.device("cpu")).get(
+        0, "SoftRas (silhouette IoU)"
+    )
+    unknown = CliRunner().invoke(app, [*args, "--losses", "IoU"])
+    assert unknown.exit_code != 0 and "no loss 'IoU'" in unknown.output

@@ -6,11 +6,14 @@ import pytest
 import torch
 import trimesh
 
-from drkfs_onnx import DRKFS, PipelineConfig, rasterize
+from drkfs_onnx import DRKFS, PipelineConfig
+from drkfs_onnx.contract.mesh import check_mesh, frame_of
 from drkfs_onnx.geometry import surface_points
 from drkfs_onnx.loss import COARSE_TO_FINE, DrkfsLoss
-from drkfs_onnx.matching import soft_match_distances
-from drkfs_onnx.mesh import check_mesh, frame_of
+from drkfs_onnx.match import soft_match_distances
+from drkfs_onnx.render import kept_pairs
+from drkfs_onnx.render.compile_policy import CompiledOrEager
+from drkfs_onnx.render.torch_ops import TORCH_OPS
 
 SMALL = PipelineConfig(num_views=2, image_size=64)
 
@@ -23,11 +26,11 @@ def _sphere(radius: float = 0.5):
 def test_a_prediction_collapsed_to_a_point_scores_finite_with_a_finite_gradient_under_each():
     verts, faces = _sphere()
     point = torch.full_like(verts, 0.25)
-    centre, scale = frame_of(point)
+    centre, scale = frame_of(point, TORCH_OPS)
     assert float(scale) == 1.0 and torch.equal(centre, torch.full((3,), 0.25))
     batch = torch.stack([point, 0.8 * verts]).requires_grad_()
     metric = DRKFS.pretrained(SMALL, normalization="each")
-    scores = metric(batch, faces, verts, faces, reduction="none")
+    scores = metric(batch, faces, verts, faces, batch_reduction="none")
     scores.sum().backward()
     assert torch.isfinite(scores).all() and torch.isfinite(batch.grad).all()
     assert batch.grad[1].abs().sum() > 0
@@ -68,7 +71,7 @@ def test_a_soft_global_match_too_large_to_build_is_refused_before_it_is_built():
 def test_a_batch_past_the_rasterisers_int32_indices_is_refused(monkeypatch):
     verts, faces = _sphere()
     metric = DRKFS.pretrained(SMALL)
-    monkeypatch.setattr(rasterize, "INT32_LIMIT", 2 * 64 * 64 - 1)  # one mesh's pixels, less 1
+    monkeypatch.setattr(kept_pairs, "INT32_LIMIT", 2 * 64 * 64 - 1)  # one mesh's pixels, less 1
     with pytest.raises(ValueError, match=r"8,192 pixels \(B x K x S\^2\), past the rasteriser"):
         metric.render(verts, faces)
 
@@ -78,7 +81,7 @@ def test_a_compiled_equation_that_runs_out_of_memory_raises_it_and_stays_compile
         raise torch.OutOfMemoryError("CUDA out of memory")
 
     monkeypatch.setattr(torch, "compile", lambda function, **options: out_of_memory)
-    fused = rasterize._CompiledOrEager(lambda x: x + 1)
+    fused = CompiledOrEager(lambda x: x + 1)
     with pytest.raises(torch.OutOfMemoryError):
         fused(torch.zeros(1))
     assert fused.compiled is out_of_memory  # the next, smaller batch compiles again

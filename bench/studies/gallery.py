@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from drkfs_onnx.config import PipelineConfig
+from drkfs_onnx.contract.config import PipelineConfig
 from drkfs_onnx.runtime.render import NumpyRenderer
 
 VIEWS = PipelineConfig(num_views=2, image_size=128)  # a side view and one from above

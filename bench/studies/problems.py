@@ -10,7 +10,7 @@ import numpy as np
 import trimesh
 
 from drkfs_onnx.benchmark.sets import real_mesh
-from drkfs_onnx.mesh import frame_of, load_mesh, place
+from drkfs_onnx.contract.mesh import frame_of, load_mesh, place
 from drkfs_onnx.synthetic.shapes import Part, assemble, random_shape
 
 TEMPLATE_SUBDIVISIONS = 1  # template parts get four times the faces: room to bend

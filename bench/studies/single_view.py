@@ -26,11 +26,11 @@ import numpy as np
 import torch
 
 from drkfs_onnx.benchmark.point_metrics import sample_surface
-from drkfs_onnx.config import PipelineConfig
+from drkfs_onnx.contract.config import PipelineConfig
+from drkfs_onnx.contract.mesh import frame_of, place
 from drkfs_onnx.geometry import chamfer, surface_points
 from drkfs_onnx.judging.judges import HIGHER_IS_BETTER, Judge, better
 from drkfs_onnx.loss import COARSE_TO_FINE, DrkfsLoss, StagedTarget
-from drkfs_onnx.mesh import frame_of, place
 from drkfs_onnx.metric import DRKFS
 from drkfs_onnx.synthetic.shapes import assemble, random_shape
 
@@ -82,7 +82,11 @@ COMBINATIONS = (
 
 
 def by_name(name: str) -> Recipe:
-    return next(r for r in (*BASELINES, *DRKFS_RECIPES, *COMBINATIONS) if r.name == name)
+    recipes = (*BASELINES, *DRKFS_RECIPES, *COMBINATIONS)
+    for recipe in recipes:
+        if recipe.name == name:
+            return recipe
+    raise ValueError(f"no loss {name!r}; the study's: {', '.join(r.name for r in recipes)}")
 
 
 @dataclass(frozen=True)
@@ -566,6 +570,68 @@ def judge_saved(out: Path, test_seed: int, threads: int = 2, progress=print) -> 
         **summarise(tables, test_set, names),
     }
     (out / f"test-seeds-{test_seed}.json").write_text(json.dumps(results, indent=1))
+    return results
+
+
+def run_longer(
+    out: Path,
+    steps: int,
+    names: list[str],
+    seed: int = 0,
+    quick: bool = False,
+    device: str = "cpu",
+    threads: int = 2,
+    progress=print,
+) -> dict:
+    """Whether more steps close a loss's gap: ``names``' generators trained at ``seed`` for
+    ``steps`` steps instead of the plan's (OUT/networks-<steps>-steps, resumable), judged on the
+    study's test shapes beside the same losses' networks of the study (OUT/networks) ->
+    OUT/longer-<steps>-steps.json."""
+    study_plan = QUICK if quick else FULL
+    plan = replace(study_plan, steps=steps)
+    train_set, _, test_set = study_sets(plan)
+    cache = out / "data" / "views.pt"
+    views = {name: views_of(shapes, cache, ViewRenderer())
+             for name, shapes in (("train", train_set), ("test", test_set))}  # fmt: skip
+    dev = torch.device(device)
+    longer = Networks(out / f"networks-{steps}-steps", plan, dev)
+    study = Networks(out / "networks", study_plan, dev)
+    terms = Terms(train_set, views["train"], ShapeGenerator(CHANNELS, IMAGE_SIZE).faces.to(dev), 0)
+    models, seconds = {}, {}
+    for name in names:
+        if longer.get(seed, name) is None:
+            longer.put(
+                seed, name, train(plan, by_name(name), seed, views["train"], terms, progress)
+            )
+        saved = longer.get(seed, name)
+        models[f"{name}, {steps} steps"], seconds[name] = saved["model"], saved["seconds_per_step"]
+        models[f"{name}, {study_plan.steps} steps"] = study.get(seed, name)["model"]
+    judge = Judge(PipelineConfig(), threads, plan.unseen_views, plan.lfd, image_judges=False)
+    try:
+        table = judge_all(judge, models, test_set, views["test"], {}, progress)
+    finally:
+        judge.close()
+    rows = list(models)
+    results = {
+        "command": f"python bench/single_view.py{' --quick' if quick else ''} --out {out} "
+        f"--steps {steps} --seeds {seed} --losses '{','.join(names)}'",
+        **machine(),
+        "lfd": judge.lfd_note,
+        "seed": seed,
+        "steps": [study_plan.steps, steps],
+        "seconds_per_step": seconds,
+        "table": table,
+        "means": means([table], test_set, rows),
+        "shares": {
+            challenger: {
+                against: shares([table], challenger, against)
+                for against in rows
+                if against != challenger
+            }
+            for challenger in rows
+        },  # fmt: skip
+    }
+    (out / f"longer-{steps}-steps.json").write_text(json.dumps(results, indent=1))
     return results
 
 

@@ -36,7 +36,8 @@ import numpy as np
 import torch
 import trimesh
 
-from drkfs_onnx.config import PipelineConfig
+from drkfs_onnx.contract.config import PipelineConfig
+from drkfs_onnx.contract.model_files import sha256
 from drkfs_onnx.judging.judges import (
     HIGHER_IS_BETTER,
     METRICS,
@@ -47,7 +48,6 @@ from drkfs_onnx.judging.judges import (
 )
 from drkfs_onnx.judging.rule import brief_share, chamfer_ratios, share
 from drkfs_onnx.synthetic.shapes import FAMILIES
-from drkfs_onnx.weights import sha256
 
 from .gallery import write_gallery
 from .landscape import CHECKS, probe

@@ -14,9 +14,9 @@ import math
 import numpy as np
 import torch
 
-from drkfs_onnx.cameras import Cameras, look_at
-from drkfs_onnx.config import PipelineConfig
-from drkfs_onnx.render import Renderer
+from drkfs_onnx.contract.cameras import Cameras, look_at
+from drkfs_onnx.contract.config import PipelineConfig
+from drkfs_onnx.render.renderer import Renderer
 
 AZIMUTHS = 24  # SoftRas' ShapeNet renders: 24 azimuths, 15 degrees apart
 ELEVATION = 30.0  # degrees

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 from scipy.stats import spearmanr
 
-from ..mesh import load_mesh
+from ..contract.mesh import load_mesh
 from .sets import BenchSet, Comparison
 
 SETTINGS = ("close_flipped", "close_normal", "far_flipped", "far_normal")

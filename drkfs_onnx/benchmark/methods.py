@@ -14,13 +14,12 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from ..config import MATCH_FIELDS, PipelineConfig
-from ..matching import match_score
+from ..contract.config import MATCH_FIELDS, PipelineConfig
+from ..contract.model_files import features_file, models_dir
+from ..match import match_score
 from ..metric import DRKFS
-from ..model_files import features_file
 from ..runtime.render import NumpyRenderer
 from ..runtime.scorer import Scorer
-from ..weights import models_dir
 from .point_metrics import iou, is_watertight, occupancy, sample_surface, surface_distances
 
 SURFACE_SAMPLES = 100_000  # per mesh, as OccNet

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..mesh import frame_of, place
+from ..contract.mesh import frame_of, place
 from ..synthetic.tiers import TIERS
 from ..synthetic.variants import structural_wins
 from . import sets

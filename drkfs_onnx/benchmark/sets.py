@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from ..mesh import check_mesh, load_mesh
+from ..contract.mesh import check_mesh, load_mesh
 from ..synthetic.shapes import (
     ALL_FAMILIES,
     FAMILIES,

@@ -7,8 +7,8 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from ..matching import match_score
-from ..mesh import frame_of, place
+from ..contract.mesh import frame_of, place
+from ..match import match_score
 from ..metric import DRKFS
 from ..synthetic.shapes import assemble, chair
 from ..synthetic.variants import diagonal, shifted

@@ -18,8 +18,8 @@ import subprocess
 from pathlib import Path
 from typing import NamedTuple
 
-from ..config import PipelineConfig
-from ..mesh import MeshError, frame_of, load_mesh, place
+from ..contract.config import PipelineConfig
+from ..contract.mesh import MeshError, frame_of, load_mesh, place
 from .judges import Judge
 from .rule import choose
 

@@ -19,10 +19,10 @@ from ..benchmark.point_metrics import (
     sample_surface,
     surface_distances,
 )
-from ..cameras import Cameras, hemisphere_directions, look_at, make_cameras
-from ..config import PipelineConfig
+from ..contract.cameras import Cameras, hemisphere_directions, look_at, make_cameras
+from ..contract.config import PipelineConfig
 from ..metric import DRKFS
-from ..render import Renderer
+from ..render.renderer import Renderer
 from ..runtime.render import NumpyRenderer
 
 UNSEEN_VIEWS = 8  # silhouette cameras, none of them among the losses'

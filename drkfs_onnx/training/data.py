@@ -15,10 +15,10 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from ..cameras import Cameras, look_at, make_cameras
-from ..config import PipelineConfig
-from ..mesh import frame_of, place
-from ..render import Renderer
+from ..contract.cameras import Cameras, look_at, make_cameras
+from ..contract.config import PipelineConfig
+from ..contract.mesh import frame_of, place
+from ..render.renderer import Renderer
 from ..synthetic.shapes import assemble, random_shape
 
 DEPTH_TOLERANCE = 0.01  # relative camera-depth difference still counted as the same surface

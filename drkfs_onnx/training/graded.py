@@ -20,11 +20,11 @@ import torch
 import torch.nn.functional as F
 import trimesh
 
-from ..config import PipelineConfig
-from ..matching import match_score
-from ..mesh import frame_of, place
+from ..contract.config import PipelineConfig
+from ..contract.mesh import frame_of, place
+from ..match import match_score
 from ..metric import DRKFS
-from ..render import Renderer
+from ..render.renderer import Renderer
 from ..synthetic.shapes import Part, assemble, random_shape
 from ..synthetic.variants import diagonal, shifted, thickened, without
 from .metric_losses import LossFn, ranking_loss

@@ -13,10 +13,10 @@ from collections.abc import Callable
 import numpy as np
 import torch
 
-from ..matching import match_score
+from ..contract.patch_grid import nonempty_patches
+from ..match import match_score
 from ..metric import DRKFS
-from ..patch_grid import nonempty_patches
-from ..patches import select_patches
+from ..nets.patches import select_patches
 from .net_losses import descriptor_distances, hardest_triplet_loss
 from .variant_views import VariantViews
 

@@ -20,8 +20,8 @@ import torch
 from ..benchmark import sets
 from ..benchmark.methods import DrkfsTorch, Surface
 from ..benchmark.run import bars_summary, retrieval_summary, score_everything, tier_accuracy
-from ..config import PipelineConfig
-from ..matching import match_score
+from ..contract.config import PipelineConfig
+from ..match import match_score
 from ..metric import DRKFS
 from ..synthetic.shapes import FAMILIES
 from ..synthetic.variants import structural_wins

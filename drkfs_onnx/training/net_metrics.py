@@ -9,7 +9,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from ..config import PipelineConfig
+from ..contract.config import PipelineConfig
 from .data import ViewPairs, correspond, crops
 from .net_losses import descriptor_distances
 

@@ -17,12 +17,12 @@ import torch
 import typer
 from torch import nn
 
-from ..config import PipelineConfig
-from ..detector import PoIDetector
-from ..hardnet import HardNet
+from ..contract.config import PipelineConfig
+from ..contract.model_files import MANIFEST, sha256
 from ..metric import DRKFS, with_nets
+from ..nets.detector import PoIDetector
+from ..nets.hardnet import HardNet
 from ..synthetic.shapes import FAMILIES
-from ..weights import MANIFEST, sha256
 from .data import ViewPairs, render_pairs, sample_matches
 from .metric_stage import (
     ACCURACY_TOLERANCE,

@@ -16,9 +16,9 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from ..config import PipelineConfig
-from ..mesh import frame_of, place
-from ..render import Renderer
+from ..contract.config import PipelineConfig
+from ..contract.mesh import frame_of, place
+from ..render.renderer import Renderer
 from ..synthetic.shapes import Part, assemble, random_shape
 from ..synthetic.variants import (
     MILD,

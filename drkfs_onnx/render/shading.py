@@ -1,14 +1,16 @@
 """Shaders of a screen's kept pixel-face pairs (torch): grey Lambertian faces with SoftRas' soft
-blend, and silhouettes. The equations are ``render_math``'s, shared with the numpy renderer;
-the pairs' sums and their backward are ``rasterize.pixel_sums``'."""
+blend, and silhouettes. The equations are ``contract.render_equations``', shared with the numpy
+renderer; the pairs' sums and their backward are ``pixel_sums``'."""
 
 from __future__ import annotations
 
 import torch
 
-from . import render_math
-from .config import PipelineConfig
-from .rasterize import TORCH_OPS, KeptPairs, Shader, pixel_sums
+from ..contract import render_equations
+from ..contract.config import PipelineConfig
+from .kept_pairs import KeptPairs
+from .pixel_sums import Shader, pixel_sums
+from .torch_ops import TORCH_OPS
 
 SATURATED = 1.0 - 1e-6
 
@@ -17,19 +19,19 @@ def face_shading(
     verts_cam: torch.Tensor, faces: torch.Tensor, config: PipelineConfig
 ) -> torch.Tensor:
     """(B, K, V, 3) camera-frame vertices, (B, F, 3) faces -> (B*K*F,) grey value per face
-    (``render_math.face_shading``)."""
-    return render_math.face_shading(verts_cam, faces, config, TORCH_OPS)
+    (``render_equations.face_shading``)."""
+    return render_equations.face_shading(verts_cam, faces, config, TORCH_OPS)
 
 
 class Blend(Shader):
     """A pair's blend weight w = exp(logit - logit_max) times its face's colour, and w: the
-    numerator and denominator of ``render_math.blend_image``."""
+    numerator and denominator of ``render_equations.blend_image``."""
 
     channels = 2
 
     def _weight(self, pairs: KeptPairs) -> torch.Tensor:
         shift = pairs.logit_max.index_select(0, pairs.pixel)
-        return render_math.blend_weight(pairs.logit, shift, TORCH_OPS)
+        return render_equations.blend_weight(pairs.logit, shift, TORCH_OPS)
 
     def values(self, pairs: KeptPairs, colors: torch.Tensor) -> torch.Tensor:
         weight = self._weight(pairs)
@@ -57,12 +59,14 @@ class Silhouette(Shader):
         return grad[0] * slope, torch.zeros_like(coverage), None
 
 
-def soft_blend(pairs: KeptPairs, params: torch.Tensor, face_colors: torch.Tensor) -> torch.Tensor:
+def shaded_images(
+    pairs: KeptPairs, params: torch.Tensor, face_colors: torch.Tensor
+) -> torch.Tensor:
     """SoftRas aggregation of the kept pairs -> (views, S, S) grey images
-    (``render_math.blend_image``)."""
+    (``render_equations.blend_image``)."""
     config, size = pairs.plan.config, pairs.plan.config.image_size
     numerator, denominator = pixel_sums(pairs, Blend(), params, face_colors)
-    image = render_math.blend_image(numerator, denominator, pairs.logit_max, config, TORCH_OPS)
+    image = render_equations.blend_image(numerator, denominator, pairs.logit_max, config, TORCH_OPS)
     return image.reshape(pairs.plan.num_views, size, size)
 
 

@@ -7,14 +7,30 @@ from typing import Literal
 import torch
 from torch import nn
 
-from .batch import MeshBatch
-from .cameras import Cameras, make_cameras
-from .config import PipelineConfig
-from .rasterize import KeptPairs, PairPlan, kept_pairs, to_screen
-from .render_math import ScreenFaces
-from .shade import face_shading, silhouette, soft_blend
+from ..contract.cameras import Cameras, make_cameras
+from ..contract.config import PipelineConfig
+from ..contract.render_equations import ScreenFaces, project_faces, to_camera
+from .kept_pairs import KeptPairs, kept_pairs
+from .mesh_batch import MeshBatch
+from .pair_plan import PairPlan
+from .shading import face_shading, shaded_images, silhouette
+from .torch_ops import TORCH_OPS
 
 RenderMode = Literal["shaded", "silhouette"]
+
+
+def to_screen(
+    verts: torch.Tensor,
+    faces: torch.Tensor,
+    rotations: torch.Tensor,
+    eyes: torch.Tensor,
+    focal: float,
+    config: PipelineConfig,
+) -> tuple[torch.Tensor, ScreenFaces]:
+    """(B, V, 3) world vertices, (B, F, 3) faces, K cameras ((K, 3, 3) rotations, (K, 3) eyes)
+    -> (B, K, V, 3) camera-frame vertices and the faces projected into the B*K views."""
+    verts_cam = to_camera(verts, rotations.to(verts.dtype), eyes.to(verts.dtype), TORCH_OPS)
+    return verts_cam, project_faces(verts_cam, faces, focal, config, TORCH_OPS)
 
 
 class Renderer(nn.Module):
@@ -39,8 +55,8 @@ class Renderer(nn.Module):
         if mode not in ("shaded", "silhouette"):
             raise ValueError(f"unknown render mode {mode!r}; use 'shaded' or 'silhouette'")
         meshes = MeshBatch.of(verts, faces)
-        # on a CPU mesh by mesh, so that a mesh's pairs stay in cache (a batch's did not, and its
-        # step ran up to 1.2x slower a mesh than the loop's); on a GPU the whole batch at once
+        # on a CPU mesh by mesh, so that a mesh's pairs stay in cache (a batch's do not); on a
+        # GPU the whole batch at once (docs/design_notes.md)
         size = len(meshes) if meshes.verts.is_cuda else 1
         return torch.cat([self._render(group, mode) for group in meshes.split(size)])
 
@@ -50,7 +66,7 @@ class Renderer(nn.Module):
         if mode == "silhouette":
             return silhouette(pairs, screen.params)
         colors = face_shading(verts_cam, meshes.faces, self.config)
-        return soft_blend(pairs, screen.params, colors)
+        return shaded_images(pairs, screen.params, colors)
 
     @torch.no_grad()
     def rasterize(self, verts, faces=None, depth_cull: bool = True) -> KeptPairs:

@@ -6,16 +6,14 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+from ..contract.config import PipelineConfig
 from . import precision
-from .config import PipelineConfig
 
 
 class _FrozenConv(torch.autograd.Function):
     """conv2d(x, weight, bias) for fixed weights, differentiable with respect to ``x`` only;
-    its backward a transposed conv of the channels-last gradient (on a CPU 2x faster than the
-    conv's own input gradient for a one-channel image and a 9 x 9 kernel; with the
-    space-to-depth form's conv, the detector's forward+backward on 192 random 128 px images
-    199 ms against autograd's 224), at the forward's ``precision``."""
+    its backward a transposed conv of the channels-last gradient (on a CPU faster than the
+    conv's own input gradient; docs/design_notes.md), at the forward's ``precision``."""
 
     @staticmethod
     def forward(ctx, x, weight, bias):
@@ -32,12 +30,9 @@ class _FrozenConv(torch.autograd.Function):
 
 
 # A training step's detector on a CPU runs its conv in the 4 x 4 space-to-depth form
-# (``unshuffled_weight``): mkldnn ran the one-channel 9 x 9 conv at about a twentieth of its
-# speed on HardNet's layers, and the form's 3 x 3 conv of 16 into 64 channels, for 1.8x the
-# multiply-adds, took the detector's forward+backward on the network study's B = 32 views
-# from 403 to 195 ms (fine stage, 192 views of 128 px) and from 149 to 83 ms (coarse, 384 of
-# 64 px), on 2 cores; the fine step by 0.23 s of about 5.9 on average over 8 alternations. A
-# GPU keeps the plain conv: the form is untried there
+# (``unshuffled_weight``): mkldnn runs a one-channel 9 x 9 conv far below its speed on many
+# channels, and the form's 3 x 3 conv of 16 into 64 channels halves the detector's step there
+# (docs/design_notes.md). A GPU keeps the plain conv: the form is untried there
 UNSHUFFLE = 4
 
 

@@ -11,8 +11,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .array_ops import NUMPY_OPS
 from .config import PipelineConfig
-from .render_math import NUMPY_OPS, to_camera
+from .render_equations import to_camera
 
 GOLDEN_ANGLE = math.pi * (3.0 - math.sqrt(5.0))
 WORLD_UP = np.array([0.0, 1.0, 0.0])

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import torch
 
-from .mesh import has_area
+from ..contract.mesh import has_area
 
 Tensors = torch.Tensor | Sequence[torch.Tensor]
 
@@ -40,8 +40,22 @@ class MeshBatch:
 
     @classmethod
     def of(cls, verts, faces=None, device: torch.device | None = None) -> MeshBatch:
-        """Any of the module's forms -> a checked ``MeshBatch`` (ValueError naming what was
-        expected otherwise), on ``device`` when given."""
+        """Any of the module's forms as a checked ``MeshBatch``.
+
+        Args:
+            verts: (V, 3) one mesh; (B, V, 3) a template deformed B ways; a list of (V_i, 3);
+                an object with ``verts_list()`` and ``faces_list()``; or a ``MeshBatch``.
+            faces: (F, 3) int, shared; (B, F, 3) one each; a list of (F_i, 3); None for the
+                forms that carry their faces.
+            device: where the tensors must already be (checked, not moved); None for any.
+
+        Returns:
+            verts (B, V, 3) and faces (B, F, 3) int64, padded to the largest; B = 1 and
+            ``single`` for one (V, 3) mesh.
+
+        Raises:
+            ValueError: naming the argument and the shape, dtype or index range expected.
+        """
         if isinstance(verts, MeshBatch):
             _check_verts(verts.verts, "verts", (3,), device)
             return verts
@@ -149,17 +163,19 @@ class MeshBatch:
         return values[0] if self.single else values
 
 
-REDUCTIONS = ("mean", "sum", "none")
+BATCH_REDUCTIONS = ("mean", "sum", "none")
 
 
-def over_batch(scores: torch.Tensor, single: bool, reduction: str) -> torch.Tensor:
+def over_batch(scores: torch.Tensor, single: bool, batch_reduction: str) -> torch.Tensor:
     """(B,) per-mesh scores -> their mean, sum or themselves ('none'); a single mesh's input
     -> its () score."""
-    if reduction not in REDUCTIONS:
-        raise ValueError(f"unknown reduction {reduction!r}; use one of {', '.join(REDUCTIONS)}")
+    if batch_reduction not in BATCH_REDUCTIONS:
+        raise ValueError(
+            f"unknown batch_reduction {batch_reduction!r}; use one of {', '.join(BATCH_REDUCTIONS)}"
+        )
     if single:
         return scores[0]
-    return {"mean": scores.mean, "sum": scores.sum, "none": lambda: scores}[reduction]()
+    return {"mean": scores.mean, "sum": scores.sum, "none": lambda: scores}[batch_reduction]()
 
 
 def _check_verts(verts, name: str, ndims: tuple[int, ...], device=None) -> None:

@@ -1,12 +1,8 @@
-"""The soft renderer's equations, written once for torch and numpy.
+"""The soft renderer's equations, written once for torch and numpy (``ops``: ``array_ops``).
 
-Torch-free: ``drkfs_onnx.rasterize`` passes ``TORCH_OPS``, the runtime ``NUMPY_OPS``. Each
-function takes the array module's few operations as ``ops``: ``where``, ``minimum``,
-``maximum``, ``clip``, ``sign``, ``ceil``, ``floor``, ``sqrt``, ``exp``, ``log``, ``sigmoid``,
-``stack``, ``take(values, index)`` (gather along the last axis, broadcasting the
-others), and ``scatter_sum(index, values, length)`` / ``scatter_max(out, index, values)``.
-Only what is not an equation stays apart: autograd's two passes (``rasterize.py``) and the
-numpy renderer's culling (``runtime/candidates.py``).
+The torch renderer (``render/``) passes ``TORCH_OPS``, the runtime's ``NUMPY_OPS``. Only what
+is not an equation stays apart: autograd's two passes (``render/pixel_sums.py``) and the numpy
+renderer's culling (``runtime/candidates.py``).
 
 The stages: ``to_camera`` -> ``project_faces`` -> per face ``pixel_span`` (its box of pixels)
 -> per pixel-face pair ``pair_terms`` (coverage and depth) and ``pair_logit`` -> per pixel
@@ -16,7 +12,6 @@ The stages: ``to_camera`` -> ``project_faces`` -> per face ``pixel_span`` (its b
 from __future__ import annotations
 
 from dataclasses import dataclass
-from types import SimpleNamespace
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -30,32 +25,6 @@ LOOSE_RADIUS = 1.01
 # A pair whose blend logit lies this far under its pixel's largest is dropped: its weight is
 # below exp(-DEPTH_CULL) of the front face's.
 DEPTH_CULL = 30.0
-
-
-def _sigmoid(x: np.ndarray) -> np.ndarray:
-    with np.errstate(over="ignore"):
-        return 1.0 / (1.0 + np.exp(-x))
-
-
-def _scatter_sum(index: np.ndarray, values: np.ndarray, length: int) -> np.ndarray:
-    return np.bincount(index, values, minlength=length)
-
-
-def _scatter_max(out: np.ndarray, index: np.ndarray, values: np.ndarray) -> np.ndarray:
-    np.maximum.at(out, index, values)
-    return out
-
-
-def _take(values: np.ndarray, index: np.ndarray) -> np.ndarray:
-    return np.take_along_axis(values, index, axis=-1)
-
-
-NUMPY_OPS = SimpleNamespace(
-    where=np.where, minimum=np.minimum, maximum=np.maximum, clip=np.clip, sign=np.sign,
-    ceil=np.ceil, floor=np.floor, sqrt=np.sqrt, exp=np.exp, log=np.log, sigmoid=_sigmoid,
-    stack=np.stack, take=_take, scatter_sum=_scatter_sum,
-    scatter_max=_scatter_max,
-)  # fmt: skip
 
 
 @dataclass
@@ -158,7 +127,7 @@ def pixel_centre(index, size: int):
 
 class _Edge(NamedTuple):
     """One edge's terms for each pair (``_edges``); a NamedTuple, which ``torch.compile``
-    traces (a SimpleNamespace broke its graph, and the equations then ran one op at a time)."""
+    traces as one graph (docs/design_notes.md)."""
 
     qx: Any
     qy: Any

@@ -2,8 +2,8 @@
 (``window_table``), which directions are searched (``directions``), and how the best-match
 squared distances become one score (``reduce``).
 
-Torch-free: ``reduce`` takes the array module as ``ops``, ``numpy`` (the default) or ``torch``,
-through the functions both name alike. A row stands for ``weight`` patches: the torch path gives
+Torch-free: ``reduce`` runs on numpy arrays, or on torch tensors with ``ops=TORCH_OPS``
+(``array_ops``' convention). A row stands for ``weight`` patches: the torch path gives
 every patch a row of weight 1, the runtime one row for all background patches weighted by their
 count; ``reduce`` is the same number either way.
 """
@@ -15,6 +15,7 @@ from typing import TypeVar
 
 import numpy as np
 
+from .array_ops import NUMPY_OPS, ArrayOps
 from .config import PipelineConfig
 
 T = TypeVar("T")
@@ -53,14 +54,7 @@ def directions(a: T, b: T, config: PipelineConfig) -> list[tuple[T, T]]:
     return [pairs[side] for side in query_sides(config)]
 
 
-def _take_last(ops, values, index):
-    """``values`` gathered at ``index`` along the last axis (numpy or torch)."""
-    if ops is np:
-        return np.take_along_axis(values, index, -1)
-    return ops.take_along_dim(values, index, -1)
-
-
-def reduce(distances, weights, config: PipelineConfig, ops=np):
+def reduce(distances, weights, config: PipelineConfig, ops: ArrayOps = NUMPY_OPS):
     """(..., R) best-match squared distances, (..., R) patch counts -> (...) score: one per
     leading index (a batch's meshes), reduced along the last axis.
 
@@ -78,7 +72,7 @@ def reduce(distances, weights, config: PipelineConfig, ops=np):
     if config.reduction == "tail":
         k = ops.minimum(total, ops.clip(config.tail_fraction * total, 1.0, None))
         order = ops.argsort(-distances, -1)
-        ranked, counts = _take_last(ops, distances, order), _take_last(ops, weights, order)
+        ranked, counts = ops.take(distances, order), ops.take(weights, order)
         before = ops.cumsum(counts, -1) - counts  # patches ranked above each row
         taken = ops.minimum(ops.clip(k[..., None] - before, 0.0, None), counts)
         return (taken * ranked).sum(-1) / k

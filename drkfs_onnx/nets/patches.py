@@ -6,7 +6,7 @@ import math
 
 import torch
 
-from .config import PipelineConfig
+from ..contract.config import PipelineConfig
 
 
 def select_patches(maps: torch.Tensor, index: torch.Tensor, config: PipelineConfig) -> torch.Tensor:
@@ -28,10 +28,11 @@ def select_patches(maps: torch.Tensor, index: torch.Tensor, config: PipelineConf
     return chosen.reshape(-1, 1, size, size)
 
 
-def nonempty_patches(images: torch.Tensor, config: PipelineConfig) -> torch.Tensor:
+def nonempty_patches_on_device(images: torch.Tensor, config: PipelineConfig) -> torch.Tensor:
     """(B, 1, S, S) rendered images -> (B * P,) bool on the images' device, without a host
-    wait: ``patch_grid.nonempty_patches``' definition (any non-background pixel in the patch's
-    window grown by the detector's reach), as a max-pool of the non-background mask."""
+    wait: the torch path's twin of ``contract.patch_grid.nonempty_patches`` (any non-background
+    pixel in the patch's window grown by the detector's reach), as a max-pool of the
+    non-background mask."""
     reach = config.detector_kernel // 2
     seen = (images.detach() != config.background).to(torch.float32)
     window = config.patch_size + 2 * reach

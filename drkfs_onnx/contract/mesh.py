@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
+from .array_ops import NUMPY_OPS, ArrayOps
 from .config import NORMALIZATIONS
 
 AREA_EPS = 1e-14
@@ -209,24 +210,18 @@ def check_mesh(vertices: np.ndarray, faces: np.ndarray, source: str = "<array>")
     return Mesh(vertices=vertices, faces=faces[area_ok], source=source)
 
 
-def _last_max(values):
-    """The largest entry along the last axis; numpy or torch."""
-    top = values.max(-1)
-    return getattr(top, "values", top)
-
-
-def bounding_frame(lower, upper):
+def bounding_frame(lower, upper, ops: ArrayOps = NUMPY_OPS):
     """(centre, scale) that map the box [lower, upper] into the unit sphere: v' = (v - c) / s
     (scale 1 for a box of no extent).
 
-    (3,) corners give (3,) and (); a batch's (B, 3) give (B, 3) and (B,). Pure arithmetic, so
-    numpy arrays and torch tensors (keeping gradients) both work.
+    (3,) corners give (3,) and (); a batch's (B, 3) give (B, 3) and (B,). numpy arrays, or
+    torch tensors (keeping gradients) with ``ops=TORCH_OPS``.
     """
     centre = lower / 2.0 + upper / 2.0  # halves first: the sum of two huge values overflows
     extent = upper / 2.0 - lower / 2.0
     # the half-diagonal as |extent|_max * |extent / |extent|_max|: squares of very small or very
     # large coordinates would under- or overflow
-    largest = _last_max(abs(extent))
+    largest = ops.amax(abs(extent), -1)
     # a mesh collapsed to a point has nothing to scale: its frame keeps scale 1, and the square
     # root stays off 0, where its slope is infinite (a NaN gradient for a collapsed prediction)
     point = largest == 0
@@ -240,41 +235,41 @@ def check_normalization(mode: str) -> str:
     return mode
 
 
-def frame_of(vertices):
-    """(centre, scale) of a vertex array's bounding box, (V, 3) or a batch's (B, V, 3); numpy or
-    torch (values keep grads)."""
-    lower, upper = vertices.min(-2), vertices.max(-2)
-    return bounding_frame(getattr(lower, "values", lower), getattr(upper, "values", upper))
+def frame_of(vertices, ops: ArrayOps = NUMPY_OPS):
+    """(centre, scale) of a vertex array's bounding box, (V, 3) or a batch's (B, V, 3): (3,)
+    and (), or (B, 3) and (B,); torch tensors (values keep grads) with ``ops=TORCH_OPS``."""
+    return bounding_frame(ops.amin(vertices, -2), ops.amax(vertices, -2), ops)
 
 
-def reference_frame(vertices, mode: str):
+def reference_frame(vertices, mode: str, ops: ArrayOps = NUMPY_OPS):
     """The frame ``mode`` places meshes in relative to the reference ``vertices``: its
     (centre, scale), or None for 'none'."""
-    return None if check_normalization(mode) == "none" else frame_of(vertices)
+    return None if check_normalization(mode) == "none" else frame_of(vertices, ops)
 
 
 def place(vertices, frame):
-    """Vertices moved into ``frame`` = (centre, scale): v' = (v - c) / s; numpy or torch. A
-    batch's frame, (B, 3) and (B,), places (B, V, 3) vertices mesh by mesh."""
+    """Vertices moved into ``frame`` = (centre, scale): v' = (v - c) / s; arithmetic only, so
+    numpy or torch. A batch's frame, (B, 3) and (B,), places (B, V, 3) vertices mesh by mesh."""
     centre, scale = frame
-    if getattr(centre, "ndim", 1) == 2:
+    if centre.ndim == 2:
         centre, scale = centre[:, None], scale[:, None, None]
     return (vertices - centre) / scale
 
 
-def place_by(vertices, mode: str, reference):
+def place_by(vertices, mode: str, reference, ops: ArrayOps = NUMPY_OPS):
     """Move a mesh into the metric's frame: by the reference's frame (joint), its own (each),
     or not at all (none). ``reference`` comes from ``reference_frame``."""
     if mode == "none":
         return vertices
-    return place(vertices, reference if mode == "joint" else frame_of(vertices))
+    return place(vertices, reference if mode == "joint" else frame_of(vertices, ops))
 
 
-def normalize_pair(vertices_a, vertices_b, mode: str = "joint"):
-    """Put two meshes (numpy arrays or torch tensors) into the metric's frame; B is the reference.
+def normalize_pair(vertices_a, vertices_b, mode: str = "joint", ops: ArrayOps = NUMPY_OPS):
+    """Put two meshes into the metric's frame; B is the reference (numpy arrays, or torch
+    tensors with ``ops=TORCH_OPS``).
 
     joint: both moved and scaled by B's bounding box (reconstructions judged in the truth's frame);
     each: each by its own bounding box; none: unchanged.
     """
-    reference = reference_frame(vertices_b, mode)
-    return place_by(vertices_a, mode, reference), place_by(vertices_b, mode, reference)
+    reference = reference_frame(vertices_b, mode, ops)
+    return place_by(vertices_a, mode, reference, ops), place_by(vertices_b, mode, reference, ops)

@@ -8,9 +8,8 @@ from collections.abc import Iterator
 import torch
 
 # 'ieee': float32 throughout; 'tf32': cuDNN rounds a convolution's inputs to TF32's 10-bit
-# mantissa (torch's own default). On an H100 TF32 turned a batch's gradient away from the
-# per-mesh loop's (B = 4: cosine 0.99996-0.99998, against at least 0.999994 in float32), and
-# saved the B = 32 step 57.5 -> 51.6 ms (coarse) and 69.5 -> 54.9 ms (fine)
+# mantissa (torch's own default): faster, and a batch's gradient no longer the per-mesh loop's
+# to float32 rounding (docs/design_notes.md)
 CONV_PRECISIONS = ("ieee", "tf32")
 
 
@@ -41,10 +40,9 @@ def conv_precision(precision: str) -> Iterator[None]:
         torch.backends.cudnn.conv.fp32_precision = before
 
 
-# The activations' layout on a GPU: cuDNN's float32 convs ran faster in NCHW than channels-last
-# (H100, the training step at B = 32: coarse 62.1 -> 57.5 ms and 3.06 -> 2.92 GB, fine 82.8 ->
-# 69.5 ms and 2.82 -> 2.66 GB). On a CPU always channels-last: mkldnn ran HardNet's many small
-# patches ~1.4x faster in it
+# The activations' layout on a GPU: cuDNN's float32 convs run faster in NCHW than channels-last;
+# on a CPU always channels-last, where mkldnn runs HardNet's many small patches faster
+# (docs/design_notes.md)
 GPU_LAYOUT = torch.contiguous_format
 
 

@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import torch
 
-from . import match_rules
-from .config import PipelineConfig
+from .contract import match_rules
+from .contract.config import PipelineConfig
+from .render.torch_ops import TORCH_OPS
 
 CHUNK_ROWS = 2048
 # Best-match candidates ranked by the fast matmul form, then re-ranked by exact distance.
@@ -110,7 +111,7 @@ def match_score(
             distances = best_match_distances(queries, targets, config, table)
         else:
             distances = soft_match_distances(queries, targets, config, temperature, table)
-        scores.append(match_rules.reduce(distances, torch.ones_like(distances), config, torch))
+        scores.append(match_rules.reduce(distances, torch.ones_like(distances), config, TORCH_OPS))
     return torch.stack(scores).mean(0)
 
 

@@ -5,8 +5,8 @@ from __future__ import annotations
 import torch
 from torch import nn
 
+from ..contract.config import PipelineConfig
 from . import precision
-from .config import PipelineConfig
 
 L2NET_CHANNELS = (32, 32, 64, 64, 128, 128)
 L2NET_STRIDES = (1, 1, 2, 1, 2, 1)
@@ -27,8 +27,8 @@ def _patches_in_layout(x: torch.Tensor) -> torch.Tensor:
     """(N, 1, H, W) patches -> the same values in ``precision.conv_layout``'s layout.
     Channels-last (a CPU's) sets the strides by hand: for one channel
     ``contiguous(memory_format=torch.channels_last)`` keeps the other layout's strides (both
-    describe the same memory), and mkldnn then runs the first conv on that layout and returns
-    its output in it (on a CPU 8x slower, with the copy to channels-last after it)."""
+    describe the same memory), and mkldnn then runs the first conv on that layout, slowly, and
+    returns its output in it (docs/design_notes.md)."""
     _, _, height, width = x.shape
     if precision.conv_layout(x.device) != torch.channels_last:
         return x.contiguous()
@@ -39,11 +39,11 @@ def _conv_stack(x: torch.Tensor, layers: list, passed: list | None = None) -> to
     """HardNet's folded convs (``layers``: (weight, bias, stride, padding) each) in order, a ReLU
     after all but the last. The activations are in ``precision.conv_layout``'s layout from the
     first conv on (its one-channel input can leave its output in the other): a gradient and a
-    mask in different layouts multiplied 8x slower on a CPU.
+    mask in different layouts multiply slowly on a CPU.
 
     ``passed``, where given (the fixed nets' training step), collects where each ReLU passed
     (0 or 1, int8: a byte an activation), and the last conv, which covers its whole input map,
-    runs as one matmul: 1.7-2.2x faster than mkldnn's conv on a CPU (128 patches). Elsewhere
+    runs as one matmul, faster than mkldnn's conv on a CPU (docs/design_notes.md). Elsewhere
     the last layer stays the conv the exported graphs hold, so that scores do not move by a
     rounding."""
     if passed is not None:
@@ -58,7 +58,7 @@ def _conv_stack(x: torch.Tensor, layers: list, passed: list | None = None) -> to
         if k + 1 < len(layers):  # in place: the conv's output is not needed for its backward
             x = torch.relu_(x)
             if passed is not None:
-                # nonzero after the ReLU: where it passed (3x faster than x > 0 on a CPU)
+                # nonzero after the ReLU: where it passed (faster than x > 0 on a CPU)
                 passed.append(x.bool().view(torch.int8))
     return x
 
@@ -79,8 +79,8 @@ def _stack_input_grad(
     sizes = [size, *(mask.shape[-2:] for mask in passed[:-1])]
     steps = zip(layers[:-1], passed, sizes, strict=True)
     for (weight, _, stride, padding), mask, size in reversed(list(steps)):
-        # the mask as floats first: a float32 by int8 product ran 8x slower than the conversion
-        # and a float32 product together
+        # the mask as floats first: a float32 by int8 product is slower than the conversion and
+        # a float32 product together
         grad = grad.mul_(floats.as_strided(mask.shape, mask.stride()).copy_(mask))
         # a stride-2 conv maps input sizes n and n + 1 to one output size: the output
         # padding tells the transposed conv which of them it had
@@ -93,13 +93,12 @@ def _stack_input_grad(
 
 class _FrozenHardNet(torch.autograd.Function):
     """HardNet's evaluation layers (``HardNet._folded``) for fixed weights, differentiable with
-    respect to the patches only, in groups of ``group`` patches. The forward is ``_conv_stack``,
-    as ``_folded``'s; the backward keeps only where each ReLU passed (a byte an activation, where
+    respect to the patches only, in groups of ``group`` patches. The forward is ``_conv_stack``, as
+    ``_folded``'s; the backward keeps only where each ReLU passed (a byte an activation, where
     autograd keeps every conv's input: most of a batch's training-step memory) and sends the
-    gradient back through each conv as a transposed conv and through the last as a matmul. On a
-    CPU those run 1.3-4x faster than the convs' own input gradients (the stride-2 convs' and the
-    last's most). One node for every group, so that their backwards share buffers. The backward
-    runs at the forward's ``precision``.
+    gradient back through each conv as a transposed conv and through the last as a matmul, faster on
+    a CPU than the convs' own input gradients (docs/design_notes.md). One node for every group, so
+    that their backwards share buffers. The backward runs at the forward's ``precision``.
 
     ``layers``: (weight, bias, stride, padding) of each folded conv, in order; a ReLU follows
     all but the last."""

@@ -1,0 +1,70 @@
+"""The shipped model files (``models/``, installed as ``drkfs_onnx.models``): the manifest, the
+weights entry trained for a config, the feature graphs' names and the metadata keys they carry
+(shared by the torch path, export and runtime)."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from importlib import resources
+from pathlib import Path
+
+from .config import PipelineConfig
+
+MATCH_FILE = "match.onnx"
+CONFIG_KEY = "drkfs_config"
+VERSION_KEY = "drkfs_model_version"
+WEIGHTS_KEY = "drkfs_weights_sha256"
+
+
+def features_file(config: PipelineConfig) -> str:
+    """File name of the feature graph for a config's nets, descriptor width and image size (the
+    graph takes any number of views)."""
+    return f"{nets_prefix(config)}{config.image_size}px.onnx"
+
+
+def nets_prefix(config: PipelineConfig) -> str:
+    """What the names of every feature graph of a config's nets begin with, whatever its
+    image size."""
+    return f"features_{config.nets}_w{config.descriptor_width:g}_"
+
+
+MANIFEST = "manifest.json"
+
+
+def sha256(path: Path) -> str:
+    """A file's sha256, as the manifest records it."""
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def models_dir():
+    """The installed ``models/`` folder (a Traversable)."""
+    return resources.files("drkfs_onnx.models")
+
+
+def shipped_weights() -> list[dict]:
+    """The manifest's weights entries: file, sha256 and the config each was trained for."""
+    manifest_file = models_dir() / MANIFEST
+    if not manifest_file.is_file():
+        return []
+    return json.loads(manifest_file.read_text()).get("weights", [])
+
+
+# Settings that change what the nets are shown but not the nets: a reduced config (fitting, a
+# quick run) or the softer training renderer (``PipelineConfig.training()``) reuses the weights.
+RENDER_FIELDS = ("num_views", "image_size", "sigma", "gamma")
+
+
+def shipped_entry(config: PipelineConfig, any_rendering: bool = False) -> dict | None:
+    """The manifest's weights entry trained for ``config``, or None when none is shipped.
+
+    any_rendering: also accept weights trained at other RENDER_FIELDS values. The match
+    settings never matter: they do not touch the nets.
+    """
+    for entry in shipped_weights():
+        trained = PipelineConfig.from_dict(entry["config"])
+        if any_rendering:
+            trained = trained.replace(**{name: getattr(config, name) for name in RENDER_FIELDS})
+        if trained.features_part() == config.features_part():
+            return entry
+    return None
