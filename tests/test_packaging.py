@@ -159,7 +159,8 @@ def test_the_installed_package_is_lean_and_ships_each_presets_nets_once(installe
     # the studies stay in the repository: the package is the metric, the loss, the runtime,
     # export, the benchmark, the nets' training and choose-loss
     assert sorted(p.name for p in package.iterdir() if p.is_dir() and p.name != "__pycache__") == [
-        "benchmark", "export", "judging", "models", "runtime", "synthetic", "training",
+        "benchmark", "contract", "export", "judging", "models", "nets", "render", "runtime",
+        "synthetic", "training",
     ]  # fmt: skip
 
 
