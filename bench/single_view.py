@@ -70,7 +70,8 @@ def single_view(
         except ValueError as error:
             raise typer.BadParameter(str(error), param_hint="--losses") from None
         for name, row in results["means"]["mean"].items():
-            typer.echo(f"{name}: LFD {row['LFD']:.0f}, Chamfer-L1 {row['Chamfer-L1']:.4f}")
+            judged = [f"{judge} {value:.4g}" for judge, value in row.items() if value is not None]
+            typer.echo(f"{name}: {', '.join(judged)}")
         return
     if test_seeds is not None:
         results = judge_saved(out, test_seeds, threads, progress)
