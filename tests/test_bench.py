@@ -186,7 +186,12 @@ def test_quick_bench_writes_results_chart_and_the_variant_set(quick):
     index = json.loads((out / "set" / "index.json").read_text())
     for key, name in index["files"].items():
         assert len(trimesh.load(out / "set" / name, process=False).faces) > 0, key
-    assert {c["group"] for c in index["comparisons"]} == {"tiers", "bars", "stability"}
+    assert {c["group"] for c in index["comparisons"]} == {"tiers", "real", "bars", "stability"}
+    # the quick set's real tiers: woody, on the training side
+    real = results["methods"]["DR-KFS"]["real_tiers"]
+    assert real["training"]["invisible_vs_structural"] is not None
+    assert real["held_out"]["invisible_vs_structural"] is None
+    assert real["checks"]["training"]["turn_below_every_surface"]["share"] in (0.0, 1.0)
     # every method off the front is beaten on both axes by one on it
     point = {
         n: (m["seconds_per_pair"], m["tiers"]["invisible_vs_structural"])

@@ -136,15 +136,36 @@ TIER_PAIRS = {
 }  # name -> (the tier that should score lower, the one that should score higher)
 
 
-def tier_accuracy(bench: sets.BenchSet, values: dict[int, float | None]) -> dict:
-    """For each pair of tiers, the share of (lower-tier, higher-tier) variant pairs of one base
-    where the higher tier's variant is further from the base: all bases pooled, and per half
-    (synthetic bases, shared meshes); with the pair counts, each tier's median value and
-    ``misses``: per pair of tiers, how many bases order each pair of variants the wrong way."""
+def _tier_values(bench: sets.BenchSet, values: dict[int, float | None], group: str) -> dict:
+    """base -> tier -> variant -> value, for the comparisons of ``group``."""
     groups: dict[str, dict[str, dict[str, float]]] = defaultdict(lambda: defaultdict(dict))
     for i, c in enumerate(bench.comparisons):
-        if c.group == "tiers" and values.get(i) is not None:
+        if c.group == group and values.get(i) is not None:
             groups[c.base][c.kind][c.label] = values[i]
+    return groups
+
+
+def _halves(group: str, bases: list[str]) -> dict[str, list[str]]:
+    """The tier set's halves (synthetic bases, shared meshes); the real tiers' sides (the
+    meshes levers are chosen on, the held-out ones)."""
+    if group == "real":
+        side = {sets.REAL_PREFIX + name: "training" for name in sets.TRAINING_MESHES}
+        side |= {sets.REAL_PREFIX + name: "held_out" for name in sets.HELDOUT_MESHES}
+        return {half: [b for b in bases if side[b] == half] for half in ("training", "held_out")}
+    return {
+        "synthetic": [b for b in bases if b not in sets.SHARED_MESHES],
+        "shared": [b for b in bases if b in sets.SHARED_MESHES],
+    }
+
+
+def tier_accuracy(
+    bench: sets.BenchSet, values: dict[int, float | None], group: str = "tiers"
+) -> dict:
+    """For each pair of tiers, the share of (lower-tier, higher-tier) variant pairs of one base
+    where the higher tier's variant is further from the base: all bases pooled, and per half
+    (``_halves``); with the pair counts, each tier's median value and ``misses``: per pair of
+    tiers, how many bases order each pair of variants the wrong way."""
+    groups = _tier_values(bench, values, group)
 
     def accuracy(bases: list[str], lower: str, higher: str) -> tuple[float | None, int]:
         wins = pairs = 0
@@ -165,10 +186,7 @@ def tier_accuracy(bench: sets.BenchSet, values: dict[int, float | None]) -> dict
         )
         return dict(found.most_common())
 
-    halves = {
-        "synthetic": [b for b in groups if b not in sets.SHARED_MESHES],
-        "shared": [b for b in groups if b in sets.SHARED_MESHES],
-    }
+    halves = _halves(group, list(groups))
     pooled = {name: accuracy(list(groups), *tiers) for name, tiers in TIER_PAIRS.items()}
     result: dict = {name: share for name, (share, _) in pooled.items()}
     for half, bases in halves.items():
@@ -183,6 +201,33 @@ def tier_accuracy(bench: sets.BenchSet, values: dict[int, float | None]) -> dict
         for tier in TIERS
     }
     result["misses"] = {name: misses(*tiers) for name, tiers in TIER_PAIRS.items()}
+    return result
+
+
+def real_checks(bench: sets.BenchSet, values: dict[int, float | None]) -> dict:
+    """Per side of the real tiers, the share of meshes where the 2-degree turn scores below
+    every surface variant, and where the removed salient part scores above every invisible
+    one (of the meshes where the method scores them); with the meshes each fails on."""
+    groups = _tier_values(bench, values, "real")
+    result = {}
+    for half, bases in _halves("real", list(groups)).items():
+        turn, salient = {}, {}
+        for b in bases:
+            tiers = groups[b]
+            if "turned_2" in tiers["invisible"] and tiers["surface"]:
+                turn[b] = all(tiers["invisible"]["turned_2"] < v for v in tiers["surface"].values())
+            if "salient_part_removed" in tiers["structural"] and tiers["invisible"]:
+                top = tiers["structural"]["salient_part_removed"]
+                salient[b] = all(top > v for v in tiers["invisible"].values())
+        result[half] = {
+            name: {
+                "share": sum(passed.values()) / len(passed) if passed else None,
+                "failed": sorted(b.removeprefix(sets.REAL_PREFIX) for b, ok in passed.items()
+                                 if not ok),
+            }  # fmt: skip
+            for name, passed in (("turn_below_every_surface", turn),
+                                 ("salient_above_every_invisible", salient))
+        }  # fmt: skip
     return result
 
 
@@ -282,6 +327,10 @@ def run_bench(
             **({"preset": "structure"} if name == STRUCTURE_NAME else {}),
             **costs[name],
             "tiers": tier_accuracy(bench, values),
+            "real_tiers": {
+                **tier_accuracy(bench, values, "real"),
+                "checks": real_checks(bench, values),
+            },
             "human": human_agreement(bench, values, jod) if jod is not None else None,
             "bars": bars_summary(bench, values),
             "retrieval": retrieval_summary(bench, scores.retrieval[name]),
@@ -322,6 +371,11 @@ DEFINITIONS = {
     "is further from the base; all bases pooled, and per half (synthetic bases, shared meshes); "
     "misses: per pair of tiers, how many bases order each pair of variants the wrong way (a tie "
     "counts as wrong)",
+    "real_tiers": "the same shares on the real meshes' tiers (benchmark.real_tiers: changes a "
+    "viewer ranks invisible, surface or structural on real meshes), per side (training: the "
+    "meshes levers are chosen on; held_out: those they are judged on); checks, per side: the "
+    "share of meshes whose 2-degree turn scores below every surface variant, and whose removed "
+    "salient part scores above every invisible variant",
     "human": "Geo-metric's simplification stimuli: each face's 3.125% and 6.25% simplifications "
     "scored against its 12.5% one (a stand-in for the missing reference); Spearman of the scores "
     "against JOD(prediction) - JOD(stand-in) per viewing setting (negative: agrees with people), "

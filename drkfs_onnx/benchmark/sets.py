@@ -23,6 +23,7 @@ from ..synthetic.shapes import (
     subdivide,
 )
 from ..synthetic.tiers import part_tiers, scan_tiers
+from .real_tiers import HELDOUT_MESHES, TRAINING_MESHES, real_variants
 
 # The real meshes (meshes/README.md gives each one's origin and terms): a checkout's meshes/
 # folder, or the folder DRKFS_MESHES names (``drkfs bench --meshes`` sets it)
@@ -62,10 +63,10 @@ def real_mesh(name: str) -> Path:
 class Comparison:
     """Score ``shape`` against ``reference`` (both placed in the reference's frame)."""
 
-    group: str  # "tiers", "bars", "stability" or "human"
+    group: str  # "tiers", "real", "bars", "stability" or "human"
     base: str  # what the row belongs to: a base shape, a stability case, a face of the human set
     label: str  # variant or case name
-    # tiers: invisible / surface / structural; bars: the edit; stability: the expectation;
+    # tiers, real: invisible / surface / structural; bars: the edit; stability: the expectation;
     # human: the simplification level
     kind: str
     shape: str
@@ -113,11 +114,11 @@ class BenchSet:
         return path
 
 
-def _variants_of(bench: BenchSet, base: str, verts, faces, variants) -> None:
+def _variants_of(bench: BenchSet, base: str, verts, faces, variants, group: str = "tiers") -> None:
     bench.add(base, verts, faces)
     for v in variants:
         key = bench.add(f"{base}/{v.name}", v.verts, v.faces)
-        bench.comparisons.append(Comparison("tiers", base, v.name, v.kind, key, base))
+        bench.comparisons.append(Comparison(group, base, v.name, v.kind, key, base))
 
 
 def tiers(
@@ -135,6 +136,19 @@ def tiers(
         mesh = load_mesh(real_mesh(name))
         variants = scan_tiers(mesh.vertices, mesh.faces, rng)
         _variants_of(bench, name, mesh.vertices, mesh.faces, variants)
+
+
+REAL_PREFIX = "real-"  # the real tiers' base keys: real-<mesh>
+
+
+def real_tiers(bench: BenchSet, names: list[str], seed: int = SEED) -> None:
+    """Each named real mesh and its real-mesh tier variants (``real_tiers.real_variants``), as
+    the 'real' group."""
+    rng = np.random.default_rng(seed)
+    for name in names:
+        mesh = load_mesh(real_mesh(name))
+        variants = real_variants(name, mesh.vertices, mesh.faces, rng)
+        _variants_of(bench, REAL_PREFIX + name, mesh.vertices, mesh.faces, variants, "real")
 
 
 def bar_chair(height: float | None) -> list[Part]:
@@ -266,6 +280,7 @@ def build(quick: bool) -> BenchSet:
     """The full set, or the quick subset the tests run (one synthetic base, a small retrieval
     set, the stability cases on a small mesh and no 200k-face case)."""
     bench = tier_set(quick)
+    real_tiers(bench, ["woody"] if quick else [*TRAINING_MESHES, *HELDOUT_MESHES])
     if quick:
         retrieval(bench, ["chair", "table", "lamp"], 2)
         stability(bench, "woody", None)

@@ -83,9 +83,9 @@ def noisy(
     return verts + amount[:, None] * _vertex_normals(verts, faces)
 
 
-def smoothed(verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
+def smoothed(verts: np.ndarray, faces: np.ndarray, iterations: int = SMOOTHING) -> np.ndarray:
     mesh = trimesh.Trimesh(verts, faces, process=False)
-    return np.asarray(trimesh.smoothing.filter_taubin(mesh, iterations=SMOOTHING).vertices)
+    return np.asarray(trimesh.smoothing.filter_taubin(mesh, iterations=iterations).vertices)
 
 
 def simplified(verts: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

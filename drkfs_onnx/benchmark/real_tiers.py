@@ -1,0 +1,120 @@
+"""The benchmark's real-mesh tiers: changes to the real meshes of ``meshes/`` ranked as a viewer
+ranks them (docs/benchmark.md, "Real-mesh tiers", shows their renders).
+
+- invisible: the surface subdivided once, quadric decimation to half the faces, a turn of 1, 2
+  or 3 degrees about the vertical;
+- surface (a moderate defect of an intact shape): noise along the normals of 0.05% of the
+  diagonal, quadric decimation to a tenth of the faces, Taubin smoothing that erases detail;
+- structural: a small salient part removed (the surface near the tip that sticks out furthest:
+  a horn, an ear, a tail), a hole cut into the surface, and on a mesh of several pieces its
+  second largest piece removed.
+
+Decimation runs only on meshes of DECIMATED_FACES or more: on a coarser one (woody, the beetle)
+half the faces already changes the outline, a tenth destroys the shape; and to half only from
+HALF_FACES faces on: below, the flat-shaded renders of half the faces show speckled facets
+(homer, the cheburashka), a defect rather than nothing. Where the renders show
+another tier than the recipe's, ``RELABELLED`` says so: quadric decimation of the flat-faced
+fandisk to a tenth is invisible.
+
+The meshes are split once: levers are chosen on the training side and judged on the held-out
+side, so a change to the metric is never tuned on the meshes it is judged by.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import trimesh
+
+from ..synthetic.shapes import subdivide
+from ..synthetic.tiers import smoothed, turned
+from ..synthetic.variants import Variant, _vertex_normals
+
+TRAINING_MESHES = ("alligator", "beetle", "cow", "fandisk", "woody")
+HELDOUT_MESHES = ("beast", "cheburashka", "homer", "rocker-arm", "stanford-bunny")
+TURNS = (1.0, 2.0, 3.0)  # degrees, each its own invisible variant
+HALF = 0.5  # decimation a viewer does not see: the faces kept
+HEAVY = 0.1  # decimation a viewer sees: the faces kept
+NOISE_DIAGONAL = 0.0005  # surface noise's standard deviation, of the diagonal
+DECIMATED_FACES = 5000  # the fewest faces a mesh is decimated from
+HALF_FACES = 20000  # the fewest faces a mesh is decimated to half from
+SMOOTHING = 8  # Taubin iterations: detail erased, the shape intact
+SALIENT_RADIUS = 0.06  # of the diagonal: the small part around the furthest tip
+HOLE_RADIUS = 0.06  # of the diagonal: the hole around a random vertex
+PIECE_SHARE = 0.01  # a second piece smaller than this share of the area is no part
+# (mesh, variant) -> the tier its renders show, where that is not the recipe's
+RELABELLED = {("fandisk", "decimated_heavy"): "invisible"}
+
+
+def decimated(verts: np.ndarray, faces: np.ndarray, keep: float) -> tuple[np.ndarray, np.ndarray]:
+    """Quadric edge-collapse decimation to ``keep`` of the faces (fast-simplification, through
+    trimesh)."""
+    mesh = trimesh.Trimesh(verts, faces, process=False)
+    coarse = mesh.simplify_quadric_decimation(face_count=max(4, int(keep * len(faces))))
+    return np.asarray(coarse.vertices), np.asarray(coarse.faces, dtype=np.int64)
+
+
+def salient_tip(verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """(3,) the surface point furthest from the mesh's area-weighted centroid: the tip of what
+    sticks out most (a horn, an ear, a tail)."""
+    corners = verts[faces]
+    area = np.linalg.norm(
+        np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1
+    )
+    centroid = (corners.mean(1) * area[:, None]).sum(0) / area.sum()
+    used = np.unique(faces)
+    return verts[used[np.argmax(np.linalg.norm(verts[used] - centroid, axis=1))]]
+
+
+def without_region(faces: np.ndarray, verts: np.ndarray, centre: np.ndarray, radius: float):
+    """``faces`` less those whose centre lies within ``radius`` of ``centre``."""
+    near = np.linalg.norm(verts[faces].mean(1) - centre, axis=1) < radius
+    return faces[~near]
+
+
+def second_piece(verts: np.ndarray, faces: np.ndarray) -> np.ndarray | None:
+    """The faces of the mesh's second largest connected piece by area, or None where it has
+    one piece, or the second holds less than PIECE_SHARE of the area."""
+    labels = trimesh.graph.connected_component_labels(
+        trimesh.Trimesh(verts, faces, process=False).face_adjacency, node_count=len(faces)
+    )
+    corners = verts[faces]
+    area = np.linalg.norm(
+        np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1
+    )
+    per_piece = np.bincount(labels, area)
+    if len(per_piece) < 2:
+        return None
+    order = np.argsort(-per_piece)
+    if per_piece[order[1]] < PIECE_SHARE * area.sum():
+        return None
+    return labels == order[1]
+
+
+def real_variants(
+    name: str, verts: np.ndarray, faces: np.ndarray, rng: np.random.Generator
+) -> list[Variant]:
+    """Every real-mesh tier's variants of the mesh ``name``, labelled as its renders show."""
+    size = float(np.linalg.norm(np.ptp(verts, axis=0)))
+    used = np.unique(faces)
+    hole_centre = verts[used[int(rng.integers(len(used)))]]
+    noise = rng.normal(size=len(verts)) * NOISE_DIAGONAL * size
+    variants = [
+        Variant("subdivided", "invisible", *subdivide(verts, faces)),
+        *(Variant(f"turned_{d:g}", "invisible", turned(verts, d), faces) for d in TURNS),
+        Variant("noise", "surface", verts + noise[:, None] * _vertex_normals(verts, faces), faces),
+        Variant("smoothed", "surface", smoothed(verts, faces, SMOOTHING), faces),
+        Variant("salient_part_removed", "structural", verts,
+                without_region(faces, verts, salient_tip(verts, faces), SALIENT_RADIUS * size)),
+        Variant("hole_cut", "structural", verts,
+                without_region(faces, verts, hole_centre, HOLE_RADIUS * size)),
+    ]  # fmt: skip
+    if len(faces) >= HALF_FACES:
+        variants.append(Variant("decimated_half", "invisible", *decimated(verts, faces, HALF)))
+    if len(faces) >= DECIMATED_FACES:
+        variants.append(Variant("decimated_heavy", "surface", *decimated(verts, faces, HEAVY)))
+    piece = second_piece(verts, faces)
+    if piece is not None:
+        variants.append(Variant("piece_removed", "structural", verts, faces[~piece]))
+    return [replace(v, kind=RELABELLED.get((name, v.name), v.kind)) for v in variants]

@@ -1,0 +1,101 @@
+"""The real-mesh tiers: each real mesh's variants, labelled as a viewer sees them, and the checks
+the benchmark reports on them."""
+
+import numpy as np
+import pytest
+
+from drkfs_onnx import load_mesh
+from drkfs_onnx.benchmark import real_tiers, sets
+from drkfs_onnx.benchmark.real_tiers import (
+    DECIMATED_FACES,
+    HELDOUT_MESHES,
+    TRAINING_MESHES,
+    real_variants,
+    salient_tip,
+    second_piece,
+)
+from drkfs_onnx.benchmark.run import real_checks, tier_accuracy
+
+
+def _variants(name: str):
+    mesh = load_mesh(sets.real_mesh(name))
+    return mesh, {v.name: v for v in real_variants(name, mesh.vertices, mesh.faces,
+                                                   np.random.default_rng(0))}  # fmt: skip
+
+
+def test_the_sides_split_the_real_meshes_once():
+    assert set(TRAINING_MESHES).isdisjoint(HELDOUT_MESHES)
+    assert {*TRAINING_MESHES, *HELDOUT_MESHES} == set(sets.SHARED_MESHES)
+
+
+def test_a_mesh_gets_every_tier_and_a_coarse_one_no_decimation(monkeypatch):
+    mesh, cow = _variants("cow")
+    assert len(mesh.faces) >= DECIMATED_FACES
+    tiers = {v.kind for v in cow.values()}
+    assert tiers == {"invisible", "surface", "structural"}
+    assert {"turned_1", "turned_2", "turned_3", "subdivided"} == {
+        n for n, v in cow.items() if v.kind == "invisible"
+    }  # half the cow's 5,804 faces shows speckled facets: no decimation to half
+    assert len(cow["decimated_heavy"].faces) == pytest.approx(0.1 * len(mesh.faces), rel=0.05)
+    coarse, woody = _variants("woody")
+    assert len(coarse.faces) < DECIMATED_FACES
+    assert not {"decimated_half", "decimated_heavy"} & set(woody)
+    monkeypatch.setattr(real_tiers, "HALF_FACES", len(mesh.faces))  # the cow as a dense mesh
+    assert _variants("cow")[1]["decimated_half"].kind == "invisible"
+
+
+def test_the_turn_keeps_the_shape_in_place_and_the_salient_part_is_at_the_furthest_tip():
+    mesh, cow = _variants("cow")
+    turned = cow["turned_2"].verts
+    centre = (mesh.vertices.min(0) + mesh.vertices.max(0)) / 2
+    assert np.allclose(
+        (turned.min(0) + turned.max(0)) / 2, centre, atol=0.02 * np.ptp(mesh.vertices)
+    )
+    removed = cow["salient_part_removed"]
+    tip = salient_tip(mesh.vertices, mesh.faces)
+    kept_centres = removed.verts[removed.faces].mean(1)
+    assert np.linalg.norm(kept_centres - tip, axis=1).min() > 0.05 * np.linalg.norm(
+        np.ptp(mesh.vertices, 0)
+    )
+    assert 0 < len(mesh.faces) - len(removed.faces) < 0.1 * len(mesh.faces)
+
+
+def test_fandisks_heavy_decimation_is_invisible_as_its_renders_show():
+    _, fandisk = _variants("fandisk")
+    assert fandisk["decimated_heavy"].kind == "invisible"
+
+
+def test_a_second_piece_is_removed_only_where_it_is_a_part():
+    beast = load_mesh(sets.real_mesh("beast"))
+    assert second_piece(beast.vertices, beast.faces).sum() > 0
+    beetle = load_mesh(sets.real_mesh("beetle"))  # its second piece holds 0.5% of the area
+    assert second_piece(beetle.vertices, beetle.faces) is None
+
+
+def test_the_checks_count_meshes_on_each_side():
+    bench = sets.BenchSet()
+    values, i = {}, 0
+    # cow (training): the turn below both surface variants, the salient part above the turn;
+    # homer (held out): the turn above the noise, the salient part below the subdivision
+    rows = {
+        "cow": {("invisible", "turned_2"): 0.1, ("invisible", "subdivided"): 0.05,
+                ("surface", "noise"): 0.3, ("surface", "smoothed"): 0.2,
+                ("structural", "salient_part_removed"): 0.5},
+        "homer": {("invisible", "turned_2"): 0.1, ("invisible", "subdivided"): 0.6,
+                  ("surface", "noise"): 0.05, ("surface", "smoothed"): 0.2,
+                  ("structural", "salient_part_removed"): 0.5},
+    }  # fmt: skip
+    for name, row in rows.items():
+        base = sets.REAL_PREFIX + name
+        for (kind, label), value in row.items():
+            bench.comparisons.append(
+                sets.Comparison("real", base, label, kind, f"{base}/{label}", base)
+            )
+            values[i], i = value, i + 1
+    checks = real_checks(bench, values)
+    assert checks["training"]["turn_below_every_surface"] == {"share": 1.0, "failed": []}
+    assert checks["held_out"]["turn_below_every_surface"] == {"share": 0.0, "failed": ["homer"]}
+    assert checks["held_out"]["salient_above_every_invisible"]["failed"] == ["homer"]
+    accuracy = tier_accuracy(bench, values, "real")
+    assert accuracy["training"]["invisible_vs_surface"] == 1.0
+    assert accuracy["held_out"]["invisible_vs_surface"] == 0.25  # smoothed above the turn only
