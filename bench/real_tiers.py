@@ -2,6 +2,7 @@
 method's tier shares on both sides and the turn and salient-part checks (docs/benchmark.md).
 
     python bench/real_tiers.py --out bench/results/real_tiers.json [--methods "DR-KFS,LFD"]
+    python bench/real_tiers.py --renders bench/results/real_tiers.png   # what the labels rest on
 """
 
 from __future__ import annotations
@@ -11,17 +12,51 @@ import json
 import time
 from pathlib import Path
 
+import numpy as np
+from matplotlib.figure import Figure
+
+from drkfs_onnx import PipelineConfig
 from drkfs_onnx.benchmark import sets
 from drkfs_onnx.benchmark.methods import build_methods
 from drkfs_onnx.benchmark.real_tiers import HELDOUT_MESHES, TRAINING_MESHES
 from drkfs_onnx.benchmark.run import peer_methods, real_checks, score_everything, tier_accuracy
 
 DEFAULT_METHODS = "DR-KFS,DR-KFS paper,DR-KFS structure,pixel MSE,Chamfer-L1,F-score 1%,LFD"
+RENDER = PipelineConfig(num_views=6, image_size=256)  # the figure's cameras: view VIEW of them
+VIEW = 1
+
+
+def write_renders(bench: sets.BenchSet, path: Path, threads: int) -> None:
+    """One row a mesh: the base and each variant from one camera, cropped to the base, titled
+    with the variant and its tier: the renders the labels were chosen by."""
+    from drkfs_onnx.contract.mesh import frame_of, place
+    from drkfs_onnx.runtime.render import NumpyRenderer
+
+    renderer = NumpyRenderer(RENDER, threads=threads)
+    rows: dict[str, list] = {}
+    for c in bench.comparisons:
+        rows.setdefault(c.base, [("base", c.base)]).append((f"{c.kind[:3]}: {c.label}", c.shape))
+    width = max(len(row) for row in rows.values())
+    figure = Figure(figsize=(1.6 * width, 1.7 * len(rows)))
+    for i, (base, row) in enumerate(rows.items()):
+        frame = frame_of(bench.shapes[base][0])
+        images = [renderer.render(place(v, frame), f)[VIEW] for v, f in
+                  (bench.shapes[key] for _, key in row)]  # fmt: skip
+        ys, xs = np.nonzero(images[0] != RENDER.background)
+        crop = np.s_[max(ys.min() - 4, 0) : ys.max() + 4, max(xs.min() - 4, 0) : xs.max() + 4]
+        for j, ((title, _), image) in enumerate(zip(row, images, strict=True)):
+            axes = figure.add_subplot(len(rows), width, i * width + j + 1)
+            axes.imshow(image[crop], cmap="gray", vmin=0, vmax=1)
+            axes.set_axis_off()
+            axes.set_title(base.removeprefix(sets.REAL_PREFIX) if j == 0 else title, fontsize=6)
+    figure.tight_layout()
+    figure.savefig(path, dpi=110)
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", type=Path, required=True)
+    parser.add_argument("--out", type=Path, help="the results' JSON")
+    parser.add_argument("--renders", type=Path, help="a PNG of every variant's render")
     parser.add_argument("--methods", default=DEFAULT_METHODS, help="outputs, comma-separated")
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--work", type=Path, default=Path("runs/real_tiers"))
@@ -30,6 +65,10 @@ def main() -> None:
     wanted = args.methods.split(",")
     bench = sets.BenchSet()
     sets.real_tiers(bench, [*TRAINING_MESHES, *HELDOUT_MESHES])
+    if args.renders is not None:
+        write_renders(bench, args.renders, args.threads)
+    if args.out is None:
+        return
     methods = [m for m in build_methods(args.work / "models", args.threads)
                if set(m.outputs) & set(wanted)]  # fmt: skip
     peers, notes = peer_methods() if "LFD" in wanted else ([], {})
