@@ -99,3 +99,12 @@ def test_the_checks_count_meshes_on_each_side():
     accuracy = tier_accuracy(bench, values, "real")
     assert accuracy["training"]["invisible_vs_surface"] == 1.0
     assert accuracy["held_out"]["invisible_vs_surface"] == 0.25  # smoothed above the turn only
+
+
+def test_a_real_mesh_in_both_tier_groups_is_stored_once_and_every_reference_resolves():
+    bench = sets.BenchSet()
+    sets.tiers(bench, [], ["woody"])
+    sets.real_tiers(bench, ["woody"])
+    assert {c.group for c in bench.comparisons} == {"tiers", "real"}
+    assert all(c.reference in bench.shapes and c.shape in bench.shapes for c in bench.comparisons)
+    assert {c.base for c in bench.comparisons if c.group == "real"} == {"real-woody"}

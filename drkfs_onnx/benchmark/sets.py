@@ -115,10 +115,11 @@ class BenchSet:
 
 
 def _variants_of(bench: BenchSet, base: str, verts, faces, variants, group: str = "tiers") -> None:
-    bench.add(base, verts, faces)
+    # the base may be stored already under another key (a shared mesh in two groups)
+    reference = bench.add(base, verts, faces)
     for v in variants:
         key = bench.add(f"{base}/{v.name}", v.verts, v.faces)
-        bench.comparisons.append(Comparison(group, base, v.name, v.kind, key, base))
+        bench.comparisons.append(Comparison(group, base, v.name, v.kind, key, reference))
 
 
 def tiers(
