@@ -1,6 +1,7 @@
 """Nets fine-tuned for the loss, measured (issue 32's fourth idea).
 
     python bench/loss_nets.py --out bench/fit/loss_nets.json [--quick]
+    python bench/loss_nets.py --save-nets bench/single_view/loss_nets.pt   # the nets alone
 
 1. Graded series (``drkfs_onnx.training.graded``) of held-out bases: how fast the loss's score
    and its patches' distances grow with an edit, for the loss's shipped nets (correspondence),
@@ -61,7 +62,8 @@ def fits(plan, form: str, nets: dict[str, DRKFS | None], threads: int) -> dict:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", type=Path, required=True)
+    parser.add_argument("--out", type=Path, help="the measurements' JSON")
+    parser.add_argument("--save-nets", type=Path, help="write the fine-tuned nets' state dict here")
     parser.add_argument("--work", type=Path, default=Path(".drkfs-train/loss-nets"))
     parser.add_argument("--quick", action="store_true", help="one family, two steps")
     parser.add_argument("--threads", type=int, default=2)
@@ -73,13 +75,18 @@ def main() -> None:
     steps = 2 if args.quick else graded.FINE_TUNE_STEPS
     work = args.work / ("quick" if args.quick else "full")
     work.mkdir(parents=True, exist_ok=True)
-    heldout = graded.render_graded_views(
-        config, families, graded.HELDOUT_SHAPES, graded.HELDOUT_SEED
-    )
     train = graded.render_graded_views(config, families, graded.TRAIN_SHAPES, graded.TRAIN_SEED)
     began = time.perf_counter()
     tuned = graded.fine_tune(train, steps, work / "loss_nets.pt")
     tuning_seconds = time.perf_counter() - began
+    if args.save_nets is not None:
+        args.save_nets.parent.mkdir(parents=True, exist_ok=True)
+        torch.save(tuned.state_dict(), args.save_nets)
+    if args.out is None:
+        return
+    heldout = graded.render_graded_views(
+        config, families, graded.HELDOUT_SHAPES, graded.HELDOUT_SEED
+    )
     growth = {
         "correspondence nets (the loss's)": graded.grade_stats(DRKFS.pretrained(config), heldout),
         "metric nets (the scoring default's)": graded.grade_stats(

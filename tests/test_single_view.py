@@ -225,7 +225,8 @@ def test_more_steps_train_beside_the_studys_networks_and_are_judged_with_them(qu
     result = CliRunner().invoke(app, [*args, "--losses", "SoftRas (silhouette IoU)"])
     assert result.exit_code == 0, result.output
     longer = json.loads((out / "longer-3-steps.json").read_text())
-    rows = {"SoftRas (silhouette IoU), 3 steps", "SoftRas (silhouette IoU), 2 steps"}
+    rows = {"SoftRas (silhouette IoU), 3 steps", "SoftRas (silhouette IoU), 2 steps",
+            "DR-KFS, 2 steps"}  # fmt: skip
     assert set(longer["means"]["mean"]) == rows
     assert all(set(judged) == rows for judged in longer["table"].values())
     assert {p: p.read_bytes() for p in (out / "networks").rglob("*.pt")} == saved

@@ -54,6 +54,10 @@ TIMED_STEPS = 5  # a loss's timed steps: 2 at DR-KFS's coarse stage, 3 at its fi
 IOU, PIXEL, CHAMFER, DRKFS_SHADED, DRKFS_SILHOUETTE = (
     "silhouette IoU", "pixel MSE", "Chamfer-L2", "DR-KFS", "DR-KFS on silhouettes",
 )  # fmt: skip
+DRKFS_TUNED = "DR-KFS with nets fine-tuned for the loss"
+# the loss's nets fine-tuned on graded series (docs/fitting.md), made by
+# python bench/loss_nets.py --save-nets bench/single_view/loss_nets.pt
+TUNED_NETS = Path(__file__).resolve().parents[1] / "single_view" / "loss_nets.pt"
 SOFTRAS = "SoftRas (silhouette IoU)"
 # the outside judges: surface ones, and what a viewer sees (LFD, silhouettes of unseen views)
 SURFACE = ("Chamfer-L1", "F-score 1%", "volumetric IoU")
@@ -79,10 +83,12 @@ COMBINATIONS = (
     Recipe("DR-KFS + 1 x silhouette IoU", ((1.0, DRKFS_SHADED), (1.0, IOU))),
     Recipe("DR-KFS + 3 x Chamfer-L2", ((1.0, DRKFS_SHADED), (3.0, CHAMFER))),
 )
+# trained only when asked (--steps ... --losses): the strongest attempt's other nets
+EXTRA = (Recipe(DRKFS_TUNED, ((1.0, DRKFS_TUNED),)),)
 
 
 def by_name(name: str) -> Recipe:
-    recipes = (*BASELINES, *DRKFS_RECIPES, *COMBINATIONS)
+    recipes = (*BASELINES, *DRKFS_RECIPES, *COMBINATIONS, *EXTRA)
     for recipe in recipes:
         if recipe.name == name:
             return recipe
@@ -216,9 +222,13 @@ class Terms:
                     for s in self.shapes
                 ]).to(device)  # fmt: skip
             else:
-                kind = DRKFS if term == DRKFS_SHADED else SilhouetteDRKFS
-                metrics = [kind.pretrained(stage.config) for stage in COARSE_TO_FINE]
-                loss = DrkfsLoss(metrics, COARSE_TO_FINE, None).to(device)
+                if term == DRKFS_TUNED:
+                    loss = DrkfsLoss.from_nets(tuned_nets())
+                else:
+                    kind = DRKFS if term == DRKFS_SHADED else SilhouetteDRKFS
+                    metrics = [kind.pretrained(stage.config) for stage in COARSE_TO_FINE]
+                    loss = DrkfsLoss(metrics, COARSE_TO_FINE, None)
+                loss = loss.to(device)
                 targets = [
                     loss.target(torch.as_tensor(s.verts, dtype=torch.float32, device=device),
                                 torch.as_tensor(s.faces, device=device))
@@ -226,6 +236,18 @@ class Terms:
                 ]  # fmt: skip
                 self.prepared[term] = (loss, targets)
         return self.prepared[term]
+
+
+def tuned_nets() -> DRKFS:
+    """The loss's nets fine-tuned for it (``TUNED_NETS``), as a ``DRKFS`` at the loss preset."""
+    if not TUNED_NETS.is_file():
+        raise ValueError(
+            f"{TUNED_NETS}: no fine-tuned nets; make them with python bench/loss_nets.py "
+            f"--save-nets {TUNED_NETS}"
+        )
+    nets = DRKFS(PipelineConfig.loss())
+    nets.load_state_dict(torch.load(TUNED_NETS, weights_only=True))
+    return nets
 
 
 @deterministic_kernels()
@@ -583,10 +605,10 @@ def run_longer(
     threads: int = 2,
     progress=print,
 ) -> dict:
-    """Whether more steps close a loss's gap: ``names``' generators trained at ``seed`` for
-    ``steps`` steps instead of the plan's (OUT/networks-<steps>-steps, resumable), judged on the
-    study's test shapes beside the same losses' networks of the study (OUT/networks) ->
-    OUT/longer-<steps>-steps.json."""
+    """Whether more steps close a loss's gap, or how a loss the study leaves out does:
+    ``names``' generators trained at ``seed`` for ``steps`` steps (OUT/networks-<steps>-steps,
+    resumable), judged on the study's test shapes beside the study's networks of the same
+    losses and of SoftRas' and DR-KFS' (OUT/networks) -> OUT/longer-<steps>-steps.json."""
     study_plan = QUICK if quick else FULL
     plan = replace(study_plan, steps=steps)
     train_set, _, test_set = study_sets(plan)
@@ -605,7 +627,11 @@ def run_longer(
             )
         saved = longer.get(seed, name)
         models[f"{name}, {steps} steps"], seconds[name] = saved["model"], saved["seconds_per_step"]
-        models[f"{name}, {study_plan.steps} steps"] = study.get(seed, name)["model"]
+    # beside them the study's networks of the same losses, and of SoftRas' and DR-KFS'
+    for name in dict.fromkeys([*names, SOFTRAS, DRKFS_SHADED]):
+        saved, row = study.get(seed, name), f"{name}, {study_plan.steps} steps"
+        if saved is not None and row not in models:
+            models[row] = saved["model"]
     judge = Judge(PipelineConfig(), threads, plan.unseen_views, plan.lfd, image_judges=False)
     try:
         table = judge_all(judge, models, test_set, views["test"], {}, progress)
