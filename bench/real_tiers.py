@@ -19,7 +19,7 @@ from drkfs_onnx import PipelineConfig
 from drkfs_onnx.benchmark import sets
 from drkfs_onnx.benchmark.methods import build_methods
 from drkfs_onnx.benchmark.real_tiers import HELDOUT_MESHES, TRAINING_MESHES
-from drkfs_onnx.benchmark.run import peer_methods, real_checks, score_everything, tier_accuracy
+from drkfs_onnx.benchmark.run import peer_methods, real_summary, score_everything
 
 DEFAULT_METHODS = "DR-KFS,DR-KFS paper,DR-KFS structure,pixel MSE,Chamfer-L1,F-score 1%,LFD"
 RENDER = PipelineConfig(num_views=6, image_size=256)  # the figure's cameras: view VIEW of them
@@ -85,8 +85,7 @@ def main() -> None:
         "labels": {f"{c.base}/{c.label}": c.kind for c in bench.comparisons},
         "methods": {
             name: {
-                **tier_accuracy(bench, values, "real"),
-                "checks": real_checks(bench, values),
+                **real_summary(bench, values),
                 "seconds_per_pair": costs[name]["seconds_per_pair"],
             }
             for name, values in scores.comparisons.items()

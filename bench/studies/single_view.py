@@ -612,8 +612,8 @@ def run_longer(
     study_plan = QUICK if quick else FULL
     plan = replace(study_plan, steps=steps)
     train_set, _, test_set = study_sets(plan)
-    cache = out / "data" / "views.pt"
-    views = {name: views_of(shapes, cache, ViewRenderer())
+    cache, renderer = out / "data" / "views.pt", ViewRenderer()
+    views = {name: views_of(shapes, cache, renderer)
              for name, shapes in (("train", train_set), ("test", test_set))}  # fmt: skip
     dev = torch.device(device)
     longer = Networks(out / f"networks-{steps}-steps", plan, dev)

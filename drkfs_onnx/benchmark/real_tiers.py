@@ -28,8 +28,8 @@ import numpy as np
 import trimesh
 
 from ..synthetic.shapes import subdivide
-from ..synthetic.tiers import smoothed, turned
-from ..synthetic.variants import Variant, _vertex_normals
+from ..synthetic.tiers import simplified, smoothed, turned
+from ..synthetic.variants import Variant, _vertex_normals, without_region
 
 TRAINING_MESHES = ("alligator", "beetle", "cow", "fandisk", "woody")
 HELDOUT_MESHES = ("beast", "cheburashka", "homer", "rocker-arm", "stanford-bunny")
@@ -47,30 +47,20 @@ PIECE_SHARE = 0.01  # a second piece smaller than this share of the area is no p
 RELABELLED = {("fandisk", "decimated_heavy"): "invisible"}
 
 
-def decimated(verts: np.ndarray, faces: np.ndarray, keep: float) -> tuple[np.ndarray, np.ndarray]:
-    """Quadric edge-collapse decimation to ``keep`` of the faces (fast-simplification, through
-    trimesh)."""
-    mesh = trimesh.Trimesh(verts, faces, process=False)
-    coarse = mesh.simplify_quadric_decimation(face_count=max(4, int(keep * len(faces))))
-    return np.asarray(coarse.vertices), np.asarray(coarse.faces, dtype=np.int64)
+def _face_areas(verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    corners = verts[faces]
+    return np.linalg.norm(
+        np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1
+    )
 
 
 def salient_tip(verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """(3,) the surface point furthest from the mesh's area-weighted centroid: the tip of what
     sticks out most (a horn, an ear, a tail)."""
-    corners = verts[faces]
-    area = np.linalg.norm(
-        np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1
-    )
-    centroid = (corners.mean(1) * area[:, None]).sum(0) / area.sum()
+    area = _face_areas(verts, faces)
+    centroid = (verts[faces].mean(1) * area[:, None]).sum(0) / area.sum()
     used = np.unique(faces)
     return verts[used[np.argmax(np.linalg.norm(verts[used] - centroid, axis=1))]]
-
-
-def without_region(faces: np.ndarray, verts: np.ndarray, centre: np.ndarray, radius: float):
-    """``faces`` less those whose centre lies within ``radius`` of ``centre``."""
-    near = np.linalg.norm(verts[faces].mean(1) - centre, axis=1) < radius
-    return faces[~near]
 
 
 def second_piece(verts: np.ndarray, faces: np.ndarray) -> np.ndarray | None:
@@ -79,10 +69,7 @@ def second_piece(verts: np.ndarray, faces: np.ndarray) -> np.ndarray | None:
     labels = trimesh.graph.connected_component_labels(
         trimesh.Trimesh(verts, faces, process=False).face_adjacency, node_count=len(faces)
     )
-    corners = verts[faces]
-    area = np.linalg.norm(
-        np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1
-    )
+    area = _face_areas(verts, faces)
     per_piece = np.bincount(labels, area)
     if len(per_piece) < 2:
         return None
@@ -111,9 +98,9 @@ def real_variants(
                 without_region(faces, verts, hole_centre, HOLE_RADIUS * size)),
     ]  # fmt: skip
     if len(faces) >= HALF_FACES:
-        variants.append(Variant("decimated_half", "invisible", *decimated(verts, faces, HALF)))
+        variants.append(Variant("decimated_half", "invisible", *simplified(verts, faces, HALF)))
     if len(faces) >= DECIMATED_FACES:
-        variants.append(Variant("decimated_heavy", "surface", *decimated(verts, faces, HEAVY)))
+        variants.append(Variant("decimated_heavy", "surface", *simplified(verts, faces, HEAVY)))
     piece = second_piece(verts, faces)
     if piece is not None:
         variants.append(Variant("piece_removed", "structural", verts, faces[~piece]))

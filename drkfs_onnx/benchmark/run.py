@@ -231,6 +231,11 @@ def real_checks(bench: sets.BenchSet, values: dict[int, float | None]) -> dict:
     return result
 
 
+def real_summary(bench: sets.BenchSet, values: dict[int, float | None]) -> dict:
+    """The real tiers' shares (``tier_accuracy`` per side) with their ``checks``."""
+    return {**tier_accuracy(bench, values, "real"), "checks": real_checks(bench, values)}
+
+
 def bars_summary(bench: sets.BenchSet, values: dict[int, float | None]) -> dict:
     edits = {c.label: values.get(i) for i, c in enumerate(bench.comparisons) if c.group == "bars"}
     if None in edits.values():
@@ -327,10 +332,7 @@ def run_bench(
             **({"preset": "structure"} if name == STRUCTURE_NAME else {}),
             **costs[name],
             "tiers": tier_accuracy(bench, values),
-            "real_tiers": {
-                **tier_accuracy(bench, values, "real"),
-                "checks": real_checks(bench, values),
-            },
+            "real_tiers": real_summary(bench, values),
             "human": human_agreement(bench, values, jod) if jod is not None else None,
             "bars": bars_summary(bench, values),
             "retrieval": retrieval_summary(bench, scores.retrieval[name]),

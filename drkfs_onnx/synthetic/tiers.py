@@ -88,11 +88,13 @@ def smoothed(verts: np.ndarray, faces: np.ndarray, iterations: int = SMOOTHING) 
     return np.asarray(trimesh.smoothing.filter_taubin(mesh, iterations=iterations).vertices)
 
 
-def simplified(verts: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Quadric edge-collapse simplification to SIMPLIFIED_SHARE of the faces (the
-    fast-simplification package, through trimesh)."""
+def simplified(
+    verts: np.ndarray, faces: np.ndarray, keep: float = SIMPLIFIED_SHARE
+) -> tuple[np.ndarray, np.ndarray]:
+    """Quadric edge-collapse simplification to ``keep`` of the faces (the fast-simplification
+    package, through trimesh)."""
     mesh = trimesh.Trimesh(verts, faces, process=False)
-    coarse = mesh.simplify_quadric_decimation(face_count=int(SIMPLIFIED_SHARE * len(faces)))
+    coarse = mesh.simplify_quadric_decimation(face_count=int(keep * len(faces)))
     return np.asarray(coarse.vertices), np.asarray(coarse.faces, dtype=np.int64)
 
 

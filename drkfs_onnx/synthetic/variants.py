@@ -111,6 +111,12 @@ def _vertex_normals(verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return normals / np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-300)
 
 
+def without_region(faces: np.ndarray, verts: np.ndarray, centre: np.ndarray, radius: float):
+    """``faces`` less those whose centre lies within ``radius`` of ``centre``."""
+    near = np.linalg.norm(verts[faces].mean(1) - centre, axis=1) < radius
+    return faces[~near]
+
+
 def surface_variants(
     verts: np.ndarray, faces: np.ndarray, rng: np.random.Generator
 ) -> list[Variant]:
@@ -123,7 +129,6 @@ def surface_variants(
     size = float(np.linalg.norm(np.ptp(verts, axis=0)))
     radius = 0.15 * size
     centre = verts[int(rng.integers(len(verts)))]
-    near = np.linalg.norm(verts[faces].mean(1) - centre, axis=1) < radius
     normals = _vertex_normals(verts, faces)
     region = _region(verts, centre, radius)
     direction = rng.normal(size=3)
@@ -133,7 +138,7 @@ def surface_variants(
     box_v, box_f = Part("added", tuple(spot), (side, side, side)).mesh()
     jitter = verts + rng.normal(size=verts.shape) * 0.002 * size
     return [
-        Variant("part_removed", "structural", verts, faces[~near]),
+        Variant("part_removed", "structural", verts, without_region(faces, verts, centre, radius)),
         Variant(
             "part_added", "structural", np.concatenate([verts, box_v]),
             np.concatenate([faces, box_f + len(verts)]),
