@@ -9,12 +9,15 @@ from drkfs_onnx.benchmark import real_tiers, sets
 from drkfs_onnx.benchmark.real_tiers import (
     DECIMATED_FACES,
     HELDOUT_MESHES,
+    NOISE_EDGES,
     TRAINING_MESHES,
+    mean_edge,
     real_variants,
     salient_tip,
     second_piece,
 )
 from drkfs_onnx.benchmark.run import real_checks, tier_accuracy
+from drkfs_onnx.synthetic.tiers import smoothed
 
 
 def _variants(name: str):
@@ -60,9 +63,29 @@ def test_the_turn_keeps_the_shape_in_place_and_the_salient_part_is_at_the_furthe
     assert 0 < len(mesh.faces) - len(removed.faces) < 0.1 * len(mesh.faces)
 
 
-def test_fandisks_heavy_decimation_is_invisible_as_its_renders_show():
+def test_fandisks_heavy_decimation_and_smoothing_a_smooth_mesh_are_invisible_as_renders_show():
     _, fandisk = _variants("fandisk")
     assert fandisk["decimated_heavy"].kind == "invisible"
+    for name in ("cheburashka", "homer"):
+        assert _variants(name)[1]["smoothed"].kind == "invisible"
+    assert _variants("cow")[1]["smoothed"].kind == "surface"
+
+
+def test_noise_follows_the_edges_and_a_dense_mesh_gets_more_smoothing():
+    """Noise of a tenth of the mean edge on a coarse and a dense mesh; the dense one's smoothing
+    takes more iterations, and moves its surface half again as far as the coarse one's count would."""
+    for name in ("cow", "stanford-bunny"):
+        mesh, variants = _variants(name)
+        edge = mean_edge(mesh.vertices, mesh.faces)
+        noise = np.linalg.norm(variants["noise"].verts - mesh.vertices, axis=1)
+        assert np.sqrt(np.mean(noise**2)) == pytest.approx(NOISE_EDGES * edge, rel=0.05)
+    bunny, variants = _variants("stanford-bunny")
+
+    def moved(verts: np.ndarray) -> float:
+        return float(np.linalg.norm(verts - bunny.vertices, axis=1).mean())
+
+    as_the_cow = smoothed(bunny.vertices, bunny.faces, 9)  # the cow's iterations
+    assert moved(variants["smoothed"].verts) > 1.5 * moved(as_the_cow)
 
 
 def test_a_second_piece_is_removed_only_where_it_is_a_part():

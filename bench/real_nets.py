@@ -1,0 +1,118 @@
+"""Nets with a viewer's tolerance (issue 71's training lever), fine-tuned and judged.
+
+    python bench/real_nets.py --out bench/results/real_nets.json [--steps N] [--quick]
+    python bench/real_nets.py --out ... --save-nets FILE   # also the fine-tuned nets' state
+
+1. The default's shipped nets fine-tuned with ``training.tolerance.tolerance_ranking`` on
+   synthetic tiers of other seeds than the benchmark's (work folder ``--work``, resumable).
+2. Both judged as ``bench/real_levers.py`` judges a lever: the benchmark's synthetic tiers,
+   both sides of the real tiers and their checks, at the default's config and at each other
+   config of ``CONFIGS`` (the same nets); with ``--human DIR``, their agreement with people on
+   Geo-metric's simplifications (as ``drkfs bench --human``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import torch
+
+from drkfs_onnx import PipelineConfig
+from drkfs_onnx.benchmark import human, sets
+from drkfs_onnx.benchmark.methods import DrkfsTorch
+from drkfs_onnx.benchmark.real_tiers import HELDOUT_MESHES, TRAINING_MESHES
+from drkfs_onnx.benchmark.run import real_checks, score_everything, tier_accuracy
+from drkfs_onnx.metric import DRKFS, with_nets
+from drkfs_onnx.training import tolerance
+
+DEFAULT = PipelineConfig()
+CONFIGS = {
+    "": DEFAULT,
+    ", softmax t = 0.05": DEFAULT.replace(temperature=0.05),
+    ", softmax t = 0.03": DEFAULT.replace(temperature=0.03),
+}
+KEYS = ("invisible_vs_structural", "surface_vs_structural", "invisible_vs_surface")
+
+
+def judged(bench: sets.BenchSet, metrics: dict[str, DRKFS], jod: dict | None) -> dict:
+    """Each metric's synthetic tier shares, real tier shares per side and real checks, and with
+    ``jod`` its agreement with people."""
+    scores, costs = score_everything(
+        bench, [DrkfsTorch(name, m) for name, m in metrics.items()], print
+    )
+    rows = {}
+    for name, values in scores.comparisons.items():
+        synthetic, real = tier_accuracy(bench, values), tier_accuracy(bench, values, "real")
+        rows[name] = {
+            "tiers": {k: synthetic[k] for k in KEYS},
+            "tier_halves": {half: {k: synthetic[half][k] for k in KEYS}
+                            for half in ("synthetic", "shared")},
+            "tier_misses": synthetic["misses"],
+            "real": {side: {k: real[side][k] for k in KEYS} for side in ("training", "held_out")},
+            "checks": real_checks(bench, values),
+            "real_misses": real["misses"],
+            "values": {f"{c.base}/{c.label}": values.get(i) for i, c in enumerate(bench.comparisons)
+                       if c.group == "real"},
+            "human": None if jod is None else human.human_agreement(bench, values, jod),
+        }  # fmt: skip
+        print(name, json.dumps({k: rows[name][k] for k in ("tiers", "real", "human")}), flush=True)
+    return rows
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", type=Path, required=True)
+    parser.add_argument("--steps", type=int, default=200)
+    parser.add_argument("--lr", type=float, default=2e-4)
+    parser.add_argument("--work", type=Path, default=Path(".drkfs-train/real-nets"))
+    parser.add_argument(
+        "--temperature",
+        type=float,
+        default=DEFAULT.temperature,
+        help="the softmax temperature the nets are fine-tuned at",
+    )
+    parser.add_argument("--save-nets", type=Path)
+    parser.add_argument("--human", type=Path, help="a Geo-metric clone (see drkfs bench --human)")
+    parser.add_argument("--quick", action="store_true", help="two bases, the quick benchmark")
+    args = parser.parse_args()
+    torch.set_num_threads(2)
+    start = time.perf_counter()
+    work = args.work / ("quick" if args.quick else "full")
+    work.mkdir(parents=True, exist_ok=True)
+    shipped = DRKFS.pretrained(DEFAULT).eval()
+    data = tolerance.tier_views(work, DEFAULT, args.quick)
+    began = time.perf_counter()
+    checkpoint = work / f"tolerant_{args.steps}_{args.lr:g}_t{args.temperature:g}.pt"
+    start_nets = with_nets(DEFAULT.replace(temperature=args.temperature), shipped.detector,
+                           shipped.descriptor)  # fmt: skip
+    tuned = tolerance.fine_tune(start_nets, data, args.steps, args.lr, checkpoint)
+    train_seconds = time.perf_counter() - began
+    if args.save_nets is not None:
+        args.save_nets.parent.mkdir(parents=True, exist_ok=True)
+        torch.save(tuned.state_dict(), args.save_nets)
+    bench = sets.tier_set(args.quick)
+    sets.real_tiers(bench, ["woody"] if args.quick else [*TRAINING_MESHES, *HELDOUT_MESHES])
+    jod = human.add_human(bench, args.human) if args.human else None
+    metrics = {}
+    for suffix, config in CONFIGS.items():
+        for nets, metric in (("shipped nets", shipped), ("tolerant nets", tuned)):
+            metrics[nets + suffix] = with_nets(config, metric.detector, metric.descriptor).eval()
+    results = {
+        "command": f"python bench/real_nets.py --out {args.out} --steps {args.steps} "
+        f"--lr {args.lr:g} --temperature {args.temperature:g}"
+        + (" --quick" if args.quick else "")
+        + (" --human DIR" if args.human else ""),
+        "data": {"bases": len(data), "variants": list(data.kinds), "seed": tolerance.TRAIN_SEED},
+        "train_seconds": train_seconds,
+        "rows": judged(bench, metrics, jod),
+        "seconds": time.perf_counter() - start,
+    }
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps(results, indent=1) + "\n")
+
+
+if __name__ == "__main__":
+    main()
