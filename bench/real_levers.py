@@ -17,7 +17,7 @@ from drkfs_onnx import PipelineConfig
 from drkfs_onnx.benchmark import sets
 from drkfs_onnx.benchmark.methods import DrkfsOnnx
 from drkfs_onnx.benchmark.real_tiers import HELDOUT_MESHES, TRAINING_MESHES
-from drkfs_onnx.benchmark.run import real_checks, score_everything, tier_accuracy
+from drkfs_onnx.benchmark.run import lever_summary, score_everything, tier_accuracy
 
 DEFAULT = PipelineConfig()
 LEVERS = {  # name -> the default with one lever moved (the shipped feature graph serves each)
@@ -42,22 +42,11 @@ def main() -> None:
     scores, costs = score_everything(bench, methods, print)
     rows = {}
     for name, values in scores.comparisons.items():
-        synthetic = tier_accuracy(bench, values)
-        real = tier_accuracy(bench, values, "real")
         rows[name] = {
             "config": LEVERS[name].to_dict(),
             "seconds_per_mesh": costs[name]["seconds_per_mesh"],
-            "tiers": {
-                k: synthetic[k]
-                for k in (
-                    "invisible_vs_structural",
-                    "surface_vs_structural",
-                    "invisible_vs_surface",
-                )
-            },  # fmt: skip
-            "real": {side: real[side] for side in ("training", "held_out")},
-            "checks": real_checks(bench, values),
-            "real_misses": real["misses"],
+            **lever_summary(bench, values),
+            "real_misses": tier_accuracy(bench, values, "real")["misses"],
         }
         print(name, json.dumps({k: rows[name][k] for k in ("tiers", "real", "checks")}))
     results = {

@@ -24,7 +24,7 @@ from drkfs_onnx import PipelineConfig
 from drkfs_onnx.benchmark import human, sets
 from drkfs_onnx.benchmark.methods import DrkfsTorch
 from drkfs_onnx.benchmark.real_tiers import HELDOUT_MESHES, TRAINING_MESHES
-from drkfs_onnx.benchmark.run import real_checks, score_everything, tier_accuracy
+from drkfs_onnx.benchmark.run import TIER_PAIRS, lever_summary, score_everything, tier_accuracy
 from drkfs_onnx.metric import DRKFS, with_nets
 from drkfs_onnx.training import tolerance
 
@@ -34,26 +34,21 @@ CONFIGS = {
     ", softmax t = 0.05": DEFAULT.replace(temperature=0.05),
     ", softmax t = 0.03": DEFAULT.replace(temperature=0.03),
 }
-KEYS = ("invisible_vs_structural", "surface_vs_structural", "invisible_vs_surface")
 
 
 def judged(bench: sets.BenchSet, metrics: dict[str, DRKFS], jod: dict | None) -> dict:
     """Each metric's synthetic tier shares, real tier shares per side and real checks, and with
     ``jod`` its agreement with people."""
-    scores, costs = score_everything(
-        bench, [DrkfsTorch(name, m) for name, m in metrics.items()], print
-    )
+    scores, _ = score_everything(bench, [DrkfsTorch(name, m) for name, m in metrics.items()], print)
     rows = {}
     for name, values in scores.comparisons.items():
-        synthetic, real = tier_accuracy(bench, values), tier_accuracy(bench, values, "real")
+        synthetic = tier_accuracy(bench, values)
         rows[name] = {
-            "tiers": {k: synthetic[k] for k in KEYS},
-            "tier_halves": {half: {k: synthetic[half][k] for k in KEYS}
+            **lever_summary(bench, values),
+            "tier_halves": {half: {k: synthetic[half][k] for k in TIER_PAIRS}
                             for half in ("synthetic", "shared")},
             "tier_misses": synthetic["misses"],
-            "real": {side: {k: real[side][k] for k in KEYS} for side in ("training", "held_out")},
-            "checks": real_checks(bench, values),
-            "real_misses": real["misses"],
+            "real_misses": tier_accuracy(bench, values, "real")["misses"],
             "values": {f"{c.base}/{c.label}": values.get(i) for i, c in enumerate(bench.comparisons)
                        if c.group == "real"},
             "human": None if jod is None else human.human_agreement(bench, values, jod),

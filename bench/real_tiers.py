@@ -3,6 +3,7 @@ method's tier shares on both sides and the turn and salient-part checks (docs/be
 
     python bench/real_tiers.py --out bench/results/real_tiers.json [--methods "DR-KFS,LFD"]
     python bench/real_tiers.py --renders bench/results/real_tiers.png   # what the labels rest on
+                                                  # (and real_tiers_pixels.json: pixel changes)
 """
 
 from __future__ import annotations
@@ -24,24 +25,35 @@ from drkfs_onnx.benchmark.run import peer_methods, real_summary, score_everythin
 DEFAULT_METHODS = "DR-KFS,DR-KFS paper,DR-KFS structure,pixel MSE,Chamfer-L1,F-score 1%,LFD"
 RENDER = PipelineConfig(num_views=6, image_size=256)  # the figure's cameras: view VIEW of them
 VIEW = 1
+PIXEL_CHANGE = 0.1  # a grey level change a viewer sees at once
 
 
 def write_renders(bench: sets.BenchSet, path: Path, threads: int) -> None:
     """One row a mesh: the base and each variant from one camera, cropped to the base, titled
-    with the variant and its tier: the renders the labels were chosen by."""
+    with the variant and its tier: the renders the labels were chosen by. Beside the PNG, a
+    JSON (``<name>_pixels.json``) of each variant's pixel change against its base over all the
+    figure's cameras: the mean absolute change where either shows the mesh, and the share of
+    those pixels that change by more than PIXEL_CHANGE."""
     from drkfs_onnx.contract.mesh import frame_of, place
     from drkfs_onnx.runtime.render import NumpyRenderer
 
     renderer = NumpyRenderer(RENDER, threads=threads)
     rows: dict[str, list] = {}
+    changes: dict[str, dict] = {}
     for c in bench.comparisons:
         rows.setdefault(c.base, [("base", c.base)]).append((f"{c.kind[:3]}: {c.label}", c.shape))
     width = max(len(row) for row in rows.values())
     figure = Figure(figsize=(1.6 * width, 1.7 * len(rows)))
     for i, (base, row) in enumerate(rows.items()):
         frame = frame_of(bench.shapes[base][0])
-        images = [renderer.render(place(v, frame), f)[VIEW] for v, f in
-                  (bench.shapes[key] for _, key in row)]  # fmt: skip
+        views = [renderer.render(place(v, frame), f) for v, f in
+                 (bench.shapes[key] for _, key in row)]  # fmt: skip
+        images = [v[VIEW] for v in views]
+        for (title, key), other in zip(row[1:], views[1:], strict=True):
+            seen = (views[0] != RENDER.background) | (other != RENDER.background)
+            change = np.abs(other - views[0])[seen]
+            changes[key] = {"label": title, "mean_abs_change": float(change.mean()),
+                            "share_over": float((change > PIXEL_CHANGE).mean())}  # fmt: skip
         ys, xs = np.nonzero(images[0] != RENDER.background)
         crop = np.s_[max(ys.min() - 4, 0) : ys.max() + 4, max(xs.min() - 4, 0) : xs.max() + 4]
         for j, ((title, _), image) in enumerate(zip(row, images, strict=True)):
@@ -51,6 +63,9 @@ def write_renders(bench: sets.BenchSet, path: Path, threads: int) -> None:
             axes.set_title(base.removeprefix(sets.REAL_PREFIX) if j == 0 else title, fontsize=6)
     figure.tight_layout()
     figure.savefig(path, dpi=110)
+    pixels = {"command": f"python bench/real_tiers.py --renders {path}", "config": RENDER.to_dict(),
+              "share_over_threshold": PIXEL_CHANGE, "variants": changes}  # fmt: skip
+    path.with_name(f"{path.stem}_pixels.json").write_text(json.dumps(pixels, indent=1) + "\n")
 
 
 def main() -> None:

@@ -27,7 +27,7 @@ from drkfs_onnx import PipelineConfig
 from drkfs_onnx.benchmark import sets
 from drkfs_onnx.benchmark.methods import Method, _timed
 from drkfs_onnx.benchmark.real_tiers import HELDOUT_MESHES, TRAINING_MESHES
-from drkfs_onnx.benchmark.run import real_checks, score_everything, tier_accuracy
+from drkfs_onnx.benchmark.run import lever_summary, score_everything
 from drkfs_onnx.contract import match_rules
 from drkfs_onnx.contract.cameras import make_cameras
 from drkfs_onnx.contract.mesh import frame_of, load_mesh, place
@@ -50,7 +50,6 @@ SEARCHES = {  # name -> the (dx, dy) offsets searched, in pixels
     "+-4 px along x": [(x, 0) for x in range(-4, 5)],
 }
 OFFSETS = sorted({o for offsets in SEARCHES.values() for o in offsets})
-KEYS = ("invisible_vs_structural", "surface_vs_structural", "invisible_vs_surface")
 
 
 def _features(metric: DRKFS, verts: np.ndarray, faces: np.ndarray) -> torch.Tensor:
@@ -187,13 +186,7 @@ def main() -> None:
         scores, _ = score_everything(bench, [ShiftSearch(metric)], lambda *_: None)
         rows = {}
         for name, values in scores.comparisons.items():
-            synthetic, real = tier_accuracy(bench, values), tier_accuracy(bench, values, "real")
-            rows[name] = {
-                "tiers": {k: synthetic[k] for k in KEYS},
-                "real": {side: {k: real[side][k] for k in KEYS}
-                         for side in ("training", "held_out")},
-                "checks": real_checks(bench, values),
-            }  # fmt: skip
+            rows[name] = lever_summary(bench, values)
             print(name, json.dumps(rows[name]), flush=True)
         results["shift_search"] = rows
     results["seconds"] = time.perf_counter() - start

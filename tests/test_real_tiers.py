@@ -73,7 +73,8 @@ def test_fandisks_heavy_decimation_and_smoothing_a_smooth_mesh_are_invisible_as_
 
 def test_noise_follows_the_edges_and_a_dense_mesh_gets_more_smoothing():
     """Noise of a tenth of the mean edge on a coarse and a dense mesh; the dense one's smoothing
-    takes more iterations, and moves its surface half again as far as the coarse one's count would."""
+    takes more iterations, and moves its surface half again as far as the coarse one's count
+    would."""
     for name in ("cow", "stanford-bunny"):
         mesh, variants = _variants(name)
         edge = mean_edge(mesh.vertices, mesh.faces)

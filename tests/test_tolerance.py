@@ -3,6 +3,11 @@ hold every tier with a small part removed, and fine-tuning lowers the objective 
 
 from __future__ import annotations
 
+import json
+import subprocess
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 import torch
@@ -13,6 +18,7 @@ from drkfs_onnx.synthetic.shapes import random_shape
 from drkfs_onnx.synthetic.tiers import TIERS
 from drkfs_onnx.training import tolerance
 
+ROOT = Path(__file__).resolve().parents[1]
 CONFIG = PipelineConfig(num_views=2, image_size=64, temperature=0.03)
 
 
@@ -69,3 +75,24 @@ def test_fine_tuning_lowers_the_objective_on_its_own_data(chair_views):
         loss_fn(metric, step % 4).backward()
         optimizer.step()
     assert objective() < before
+
+
+@pytest.mark.slow  # a study's end to end check
+def test_the_bench_script_fine_tunes_and_judges_on_its_quick_plan(tmp_path):
+    out, nets = tmp_path / "real_nets.json", tmp_path / "nets.pt"
+    done = subprocess.run(
+        [sys.executable, "bench/real_nets.py", "--out", str(out), "--quick", "--steps", "2",
+         "--work", str(tmp_path / "work"), "--save-nets", str(nets)],
+        cwd=ROOT, capture_output=True, text=True, timeout=600,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr[-2000:]
+    results = json.loads(out.read_text())
+    assert {"shipped nets", "tolerant nets", "tolerant nets, softmax t = 0.05"} <= set(
+        results["rows"]
+    )
+    for row in results["rows"].values():
+        assert 0.0 <= row["tiers"]["invisible_vs_structural"] <= 1.0
+        assert row["real"]["training"]["invisible_vs_surface"] is not None  # woody, training side
+    shipped = DRKFS.pretrained(PipelineConfig()).state_dict()
+    tuned = torch.load(nets, weights_only=True)
+    assert any(not torch.equal(shipped[k], tuned[k]) for k in shipped if k.startswith("descr"))

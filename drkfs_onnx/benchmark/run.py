@@ -231,6 +231,18 @@ def real_checks(bench: sets.BenchSet, values: dict[int, float | None]) -> dict:
     return result
 
 
+def lever_summary(bench: sets.BenchSet, values: dict[int, float | None]) -> dict:
+    """What a lever is judged by: the synthetic tier set's three shares, each side's shares of
+    the real tiers and the real checks (``tier_accuracy``, ``real_checks``)."""
+    synthetic, real = tier_accuracy(bench, values), tier_accuracy(bench, values, "real")
+    return {
+        "tiers": {pair: synthetic[pair] for pair in TIER_PAIRS},
+        "real": {side: {pair: real[side][pair] for pair in TIER_PAIRS}
+                 for side in ("training", "held_out")},
+        "checks": real_checks(bench, values),
+    }  # fmt: skip
+
+
 def real_summary(bench: sets.BenchSet, values: dict[int, float | None]) -> dict:
     """The real tiers' shares (``tier_accuracy`` per side) with their ``checks``."""
     return {**tier_accuracy(bench, values, "real"), "checks": real_checks(bench, values)}
