@@ -10,7 +10,8 @@
 2. A match that searches small shifts (the lever "tolerance to a patch's small displacement"):
    each patch's best-match distance is the least over the other mesh's views translated by
    every offset of a set, per patch (``patch``) or one offset per view (``view``); judged on
-   the benchmark's synthetic tiers and both sides of the real tiers.
+   the benchmark's synthetic tiers and both sides of the real tiers. With ``--nets`` only the
+   sensitivity runs, at the default's config (softmax t = 0.1).
 """
 
 from __future__ import annotations
@@ -122,6 +123,9 @@ class ShiftSearch(Method):
     SEARCHES a score, per patch and per view."""
 
     def __init__(self, metric: DRKFS):
+        config = metric.config
+        if (config.matching, config.window, config.direction) != ("window", 0, "both"):
+            raise ValueError("the shift search replaces the default's match: window 0, both ways")
         self.metric = metric
         self.outputs = tuple(f"{n}, {mode}" for n in SEARCHES for mode in ("patch", "view"))
         self.index = {n: [OFFSETS.index(o) for o in offsets] for n, offsets in SEARCHES.items()}

@@ -14,7 +14,7 @@ import torch
 
 from drkfs_onnx.contract.config import PipelineConfig
 from drkfs_onnx.metric import DRKFS
-from drkfs_onnx.synthetic.shapes import random_shape
+from drkfs_onnx.synthetic.shapes import assemble, random_shape
 from drkfs_onnx.synthetic.tiers import TIERS
 from drkfs_onnx.training import tolerance
 
@@ -54,7 +54,11 @@ def test_the_data_hold_every_tier_and_the_smallest_part_removed(chair_views):
     small = next(v for v in variants if v.name == "small_part_removed")
     assert small.kind == "structural"
     assert {"turned_1", "turned_3"} <= {v.name for v in variants if v.kind == "invisible"}
-    assert len(small.faces) < len(next(v for v in variants if v.name == "rotated").faces)
+    # exactly the smallest part's faces are gone
+    smallest = min(parts, key=lambda p: float(np.prod(p.size)))
+    gone = len(assemble(parts, 1)[1]) - len(small.faces)
+    assert gone == len(assemble([smallest], 1)[1])
+    assert all(float(np.prod(p.size)) >= float(np.prod(smallest.size)) for p in parts)
 
 
 def test_fine_tuning_lowers_the_objective_on_its_own_data(chair_views):

@@ -6,7 +6,7 @@ ranks them (docs/benchmark.md, "Real-mesh tiers", shows their renders).
 - surface (a moderate defect of an intact shape): noise along the normals of a tenth of the
   mean edge, quadric decimation to a tenth of the faces, Taubin smoothing that erases detail
   (as many iterations as reach SMOOTHING_SCALE of the diagonal on the mesh's edges: 9 on the
-  cow, 72 on the bunny);
+  cow, 72 on the bunny, 152 on the beast);
 - structural: a small salient part removed (the surface near the tip that sticks out furthest:
   a horn, an ear, a tail), a hole cut into the surface, and on a mesh of several pieces its
   second largest piece removed.
