@@ -81,6 +81,15 @@ def random_light(config: PipelineConfig, rng: np.random.Generator) -> tuple[floa
     return tuple((light / np.linalg.norm(light)).tolist())
 
 
+def views_in_frame(renderer: Renderer, meshes, frame) -> torch.Tensor:
+    """(verts, faces) meshes, each placed in one ``frame`` (a base's, as the metric places a
+    pair) -> (M, K, S, S) their views."""
+    return torch.stack([
+        renderer.render(torch.tensor(place(v, frame), dtype=torch.float32), torch.as_tensor(f))
+        for v, f in meshes
+    ])  # fmt: skip
+
+
 def hard_depth(renderer: Renderer, verts: torch.Tensor, faces: torch.Tensor) -> torch.Tensor:
     """(K, S, S) normalised inverse depth of the nearest face covering each pixel centre, else 0."""
     cfg = renderer.config

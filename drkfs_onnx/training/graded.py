@@ -21,12 +21,13 @@ import torch.nn.functional as F
 import trimesh
 
 from ..contract.config import PipelineConfig
-from ..contract.mesh import frame_of, place
+from ..contract.mesh import frame_of
 from ..match import match_score
 from ..metric import DRKFS
 from ..render.renderer import Renderer
 from ..synthetic.shapes import Part, assemble, random_shape
 from ..synthetic.variants import diagonal, shifted, thickened, without
+from .data import views_in_frame
 from .metric_losses import LossFn, ranking_loss
 from .run import train_steps
 
@@ -109,11 +110,7 @@ def render_graded_views(
             frame = frame_of(assemble(parts, 1)[0])
             for k, kind in enumerate(GRADES):
                 meshes = _series(parts, kind, rng)
-                images.append(torch.stack([
-                    renderer.render(torch.tensor(place(v, frame), dtype=torch.float32),
-                                    torch.as_tensor(f))
-                    for v, f in meshes
-                ]))  # fmt: skip
+                images.append(views_in_frame(renderer, meshes, frame))
                 kinds.append(k)
     return GradedViews(torch.stack(images), torch.tensor(kinds))
 

@@ -24,13 +24,14 @@ import torch
 import torch.nn.functional as F
 
 from ..contract.config import PipelineConfig
-from ..contract.mesh import frame_of, place
+from ..contract.mesh import frame_of
 from ..match import match_score
 from ..metric import DRKFS
 from ..render.renderer import Renderer
 from ..synthetic.shapes import FAMILIES, Part, assemble, random_shape
 from ..synthetic.tiers import TIERS, part_tiers, turned
 from ..synthetic.variants import Variant, without
+from .data import views_in_frame
 from .metric_losses import LossFn, ranking_loss
 from .run import plan_key, train_steps
 
@@ -100,11 +101,7 @@ def render_tier_views(
             assert kinds == tuple(v.kind for v in variants), "every base has the same variants"
             frame = frame_of(base[0])
             meshes = [base, *((v.verts, v.faces) for v in variants)]
-            images.append(torch.stack([
-                renderer.render(torch.tensor(place(v, frame), dtype=torch.float32),
-                                torch.as_tensor(f))
-                for v, f in meshes
-            ]))  # fmt: skip
+            images.append(views_in_frame(renderer, meshes, frame))
     return TierViews(torch.stack(images), kinds)
 
 
