@@ -2,18 +2,24 @@
 
     python bench/real_nets.py --out bench/results/real_nets.json [--steps N] [--quick]
     python bench/real_nets.py --out ... --save-nets FILE   # also the fine-tuned nets' state
+    python bench/real_nets.py --out ... --simplification   # also simplification series
+    python bench/real_nets.py --out ... --blend 0.5   # also the nets halfway back to the shipped
 
-1. The default's shipped nets fine-tuned with ``training.tolerance.tolerance_ranking`` on
-   synthetic tiers of other seeds than the benchmark's (work folder ``--work``, resumable).
+1. The shipped metric nets (the default's before the tolerant ones) fine-tuned with
+   ``training.tolerance.tolerance_ranking`` on synthetic tiers of other seeds than the
+   benchmark's (work folder ``--work``, resumable);
+   with ``--simplification``, also ranking simplifications of smoothed synthetic shapes.
 2. Both judged as ``bench/real_levers.py`` judges a lever: the benchmark's synthetic tiers,
    both sides of the real tiers and their checks, at the default's config and at each other
    config of ``CONFIGS`` (the same nets); with ``--human DIR``, their agreement with people on
-   Geo-metric's simplifications (as ``drkfs bench --human``).
+   Geo-metric's simplifications (as ``drkfs bench --human``). ``--blend`` adds nets whose
+   weights lie that share of the way from the shipped to the fine-tuned ones.
 """
 
 from __future__ import annotations
 
 import argparse
+import copy
 import json
 import time
 from pathlib import Path
@@ -28,12 +34,23 @@ from drkfs_onnx.benchmark.run import TIER_PAIRS, lever_summary, score_everything
 from drkfs_onnx.metric import DRKFS, with_nets
 from drkfs_onnx.training import tolerance
 
-DEFAULT = PipelineConfig()
+# the nets fine-tuned: the metric nets (the default's before the tolerant nets), at their config
+DEFAULT = PipelineConfig(nets="metric")
 CONFIGS = {
     "": DEFAULT,
     ", softmax t = 0.05": DEFAULT.replace(temperature=0.05),
     ", softmax t = 0.03": DEFAULT.replace(temperature=0.03),
 }
+
+
+def blended(shipped: DRKFS, tuned: DRKFS, share: float) -> DRKFS:
+    """Nets whose weights lie ``share`` of the way from ``shipped``'s to ``tuned``'s (the
+    fine-tuning started from the shipped nets, so the line between them stays in one basin)."""
+    start, end = shipped.state_dict(), tuned.state_dict()
+    mixed = copy.deepcopy(tuned)
+    mixed.load_state_dict({k: start[k] + share * (v - start[k]) if v.is_floating_point() else v
+                           for k, v in end.items()})  # fmt: skip
+    return mixed
 
 
 def judged(bench: sets.BenchSet, metrics: dict[str, DRKFS], jod: dict | None) -> dict:
@@ -69,6 +86,18 @@ def main() -> None:
         default=DEFAULT.temperature,
         help="the softmax temperature the nets are fine-tuned at",
     )
+    parser.add_argument(
+        "--simplification",
+        action="store_true",
+        help="also rank quadric simplifications of smoothed synthetic shapes, coarser above finer",
+    )
+    parser.add_argument(
+        "--blend",
+        type=float,
+        nargs="*",
+        default=[],
+        help="also judge nets this share of the way from the shipped to the fine-tuned weights",
+    )
     parser.add_argument("--save-nets", type=Path)
     parser.add_argument("--human", type=Path, help="a Geo-metric clone (see drkfs bench --human)")
     parser.add_argument("--quick", action="store_true", help="two bases, the quick benchmark")
@@ -80,10 +109,12 @@ def main() -> None:
     shipped = DRKFS.pretrained(DEFAULT).eval()
     data = tolerance.tier_views(work, DEFAULT, args.quick)
     began = time.perf_counter()
-    checkpoint = work / f"tolerant_{args.steps}_{args.lr:g}_t{args.temperature:g}.pt"
+    series = tolerance.simplified_views(work, DEFAULT, args.quick) if args.simplification else None
+    name = tolerance.checkpoint_name(args.steps, args.lr, args.temperature, args.simplification)
+    checkpoint = work / name
     start_nets = with_nets(DEFAULT.replace(temperature=args.temperature), shipped.detector,
                            shipped.descriptor)  # fmt: skip
-    tuned = tolerance.fine_tune(start_nets, data, args.steps, args.lr, checkpoint)
+    tuned = tolerance.fine_tune(start_nets, data, args.steps, args.lr, checkpoint, series)
     train_seconds = time.perf_counter() - began
     if args.save_nets is not None:
         args.save_nets.parent.mkdir(parents=True, exist_ok=True)
@@ -91,16 +122,26 @@ def main() -> None:
     bench = sets.tier_set(args.quick)
     sets.real_tiers(bench, ["woody"] if args.quick else [*TRAINING_MESHES, *HELDOUT_MESHES])
     jod = human.add_human(bench, args.human) if args.human else None
+    nets_rows = [("shipped nets", shipped), ("tolerant nets", tuned)]
+    nets_rows += [(f"tolerant nets x {s:g}", blended(shipped, tuned, s)) for s in args.blend]
     metrics = {}
     for suffix, config in CONFIGS.items():
-        for nets, metric in (("shipped nets", shipped), ("tolerant nets", tuned)):
+        for nets, metric in nets_rows:
             metrics[nets + suffix] = with_nets(config, metric.detector, metric.descriptor).eval()
     results = {
         "command": f"python bench/real_nets.py --out {args.out} --steps {args.steps} "
         f"--lr {args.lr:g} --temperature {args.temperature:g}"
+        + (" --simplification" if args.simplification else "")
+        + (" --blend " + " ".join(f"{s:g}" for s in args.blend) if args.blend else "")
         + (" --quick" if args.quick else "")
         + (" --human DIR" if args.human else ""),
-        "data": {"bases": len(data), "variants": list(data.kinds), "seed": tolerance.TRAIN_SEED},
+        "data": {
+            "bases": len(data),
+            "variants": list(data.kinds),
+            "seed": tolerance.TRAIN_SEED,
+            "simplification_series": None if series is None else len(series),
+            "simplification_seed": None if series is None else tolerance.SIMPLIFY_SEED,
+        },
         "train_seconds": train_seconds,
         "rows": judged(bench, metrics, jod),
         "seconds": time.perf_counter() - start,

@@ -144,6 +144,35 @@ def train(
     )
 
 
+@app.command("tune-tolerant")
+def tune_tolerant(
+    out: Annotated[
+        Path, typer.Option(help="Where the weights go, entered in its manifest (--out models).")
+    ] = RUNS / "models",
+    work: Annotated[Path, typer.Option(help="Data cache and checkpoint (resumed from).")] = Path(
+        ".drkfs-train/tolerant"
+    ),
+    quick: Annotated[bool, typer.Option(help="Two bases and 2 steps (tests).")] = False,
+) -> None:
+    """Fine-tune the shipped metric nets for a viewer's tolerance (the default's nets): small
+    turns and shifts rank below surface defects, those below missing parts, and coarser
+    simplifications above finer ones. Run after drkfs train, whose manifest it adds to; then
+    drkfs export.
+
+    Rerunning after an interruption resumes from the checkpoint in WORK.
+    """
+    from .training.tolerance import ship_tolerant
+
+    work.mkdir(parents=True, exist_ok=True)
+    command = f"drkfs tune-tolerant --out {out}" + (" --quick" if quick else "")
+    entry = ship_tolerant(out, work, command, quick)
+    made = entry["made_by"]
+    typer.echo(
+        f"{out / entry['file']}: objective {made['objective']['before']:.3f} -> "
+        f"{made['objective']['after']:.3f}; {made['seconds']:.0f} s"
+    )
+
+
 @app.command()
 def export(
     out: Annotated[

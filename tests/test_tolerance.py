@@ -3,6 +3,7 @@ hold every tier with a small part removed, and fine-tuning lowers the objective 
 
 from __future__ import annotations
 
+import hashlib
 import json
 import subprocess
 import sys
@@ -11,8 +12,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
+from typer.testing import CliRunner
 
+from drkfs_onnx.cli import app
 from drkfs_onnx.contract.config import PipelineConfig
+from drkfs_onnx.contract.model_files import MANIFEST, shipped_entry
 from drkfs_onnx.metric import DRKFS
 from drkfs_onnx.synthetic.shapes import assemble, random_shape
 from drkfs_onnx.synthetic.tiers import TIERS
@@ -81,16 +85,72 @@ def test_fine_tuning_lowers_the_objective_on_its_own_data(chair_views):
     assert objective() < before
 
 
+def test_a_simplification_series_coarsens_to_its_face_counts_or_is_refused(monkeypatch):
+    parts = random_shape("chair", np.random.default_rng(tolerance.SIMPLIFY_SEED))
+    series = tolerance.simplification_series(parts)
+    assert series is not None and len(series) == 1 + len(tolerance.SIMPLIFIED_FACES)
+    counts = [len(f) for _, f in series]
+    assert counts[0] > counts[1] > counts[2] > counts[3]
+    assert all(c <= 1.2 * t for c, t in zip(counts[1:], tolerance.SIMPLIFIED_FACES, strict=True))
+    # a simplification that stalls (returns its input) gives no series
+    monkeypatch.setattr(tolerance, "simplified", lambda verts, faces, keep: (verts, faces))
+    assert tolerance.simplification_series(parts) is None
+
+
+def test_the_simplification_term_asks_a_coarser_simplification_to_score_higher(chair_views):
+    metric = DRKFS.pretrained(CONFIG).eval()
+    base = chair_views.images[0, 0]  # (K, S, S)
+    noise = torch.rand(base.shape, generator=torch.Generator().manual_seed(0)) - 0.5
+
+    def term(levels: torch.Tensor) -> float:
+        series = torch.stack([base, *(base + a * noise for a in levels)])[None]
+        with torch.no_grad():
+            alone = tolerance.tolerance_ranking(chair_views, 0)(metric, 0)
+            both = tolerance.tolerance_ranking(chair_views, 0, series)(metric, 0)
+        return float(both - alone)
+
+    # unchanged simplifications all score 0: every pair falls short by the whole margin
+    assert term(torch.zeros(3)) == pytest.approx(tolerance.SIMPLIFY_MARGIN, rel=1e-4)
+    assert term(torch.tensor([0.02, 0.2, 0.6])) < term(torch.tensor([0.6, 0.2, 0.02]))
+
+
+def test_tune_tolerant_adds_its_weights_and_how_they_were_made_to_the_manifest(tmp_path):
+    out = tmp_path / "models"
+    out.mkdir()
+    kept = {"file": "drkfs_metric_w0.5.pt", "sha256": "0" * 64, "config": {}, "default": True}
+    (out / MANIFEST).write_text(json.dumps({"command": "drkfs train", "weights": [kept]}))
+    for _ in range(2):  # a rerun replaces its own entry and keeps the others
+        result = CliRunner().invoke(
+            app, ["tune-tolerant", "--quick", "--out", str(out), "--work", str(tmp_path / "w")]
+        )
+        assert result.exit_code == 0, result.output
+    manifest = json.loads((out / MANIFEST).read_text())
+    assert manifest["command"] == "drkfs train"
+    assert [e["file"] for e in manifest["weights"]] == [kept["file"], "drkfs_tolerant_w0.5.pt"]
+    entry = manifest["weights"][1]
+    assert hashlib.sha256((out / entry["file"]).read_bytes()).hexdigest() == entry["sha256"]
+    assert PipelineConfig.from_dict(entry["config"]) == PipelineConfig(nets="tolerant")
+    made = entry["made_by"]
+    assert made["from"] == {k: shipped_entry(PipelineConfig(nets="metric"))[k]
+                            for k in ("file", "sha256")}  # fmt: skip
+    assert made["command"].startswith("drkfs tune-tolerant") and made["steps"] == 2
+    assert made["objective"]["after"] < made["objective"]["before"]
+    assert made["resumed_at"] == 2  # the rerun found the finished checkpoint
+    tuned = DRKFS(PipelineConfig(nets="tolerant"))
+    tuned.load_state_dict(torch.load(out / entry["file"], weights_only=True))
+
+
 @pytest.mark.slow  # a study's end to end check
 def test_the_bench_script_fine_tunes_and_judges_on_its_quick_plan(tmp_path):
     out, nets = tmp_path / "real_nets.json", tmp_path / "nets.pt"
     done = subprocess.run(
         [sys.executable, "bench/real_nets.py", "--out", str(out), "--quick", "--steps", "2",
-         "--work", str(tmp_path / "work"), "--save-nets", str(nets)],
+         "--work", str(tmp_path / "work"), "--save-nets", str(nets), "--simplification"],
         cwd=ROOT, capture_output=True, text=True, timeout=600,
     )  # fmt: skip
     assert done.returncode == 0, done.stderr[-2000:]
     results = json.loads(out.read_text())
+    assert results["data"]["simplification_series"] >= 1
     assert {"shipped nets", "tolerant nets", "tolerant nets, softmax t = 0.05"} <= set(
         results["rows"]
     )

@@ -18,10 +18,12 @@ MATCHINGS = ("global", "window")
 DIRECTIONS = ("forward", "backward", "both")
 REDUCTIONS = ("sum", "mean", "tail", "power", "softmax")
 # what the detector and HardNet were trained for: 'correspondence' (the paper's way: the same
-# surface point in views 5-30 degrees apart, ``training.net_losses``; the default's and the paper
-# preset's) or 'metric' (then fine-tuned to rank the metric's own structural edits above its
-# mild ones, ``training.metric_losses``; ``PipelineConfig.structure()``)
-NETS = ("metric", "correspondence")
+# surface point in views 5-30 degrees apart, ``training.net_losses``; the paper preset's and the
+# loss's), 'metric' (then fine-tuned to rank the metric's own structural edits above its mild
+# ones, ``training.metric_losses``) or 'tolerant' (the metric nets then fine-tuned for a viewer's
+# tolerance to small turns and shifts and for simplifications, ``training.tolerance``; the
+# default's and ``PipelineConfig.structure()``'s)
+NETS = ("tolerant", "metric", "correspondence")
 # The settings that shape only the match of two descriptor sets, not the descriptors: a feature
 # graph or features file serves every value of these.
 MATCH_FIELDS = (
@@ -34,7 +36,9 @@ class PipelineConfig:
     """Pipeline numbers. The renderer, detector and patch numbers follow the DR-KFS paper and
     SoftRas; the cameras, image size, HardNet width, nets and match were chosen on the project's
     benchmark by the rule of ``bench/match_study.py`` (the most of its goals met on the three
-    tiers of change, people's judgments, retrieval and the bars test; docs/matching.md).
+    tiers of change, people's judgments, retrieval and the bars test; docs/matching.md); the
+    nets were then fine-tuned for a viewer's tolerance (``drkfs tune-tolerant``, chosen on the
+    synthetic tiers, the real tiers' training side and people's judgments; docs/benchmark.md).
     ``PipelineConfig.paper()`` is the paper's recipe, ``structure()`` the same nets with the
     previous default's match, ``loss()`` the form a training loss takes.
 

@@ -115,7 +115,7 @@ def plan_key(plan) -> str:
     return hashlib.sha256(json.dumps(fields, sort_keys=True).encode()).hexdigest()[:12]
 
 
-def _git_commit() -> str:
+def git_commit() -> str:
     try:
         head = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True)
         dirty = subprocess.run(
@@ -464,7 +464,7 @@ def train(plan: TrainPlan, out: Path, work: Path, command: str) -> dict:
     """Run the plan: sweep and select the detector, then HardNet's width, fine-tune both in the
     metric's terms, ship the weights. Writes ``out/drkfs_{correspondence,metric}_w*.pt`` and
     ``out/manifest.json``; returns the manifest."""
-    commit = _git_commit()  # the code that runs, before anyone edits the tree during the run
+    commit = git_commit()  # the code that runs, before anyone edits the tree during the run
     run = Training(plan, work / plan_key(plan))
     config = run.config
     data = run.data()

@@ -10,12 +10,16 @@ benchmark's kind of tiers (``synthetic.tiers.part_tiers``) on bases of other see
 1 and 3 degrees beside its 2 and the smallest part removed; each step also warps whole views
 slightly (``warped``: a shift, a turn in the image plane, a change of scale), of the base (an
 invisible change) and of a surface variant against itself (moving a textured view is not adding
-texture).
+texture). With ``simplification`` data, each step also ranks a smoothed synthetic shape's
+quadric simplifications coarser above finer (people judge simplified scans so: Geo-metric's
+judgments stay a check, never training data).
 """
 
 from __future__ import annotations
 
 import copy
+import json
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -25,15 +29,16 @@ import torch.nn.functional as F
 
 from ..contract.config import PipelineConfig
 from ..contract.mesh import frame_of
+from ..contract.model_files import MANIFEST, sha256, shipped_entry
 from ..match import match_score
-from ..metric import DRKFS
+from ..metric import DRKFS, with_nets
 from ..render.renderer import Renderer
 from ..synthetic.shapes import FAMILIES, Part, assemble, random_shape
-from ..synthetic.tiers import TIERS, part_tiers, turned
+from ..synthetic.tiers import FINE_SUBDIVISIONS, TIERS, part_tiers, simplified, smoothed, turned
 from ..synthetic.variants import Variant, without
 from .data import views_in_frame
 from .metric_losses import LossFn, ranking_loss
-from .run import plan_key, train_steps
+from .run import git_commit, plan_key, train_steps
 
 # seeds of the bases: disjoint from the nets' other stages (0-2), the fitting problems (3), the
 # graded series (6, 7), the benchmark (2026-2028), the held-out checks (3000-3002) and the
@@ -46,6 +51,17 @@ EXTRA_TURNS = (1.0, 3.0)  # degrees, invisible beside part_tiers' own 2-degree t
 SHIFT_PIXELS, SPIN_DEGREES, ZOOM = 1.5, 1.0, 0.01
 MARGIN = 0.5  # log-ratio: each tier's score >= e^0.5 = 1.65x the tier below's
 PER_TIER = 2  # variants of each tier drawn a step
+# the simplification series: bases of their own seed, a shape's fine tessellation smoothed into
+# a curved surface (as a scan's), quadric-simplified to these many faces, finest first; each
+# coarser one should score >= 1.25x the finer one
+SIMPLIFY_SEED = 9
+SIMPLIFIED_FACES = (4000, 2000, 1000)
+SIMPLIFY_MARGIN = float(np.log(1.25))
+# the shipped tolerant nets (``ship_tolerant``): the metric nets fine-tuned with the simplification
+# series, at this softmax temperature, chosen by ``bench/real_nets.py`` (docs/benchmark.md)
+TUNE_STEPS, TUNE_LR, TUNE_TEMPERATURE = 400, 2e-4, 0.05
+EVAL_STEP = 100_000  # the objective before and after is measured on draws of steps from here
+EVAL_DRAWS = 12
 
 
 @dataclass
@@ -105,6 +121,43 @@ def render_tier_views(
     return TierViews(torch.stack(images), kinds)
 
 
+def simplification_series(parts: list[Part]) -> list[tuple] | None:
+    """The smoothed fine shape and its SIMPLIFIED_FACES simplifications as (verts, faces), or
+    None where the simplification stalls above its face count or throws a vertex out of the
+    shape's box (thin parts: a lamp's stem, a wing)."""
+    verts, faces = assemble(parts, FINE_SUBDIVISIONS)
+    verts = smoothed(verts, faces)
+    low, high = verts.min(0), verts.max(0)
+    slack = 0.02 * float(np.linalg.norm(high - low))
+    levels = [simplified(verts, faces, count / len(faces)) for count in SIMPLIFIED_FACES]
+    for (v, f), count in zip(levels, SIMPLIFIED_FACES, strict=True):
+        if len(f) > 1.2 * count or (v < low - slack).any() or (v > high + slack).any():
+            return None
+    return [(verts, faces), *levels]
+
+
+@torch.no_grad()
+def render_simplified_views(
+    config: PipelineConfig, families: list[str], shapes_per_family: int, seed: int
+) -> torch.Tensor:
+    """Up to ``shapes_per_family`` simplification series of each family (drawn from ``seed``;
+    a family whose series fail three times as often gives none) -> (N, 1 + L, K, S, S) their
+    views, the smoothed shape first, each in its frame."""
+    rng = np.random.default_rng(seed)
+    renderer = Renderer(config)
+    images = []
+    for family in families:
+        found = 0
+        for _ in range(3 * shapes_per_family):
+            series = simplification_series(random_shape(family, rng))
+            if series is not None:
+                images.append(views_in_frame(renderer, series, frame_of(series[0][0])))
+                found += 1
+            if found == shapes_per_family:
+                break
+    return torch.stack(images)
+
+
 def warped(
     views: torch.Tensor, offsets: torch.Tensor, background: float, spins=None, zooms=None
 ) -> torch.Tensor:
@@ -124,11 +177,16 @@ def warped(
     return moved[:, 0] + background
 
 
-def tolerance_ranking(data: TierViews, seed: int) -> LossFn:
+def tolerance_ranking(
+    data: TierViews, seed: int, simplification: torch.Tensor | None = None
+) -> LossFn:
     """Each step one base: PER_TIER variants of each tier and its views under a small warp
     (``warped``; invisible) scored against the base with ``match_score`` at the metric's config,
     ranked invisible < surface < structural by MARGIN; and a surface variant warped, scored
-    against itself, ranked below that variant against the base."""
+    against itself, ranked below that variant against the base. With ``simplification`` ((N, 1 +
+    L, K, S, S), ``render_simplified_views``), also one series: each simplification scored
+    against the smoothed shape and against the finest simplification (as people judge them
+    against a reference), each coarser one ranked above the finer by SIMPLIFY_MARGIN."""
     invisible, surface, structural = (data.columns(t) for t in TIERS)
 
     def loss_fn(metric: DRKFS, step: int) -> torch.Tensor:
@@ -163,12 +221,22 @@ def tolerance_ranking(data: TierViews, seed: int) -> LossFn:
         d_structural = scores([*views[draw(structural)]])
         d_texture_moved = scores([moved(textured)], describe(textured))
         d_texture = scores([textured])
-        return (
+        loss = (
             ranking_loss(d_invisible, d_surface, MARGIN)
             + ranking_loss(d_surface, d_structural, MARGIN)
             + ranking_loss(d_invisible, d_structural, MARGIN)
             + ranking_loss(d_texture_moved, d_texture, MARGIN)
         )
+        if simplification is None:
+            return loss
+        series = [describe(v) for v in simplification[int(rng.integers(len(simplification)))]]
+        coarser = []
+        for reference in (0, 1):
+            d = torch.stack([match_score(s, series[reference], config)
+                             for s in series[reference + 1:]])  # fmt: skip
+            coarser += [ranking_loss(d[i : i + 1], d[i + 1 : i + 2], SIMPLIFY_MARGIN)
+                        for i in range(len(d) - 1)]  # fmt: skip
+        return loss + torch.stack(coarser).mean()
 
     return loss_fn
 
@@ -185,11 +253,102 @@ def tier_views(work: Path, config: PipelineConfig, quick: bool) -> TierViews:
     return data
 
 
-def fine_tune(start: DRKFS, data: TierViews, steps: int, lr: float, checkpoint: Path) -> DRKFS:
-    """A copy of ``start``'s nets after ``steps`` of ``tolerance_ranking`` on ``data``, resumable
-    from ``checkpoint``."""
+def simplified_views(work: Path, config: PipelineConfig, quick: bool) -> torch.Tensor:
+    """The simplification series' views at ``config``, rendered once per work folder (quick:
+    two families, one series each)."""
+    path = work / f"simplified_views_{plan_key(config)}.pt"
+    if path.exists():
+        return torch.load(path, weights_only=True)
+    families = list(FAMILIES)[:2] if quick else list(FAMILIES)
+    views = render_simplified_views(config, families, 1 if quick else SHAPES_PER_FAMILY,
+                                    SIMPLIFY_SEED)  # fmt: skip
+    torch.save(views, path)
+    return views
+
+
+def fine_tune(
+    start: DRKFS,
+    data: TierViews,
+    steps: int,
+    lr: float,
+    checkpoint: Path,
+    simplification: torch.Tensor | None = None,
+) -> DRKFS:
+    """A copy of ``start``'s nets after ``steps`` of ``tolerance_ranking`` on ``data`` (and
+    ``simplification``), resumable from ``checkpoint``."""
     metric = copy.deepcopy(start)
     metric.detector.requires_grad_(True)
     metric.descriptor.requires_grad_(True)
-    train_steps(metric, tolerance_ranking(data, TRAIN_SEED), steps, lr, checkpoint, 20)
+    loss_fn = tolerance_ranking(data, TRAIN_SEED, simplification)
+    train_steps(metric, loss_fn, steps, lr, checkpoint, 20)
     return metric.requires_grad_(False)
+
+
+def checkpoint_name(steps: int, lr: float, temperature: float, simplification: bool) -> str:
+    """The fine-tuning's checkpoint file in its work folder (one per setting)."""
+    name = f"tolerant_{steps}_{lr:g}_t{temperature:g}"
+    return name + ("_simplification" if simplification else "") + ".pt"
+
+
+@torch.no_grad()
+def objective(metric: DRKFS, loss_fn: LossFn, draws: int) -> float:
+    """The mean of ``loss_fn`` over ``draws`` steps the training never draws."""
+    return float(np.mean([float(loss_fn(metric, EVAL_STEP + i)) for i in range(draws)]))
+
+
+def ship_tolerant(out: Path, work: Path, command: str, quick: bool = False) -> dict:
+    """Fine-tune the shipped metric nets (TUNE_*, with the simplification series; resumable from
+    ``work``), write them as ``out/drkfs_tolerant_w*.pt`` and put their entry, with how they were
+    made, into ``out/manifest.json`` (replacing an older one of the same file). quick: the quick
+    data and 2 steps (tests). Returns the entry."""
+    commit = git_commit()
+    source = PipelineConfig(nets="metric")
+    start = DRKFS.pretrained(source).eval()
+    data, series = tier_views(work, source, quick), simplified_views(work, source, quick)
+    steps = 2 if quick else TUNE_STEPS
+    began = time.perf_counter()
+    tuning = source.replace(temperature=TUNE_TEMPERATURE)
+    checkpoint = work / checkpoint_name(steps, TUNE_LR, TUNE_TEMPERATURE, True)
+    resumed = torch.load(checkpoint, weights_only=True)["step"] if checkpoint.exists() else 0
+    before = with_nets(tuning, start.detector, start.descriptor).eval()
+    tuned = fine_tune(before, data, steps, TUNE_LR, checkpoint, series).eval()
+    seconds = time.perf_counter() - began
+    loss_fn, draws = tolerance_ranking(data, TRAIN_SEED, series), 2 if quick else EVAL_DRAWS
+    config = source.replace(nets="tolerant")
+    out.mkdir(parents=True, exist_ok=True)
+    path = out / f"drkfs_tolerant_w{config.descriptor_width:g}.pt"
+    torch.save(tuned.state_dict(), path)
+    origin = shipped_entry(source, any_rendering=True)
+    entry = {
+        "file": path.name,
+        "sha256": sha256(path),
+        "config": config.to_dict(),
+        "default": False,  # the flag marks the drkfs train run's own choice
+        "made_by": {
+            "command": command,
+            "commit": commit,
+            "torch": torch.__version__,
+            "from": {"file": origin["file"], "sha256": origin["sha256"]},
+            "data": {
+                "families": list(FAMILIES)[:2] if quick else list(FAMILIES),
+                "tier_bases": len(data),
+                "tier_seed": TRAIN_SEED,
+                "variants": list(data.kinds),
+                "simplification_series": len(series),
+                "simplification_seed": SIMPLIFY_SEED,
+            },
+            "steps": steps,
+            "lr": TUNE_LR,
+            "temperature": TUNE_TEMPERATURE,
+            "seconds": seconds,  # of this run, which resumed at step ``resumed_at``
+            "resumed_at": resumed,
+            "objective": {"before": objective(before, loss_fn, draws),
+                          "after": objective(tuned, loss_fn, draws), "draws": draws},
+        },
+    }  # fmt: skip
+    manifest_path = out / MANIFEST
+    manifest = json.loads(manifest_path.read_text()) if manifest_path.exists() else {}
+    kept = [e for e in manifest.get("weights", []) if e["file"] != path.name]
+    manifest["weights"] = [*kept, entry]
+    manifest_path.write_text(json.dumps(manifest, indent=1) + "\n")
+    return entry
