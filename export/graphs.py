@@ -2,12 +2,11 @@
 
 from __future__ import annotations
 
-import copy
-
 import torch
 from torch import nn
 
 from drkfs_onnx.metric import DRKFS
+from drkfs_onnx.nets.hardnet import HardNet, conv_stack, l2_normalize
 from drkfs_onnx.nets.patches import select_patches
 
 
@@ -23,11 +22,40 @@ class FeatureGraph(nn.Module):
         super().__init__()
         self.config = metric.config
         self.detector = metric.detector
-        # a copy: changing the memory format must not slow the caller's metric
-        self.descriptor = copy.deepcopy(metric.descriptor).to(memory_format=torch.contiguous_format)
+        self.descriptor = FoldedHardNet(metric.descriptor)
 
     def forward(self, views: torch.Tensor, patch_index: torch.Tensor) -> torch.Tensor:
         return self.descriptor(select_patches(self.detector(views), patch_index, self.config))
+
+
+class _FoldedConv(nn.Module):
+    def __init__(self, weight: torch.Tensor, bias: torch.Tensor, stride, padding):
+        super().__init__()
+        self.weight = nn.Parameter(weight.detach().clone(), requires_grad=False)
+        self.weight_bias = nn.Parameter(bias.detach().clone(), requires_grad=False)
+        self.stride, self.padding = stride, padding
+
+
+class FoldedHardNet(nn.Module):
+    """HardNet in evaluation mode with each BatchNorm folded into its conv ahead of the export,
+    so that the graph holds the folded weights as initializers named ``features.{k}.weight`` and
+    ``features.{k}.weight_bias`` (which ``nets.hardnet.state_from_folded`` reads back where a
+    wheel ships no .pt), whatever the exporter's constant folding does.
+
+    ``forward(patches (N, 1, P, P)) -> (N, D)``, HardNet's evaluation forward.
+    """
+
+    def __init__(self, net: HardNet):
+        super().__init__()
+        self.patch_norm_eps = net.patch_norm_eps
+        self.features = nn.ModuleDict(
+            {str(k): _FoldedConv(*layer) for k, layer in net.folded_layers().items()}
+        )
+
+    def forward(self, patches: torch.Tensor) -> torch.Tensor:
+        x = nn.functional.instance_norm(patches, eps=self.patch_norm_eps)
+        layers = [(c.weight, c.weight_bias, c.stride, c.padding) for c in self.features.values()]
+        return l2_normalize(conv_stack(x, layers).flatten(1))
 
 
 class MatchGraph(nn.Module):

@@ -23,6 +23,7 @@ from drkfs_onnx.contract.cli_options import (
     Window,
     pick_config,
 )
+from drkfs_onnx.contract.config import NETS
 from drkfs_onnx.contract.mesh import MeshError
 
 from .batch import RowScorer, ScorerSpec, ray_results, serial_results
@@ -41,7 +42,14 @@ Threads = Annotated[
 ]
 Width = Annotated[
     float | None,
-    typer.Option(help="HardNet width of a shipped model: 1, 0.5 or 0.25 (default: the preset's)."),
+    typer.Option(help="HardNet width of a shipped model (default: the preset's; see --nets)."),
+]
+Nets = Annotated[
+    str | None,
+    typer.Option(
+        help=f"Override the preset's nets: {', '.join(NETS)}. The tolerant nets (the default's) "
+        "come at width 0.5, the metric and correspondence nets at 1, 0.5 and 0.25."
+    ),
 ]
 Model = Annotated[
     Path | None, typer.Option(help="A feature-graph ONNX file instead of the shipped one.")
@@ -70,11 +78,11 @@ def _exit_on(*errors: type[Exception]):
         raise typer.Exit(2) from exc
 
 
-def _spec(threads, normalize, width, model, max_faces, **match) -> ScorerSpec:
+def _spec(threads, normalize, width, nets, model, max_faces, **match) -> ScorerSpec:
     """What builds a scorer for the preset and overrides in ``match`` (``pick_config``'s)."""
+    picked = {"descriptor_width": width, "nets": nets}
     with _exit_on(ValueError):
-        widths = {} if width is None else {"descriptor_width": width}
-        config = pick_config(**match, **widths)
+        config = pick_config(**match, **{k: v for k, v in picked.items() if v is not None})
     model = None if model is None else str(model)
     return ScorerSpec(config, model, threads, normalize, max_faces or None)
 
@@ -117,12 +125,13 @@ def pair(
     reduction: Reduction = None,
     symmetric: Symmetric = False,
     width: Width = None,
+    nets: Nets = None,
     model: Model = None,
     max_faces: MaxFaces = MAX_FACES,
 ) -> None:
     """Score MESH_A against the reference MESH_B (0 for identical meshes)."""
     scorer = _scorer(_spec(
-        threads, normalize, width, model, max_faces, preset=preset, matching=matching,
+        threads, normalize, width, nets, model, max_faces, preset=preset, matching=matching,
         window=window, direction=direction, reduction=reduction, symmetric=symmetric,
     ))  # fmt: skip
     start = time.perf_counter()
@@ -156,6 +165,7 @@ def explain(
     reduction: Reduction = None,
     symmetric: Symmetric = False,
     width: Width = None,
+    nets: Nets = None,
     model: Model = None,
     max_faces: MaxFaces = MAX_FACES,
 ) -> None:
@@ -170,7 +180,7 @@ def explain(
 
     _check_out(out)
     scorer = _scorer(_spec(
-        threads, normalize, width, model, max_faces, preset=preset, matching=matching,
+        threads, normalize, width, nets, model, max_faces, preset=preset, matching=matching,
         window=window, direction=direction, reduction=reduction, symmetric=symmetric,
     ))  # fmt: skip
     with _exit_on(MeshError, ValueError):
@@ -194,13 +204,14 @@ def features(
     normalize: ReferenceNormalize = "joint",
     preset: Preset = "default",
     width: Width = None,
+    nets: Nets = None,
     model: Model = None,
     max_faces: MaxFaces = MAX_FACES,
 ) -> None:
     """Describe a reference mesh once; pass the .npz as MESH_B to ``pair`` or in a batch CSV."""
     out = out if out.suffix == ".npz" else out.with_name(out.name + ".npz")  # numpy adds it
     _check_out(out)
-    scorer = _scorer(_spec(threads, normalize, width, model, max_faces, preset=preset))
+    scorer = _scorer(_spec(threads, normalize, width, nets, model, max_faces, preset=preset))
     with _exit_on(MeshError):
         result = scorer.features(mesh)
     with _exit_on(OSError):
@@ -281,6 +292,7 @@ def batch(
     reduction: Reduction = None,
     symmetric: Symmetric = False,
     width: Width = None,
+    nets: Nets = None,
     model: Model = None,
     ray: RayAddress = None,
     workers: Workers = None,
@@ -314,7 +326,7 @@ def batch(
     if ray is not None and threads is None:
         threads = 1
     spec = _spec(
-        threads, normalize, width, model, max_faces, preset=preset, matching=matching,
+        threads, normalize, width, nets, model, max_faces, preset=preset, matching=matching,
         window=window, direction=direction, reduction=reduction, symmetric=symmetric,
     )  # fmt: skip
     # checks the model and config here, before any worker starts; the progress bar says the rest

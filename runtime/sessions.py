@@ -66,10 +66,12 @@ def _read(path: str | Path | None, default: str) -> tuple[bytes, str]:
         return Path(path).read_bytes(), str(path)
     shipped = models_dir() / default
     if not shipped.is_file():
+        held = sorted(item.name for item in models_dir().iterdir() if item.name.endswith("px.onnx"))
         raise FileNotFoundError(
-            f"no {default} in the installed models/: an installed package carries the presets' "
-            "graphs only; the other widths are in a checkout's models/ (pip install -e .), or "
-            "make one with drkfs export (torch extra) and pass it with --model"
+            f"no {default} in the installed models/, which holds {', '.join(held)}: an "
+            "installed package carries the presets' graphs only, a checkout's models/ (pip "
+            "install -e .) the metric and correspondence nets at every width (--nets, --width); "
+            "or make one with drkfs export (torch extra) and pass it with --model"
         )
     return shipped.read_bytes(), f"models/{default}"
 

@@ -26,7 +26,7 @@ def test_training_preset_is_the_previous_default_with_a_softer_renderer():
 
 def test_presets_share_the_defaults_cameras_and_differ_in_nets_and_match():
     default, structure = PipelineConfig(), PipelineConfig.structure()
-    assert (default.nets, default.matching, default.reduction) == ("metric", "window", "softmax")
+    assert (default.nets, default.matching, default.reduction) == ("tolerant", "window", "softmax")
     assert structure.features_part() == default.features_part()  # the same descriptors
     assert (structure.matching, structure.reduction, structure.power) == ("global", "power", 8.0)
     assert PipelineConfig.paper().nets == PipelineConfig.loss().nets == "correspondence"

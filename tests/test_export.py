@@ -22,7 +22,7 @@ from drkfs_onnx.contract.model_files import (
 from drkfs_onnx.export import export_features, export_match, weights_digest
 from drkfs_onnx.nets.patches import select_patches
 
-CONFIG = PipelineConfig(num_views=4, image_size=96, descriptor_width=0.25)
+CONFIG = PipelineConfig(num_views=4, image_size=96, descriptor_width=0.25, nets="metric")
 
 
 @pytest.fixture(scope="module")

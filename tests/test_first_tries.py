@@ -20,7 +20,7 @@ from drkfs_onnx.runtime.scorer import MAX_FACES, Scorer
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 CHAIR, NO_LEG = EXAMPLES / "chair.obj", EXAMPLES / "chair_no_leg.obj"
-FAST = ["--width", "0.25"]
+FAST = ["--nets", "metric", "--width", "0.25"]
 
 
 def _run(*args) -> object:
@@ -140,7 +140,7 @@ def test_a_ply_or_off_header_over_the_bound_is_refused_before_the_geometry_is_re
 def test_a_large_mesh_says_what_it_is_doing_before_and_after(tmp_path, monkeypatch):
     monkeypatch.setattr("drkfs_onnx.runtime.scorer.PROGRESS_FACES", 1000)
     lines = []
-    scorer = Scorer(PipelineConfig(descriptor_width=0.25), progress=lines.append)
+    scorer = Scorer(PipelineConfig(descriptor_width=0.25, nets="metric"), progress=lines.append)
     scorer.score(NO_LEG, _big_chair(tmp_path, 4))
     assert lines[0].endswith("big.obj: 1,152 faces; rendering and describing 6 views")
     assert lines[1].startswith(f"{tmp_path / 'big.obj'}: done in ")

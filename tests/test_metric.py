@@ -16,7 +16,7 @@ from drkfs_onnx.metric import MissingWeights
 from drkfs_onnx.synthetic.shapes import assemble, chair
 from drkfs_onnx.synthetic.variants import without
 
-FAST = PipelineConfig(num_views=4, image_size=128, descriptor_width=0.25)
+FAST = PipelineConfig(num_views=4, image_size=128, descriptor_width=0.25, nets="metric")
 
 
 @pytest.fixture(scope="module")

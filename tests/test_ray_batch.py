@@ -12,7 +12,7 @@ from drkfs_onnx.runtime.cli import app
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 BUNNY = Path(__file__).resolve().parents[1] / "meshes" / "stanford-bunny.obj"
-FAST = ["--width", "0.25"]
+FAST = ["--nets", "metric", "--width", "0.25"]
 
 
 def _run(*args) -> object:

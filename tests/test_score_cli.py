@@ -22,7 +22,8 @@ EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 CHAIR = EXAMPLES / "chair.obj"
 NO_LEG = EXAMPLES / "chair_no_leg.obj"
 NO_BACK = EXAMPLES / "chair_no_back.obj"
-FAST = ["--width", "0.25"]  # the smallest shipped model keeps these tests quick
+FAST = ["--nets", "metric", "--width", "0.25"]  # the smallest shipped nets keep these tests quick
+PAPER_FAST = ["--width", "0.25"]  # the paper preset's own nets (256 px) at that width
 
 
 def _run(*args: str):
@@ -35,7 +36,9 @@ def test_drkfs_score_runs_where_torch_and_matplotlib_cannot_be_imported(tmp_path
     assert result.returncode == 0, result.stderr
     report = json.loads(result.stdout)
     assert report["score"] > 0
-    assert PipelineConfig.from_dict(report["config"]) == PipelineConfig(descriptor_width=0.25)
+    assert PipelineConfig.from_dict(report["config"]) == PipelineConfig(
+        nets="metric", descriptor_width=0.25
+    )
     assert report["model_version"].startswith("drkfs-onnx")
 
 
@@ -108,7 +111,7 @@ def test_a_mesh_no_camera_sees_is_an_error_not_a_perfect_score(tmp_path):
 
 def test_a_model_for_another_config_is_refused(tmp_path):
     asked = PipelineConfig().descriptor_width
-    other = PipelineConfig(descriptor_width=0.5 if asked != 0.5 else 1.0)
+    other = PipelineConfig(nets="metric", descriptor_width=0.5 if asked != 0.5 else 1.0)
     shipped = Path(__file__).resolve().parents[1] / "models" / features_file(other)
     result = _run("pair", NO_LEG, CHAIR, "--model", shipped)
     assert result.exit_code == 2
@@ -274,7 +277,7 @@ def test_symmetric_is_order_free_under_each_but_not_under_joint():
      "--matching=window", "--window=2", "--direction=backward"],
 )  # fmt: skip
 def test_options_are_accepted_and_a_mesh_scores_zero_against_itself(option):
-    result = _run("pair", CHAIR, CHAIR, option, *FAST)
+    result = _run("pair", CHAIR, CHAIR, option, *(PAPER_FAST if "paper" in option else FAST))
     assert result.exit_code == 0, result.output
     assert float(result.stdout) == 0.0
 
@@ -286,19 +289,28 @@ def test_options_are_accepted_and_a_mesh_scores_zero_against_itself(option):
      (["--symmetric", "--direction", "forward"], "--symmetric searches both directions"),
      (["--preset", "paper", "--window", "1"], "the paper preset matches globally: add "
       "--matching window"),
-     (["--no-symmetric"], "No such option: --no-symmetric")],
+     (["--no-symmetric"], "No such option: --no-symmetric"),
+     (["--nets", "mystery"], "unknown nets 'mystery'")],
 )  # fmt: skip
 def test_bad_match_options_are_named(options, message):
-    result = _run("pair", NO_LEG, CHAIR, *options, *FAST)
+    result = _run("pair", NO_LEG, CHAIR, *FAST, *options)  # the options last: they win
     assert result.exit_code == 2
     assert message in result.output
 
 
+def test_a_width_the_presets_nets_lack_is_refused_with_the_graphs_there_are():
+    result = _run("pair", NO_LEG, CHAIR, "--width", "0.25")  # the tolerant nets come at 0.5
+    assert result.exit_code == 2 and "Traceback" not in result.output
+    said = " ".join(result.output.split())
+    assert "no features_tolerant_w0.25_128px.onnx" in said
+    assert "features_tolerant_w0.5_128px.onnx" in said and "--nets" in said
+
+
 def test_symmetric_changes_the_paper_preset_alone_and_features_help_speaks_of_one_mesh():
     scores = {
-        preset: [float(_run("pair", NO_LEG, CHAIR, "--preset", preset, *extra, *FAST).stdout)
+        preset: [float(_run("pair", NO_LEG, CHAIR, "--preset", preset, *extra, *fast).stdout)
                  for extra in ((), ("--symmetric",))]
-        for preset in ("default", "paper")
+        for preset, fast in (("default", FAST), ("paper", PAPER_FAST))
     }  # fmt: skip
     assert scores["default"][0] == scores["default"][1]  # it already searches both ways
     assert scores["paper"][0] != scores["paper"][1]
@@ -308,7 +320,7 @@ def test_symmetric_changes_the_paper_preset_alone_and_features_help_speaks_of_on
 
 
 def test_json_report_carries_the_config_it_scored_with():
-    result = _run("pair", NO_LEG, CHAIR, "--json", "--preset", "paper", *FAST)
+    result = _run("pair", NO_LEG, CHAIR, "--json", "--preset", "paper", *PAPER_FAST)
     config = PipelineConfig.from_dict(json.loads(result.stdout)["config"])
     assert config == PipelineConfig.paper(descriptor_width=0.25)
 

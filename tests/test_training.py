@@ -145,9 +145,13 @@ def test_quick_training_writes_weights_that_match_their_manifest(tmp_path):
 def test_shipped_weights_match_the_manifest_and_serve_every_preset():
     manifest = _check_manifest(models_dir())
     # the default's nets are the metric nets at width 0.5 (chosen on the benchmark by
-    # bench/match_study.py; the manifest's "default" flag is the training run's own choice)
+    # bench/match_study.py; the manifest's "default" flag is the training run's own choice),
+    # fine-tuned for a viewer's tolerance by drkfs tune-tolerant, which names what it started from
     default = shipped_entry(PipelineConfig(), any_rendering=True)
-    assert default["file"] == "drkfs_metric_w0.5.pt"
+    assert default["file"] == "drkfs_tolerant_w0.5.pt"
+    metric = shipped_entry(PipelineConfig(nets="metric"), any_rendering=True)
+    assert default["made_by"]["from"] == {"file": metric["file"], "sha256": metric["sha256"]}
+    assert default["made_by"]["command"] == "drkfs tune-tolerant --out models"
     assert shipped_entry(PipelineConfig.structure(), any_rendering=True) == default
     paper = PipelineConfig.from_dict(shipped_entry(PipelineConfig.paper())["config"])
     # the paper preset's nets were trained the paper's way, at its cameras and image size

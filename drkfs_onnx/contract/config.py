@@ -74,7 +74,7 @@ class PipelineConfig:
     patch_stride: int = 16
     descriptor_dim: int = 128
     descriptor_width: float = 0.5
-    nets: str = "metric"
+    nets: str = "tolerant"
     # Instance-norm eps of HardNet's input: sqrt(eps) = 0.03 is a contrast floor. With 1e-6 a flat
     # PoI patch was normalised float rounding, and torch and onnxruntime descriptors of
     # near-flat patches differed by 4e-4.
@@ -152,7 +152,7 @@ class PipelineConfig:
         part changes. It ranks structure a little higher and surface defects and people's
         judgments lower than the default (docs/matching.md)."""
         previous = dict(matching="global", direction="both", reduction="power", power=8.0)
-        return cls(**{"nets": "metric", **previous, **changes})
+        return cls(**{**previous, **changes})
 
     @classmethod
     def training(cls, **changes: Any) -> PipelineConfig:

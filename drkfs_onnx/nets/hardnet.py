@@ -35,7 +35,7 @@ def _patches_in_layout(x: torch.Tensor) -> torch.Tensor:
     return x.contiguous().as_strided(x.shape, (height * width, 1, width, 1))
 
 
-def _conv_stack(x: torch.Tensor, layers: list, passed: list | None = None) -> torch.Tensor:
+def conv_stack(x: torch.Tensor, layers: list, passed: list | None = None) -> torch.Tensor:
     """HardNet's folded convs (``layers``: (weight, bias, stride, padding) each) in order, a ReLU
     after all but the last. The activations are in ``precision.conv_layout``'s layout from the
     first conv on (its one-channel input can leave its output in the other): a gradient and a
@@ -66,7 +66,7 @@ def _conv_stack(x: torch.Tensor, layers: list, passed: list | None = None) -> to
 def _stack_input_grad(
     grad: torch.Tensor, layers: list, passed: list, floats: torch.Tensor, size
 ) -> torch.Tensor:
-    """The gradient of ``_conv_stack``'s output ``grad`` with respect to its input of spatial
+    """The gradient of ``conv_stack``'s output ``grad`` with respect to its input of spatial
     ``size``, from where each ReLU passed (``passed``): through the last conv as a matmul (it
     covers its whole input map), then through each ReLU and conv as a mask and a transposed conv.
     ``floats``: a flat float tensor at least the size of the largest mask, which this
@@ -93,7 +93,7 @@ def _stack_input_grad(
 
 class _FrozenHardNet(torch.autograd.Function):
     """HardNet's evaluation layers (``HardNet._folded``) for fixed weights, differentiable with
-    respect to the patches only, in groups of ``group`` patches. The forward is ``_conv_stack``, as
+    respect to the patches only, in groups of ``group`` patches. The forward is ``conv_stack``, as
     ``_folded``'s; the backward keeps only where each ReLU passed (a byte an activation, where
     autograd keeps every conv's input: most of a batch's training-step memory) and sends the
     gradient back through each conv as a transposed conv and through the last as a matmul, faster on
@@ -108,7 +108,7 @@ class _FrozenHardNet(torch.autograd.Function):
         parts, passed = [], []
         for part in x.split(group):
             passed.append([])
-            parts.append(_conv_stack(part, layers, passed[-1]))
+            parts.append(conv_stack(part, layers, passed[-1]))
         ctx.layers, ctx.passed, ctx.group, ctx.input_size = layers, passed, group, x.shape[-2:]
         ctx.precision = precision.current()
         return torch.cat(parts)
@@ -168,26 +168,34 @@ class HardNet(nn.Module):
         features = self.features(x) if self.training else self._folded(x, group)
         return l2_normalize(features.flatten(1))
 
+    def folded_layers(self) -> dict[int, tuple]:
+        """Each conv's index in ``features`` -> (W / sqrt(var + eps), -mean / sqrt(var + eps),
+        stride, padding): the conv with the BatchNorm after it folded in (evaluation mode)."""
+        modules = list(self.features)
+        layers = {}
+        for k, conv in enumerate(modules):
+            if isinstance(conv, nn.Conv2d):
+                norm = modules[k + 1]
+                scale = torch.rsqrt(norm.running_var + norm.eps)
+                weight, bias = conv.weight * scale[:, None, None, None], -norm.running_mean * scale
+                layers[k] = (weight, bias, conv.stride, conv.padding)
+        return layers
+
     def _folded(self, x: torch.Tensor, group: int | None) -> torch.Tensor:
         """The evaluation-mode layers with each BatchNorm folded into the conv before it:
         (x - mean) / sqrt(var + eps) of W * x is (W / sqrt(var + eps)) * x - mean / sqrt(var +
         eps). One conv per layer instead of a conv and a normalisation, forward and backward.
         Dropout is the identity in evaluation mode."""
-        modules = [m for m in self.features if not isinstance(m, nn.Dropout)]
-        layers = []
-        for i, conv in enumerate(modules):
-            if isinstance(conv, nn.Conv2d):
-                norm = modules[i + 1]
-                scale = torch.rsqrt(norm.running_var + norm.eps)
-                weight, bias = conv.weight * scale[:, None, None, None], -norm.running_mean * scale
-                weight = weight.contiguous(memory_format=precision.conv_layout(weight.device))
-                layers.append((weight, bias, conv.stride, conv.padding))
+        layers = [
+            (weight.contiguous(memory_format=precision.conv_layout(weight.device)), *rest)
+            for weight, *rest in self.folded_layers().values()
+        ]
         # fixed nets on an input that needs a gradient (a training loss): the lean backward
         if x.requires_grad and not any(p.requires_grad for p in self.parameters()):
             return _FrozenHardNet.apply(x, layers, group or max(len(x), 1))
         if group is None:  # one pass (and a graph an exporter can trace for any batch size)
-            return _conv_stack(x, layers)
-        return torch.cat([_conv_stack(part, layers) for part in x.split(group)])
+            return conv_stack(x, layers)
+        return torch.cat([conv_stack(part, layers) for part in x.split(group)])
 
 
 def state_from_folded(folded: dict[str, torch.Tensor], config: PipelineConfig) -> dict:

@@ -84,7 +84,7 @@ class MetricPlan:
     # the cameras, image size and match the nets are trained and judged at: the default's (the
     # detector fields are placeholders, as in TrainPlan.config)
     config: dict = field(
-        default_factory=lambda: PipelineConfig.structure(**PLAN_DETECTOR).to_dict()
+        default_factory=lambda: PipelineConfig.structure(nets="metric", **PLAN_DETECTOR).to_dict()
     )
 
     @property

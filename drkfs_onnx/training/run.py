@@ -101,7 +101,7 @@ QUICK_TRAIN = TrainPlan(
         objective_width=0.25,
         steps=2,
         quick_benchmark=True,
-        config=PipelineConfig.structure(num_views=2, image_size=64).to_dict(),
+        config=PipelineConfig.structure(nets="metric", num_views=2, image_size=64).to_dict(),
     ),
 )
 
