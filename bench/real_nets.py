@@ -3,7 +3,6 @@
     python bench/real_nets.py --out bench/results/real_nets.json [--steps N] [--quick]
     python bench/real_nets.py --out ... --save-nets FILE   # also the fine-tuned nets' state
     python bench/real_nets.py --out ... --simplification   # also simplification series
-    python bench/real_nets.py --out ... --blend 0.5   # also the nets halfway back to the shipped
 
 1. The shipped metric nets (the default's before the tolerant ones) fine-tuned with
    ``training.tolerance.tolerance_ranking`` on synthetic tiers of other seeds than the
@@ -12,14 +11,13 @@
 2. Both judged as ``bench/real_levers.py`` judges a lever: the benchmark's synthetic tiers,
    both sides of the real tiers and their checks, at the default's config and at each other
    config of ``CONFIGS`` (the same nets); with ``--human DIR``, their agreement with people on
-   Geo-metric's simplifications (as ``drkfs bench --human``). ``--blend`` adds nets whose
-   weights lie that share of the way from the shipped to the fine-tuned ones.
+   Geo-metric's simplifications (as ``drkfs bench --human``). The results committed so
+   far name the metric nets' rows "shipped nets".
 """
 
 from __future__ import annotations
 
 import argparse
-import copy
 import json
 import time
 from pathlib import Path
@@ -41,16 +39,6 @@ CONFIGS = {
     ", softmax t = 0.05": DEFAULT.replace(temperature=0.05),
     ", softmax t = 0.03": DEFAULT.replace(temperature=0.03),
 }
-
-
-def blended(shipped: DRKFS, tuned: DRKFS, share: float) -> DRKFS:
-    """Nets whose weights lie ``share`` of the way from ``shipped``'s to ``tuned``'s (the
-    fine-tuning started from the shipped nets, so the line between them stays in one basin)."""
-    start, end = shipped.state_dict(), tuned.state_dict()
-    mixed = copy.deepcopy(tuned)
-    mixed.load_state_dict({k: start[k] + share * (v - start[k]) if v.is_floating_point() else v
-                           for k, v in end.items()})  # fmt: skip
-    return mixed
 
 
 def judged(bench: sets.BenchSet, metrics: dict[str, DRKFS], jod: dict | None) -> dict:
@@ -91,13 +79,6 @@ def main() -> None:
         action="store_true",
         help="also rank quadric simplifications of smoothed synthetic shapes, coarser above finer",
     )
-    parser.add_argument(
-        "--blend",
-        type=float,
-        nargs="*",
-        default=[],
-        help="also judge nets this share of the way from the shipped to the fine-tuned weights",
-    )
     parser.add_argument("--save-nets", type=Path)
     parser.add_argument("--human", type=Path, help="a Geo-metric clone (see drkfs bench --human)")
     parser.add_argument("--quick", action="store_true", help="two bases, the quick benchmark")
@@ -106,15 +87,13 @@ def main() -> None:
     start = time.perf_counter()
     work = args.work / ("quick" if args.quick else "full")
     work.mkdir(parents=True, exist_ok=True)
-    shipped = DRKFS.pretrained(DEFAULT).eval()
+    metric_nets = DRKFS.pretrained(DEFAULT).eval()
     data = tolerance.tier_views(work, DEFAULT, args.quick)
-    began = time.perf_counter()
     series = tolerance.simplified_views(work, DEFAULT, args.quick) if args.simplification else None
-    name = tolerance.checkpoint_name(args.steps, args.lr, args.temperature, args.simplification)
-    checkpoint = work / name
-    start_nets = with_nets(DEFAULT.replace(temperature=args.temperature), shipped.detector,
-                           shipped.descriptor)  # fmt: skip
-    tuned = tolerance.fine_tune(start_nets, data, args.steps, args.lr, checkpoint, series)
+    began = time.perf_counter()
+    tuned = tolerance.fine_tune(
+        metric_nets, data, args.steps, args.lr, args.temperature, work, series
+    )
     train_seconds = time.perf_counter() - began
     if args.save_nets is not None:
         args.save_nets.parent.mkdir(parents=True, exist_ok=True)
@@ -122,17 +101,14 @@ def main() -> None:
     bench = sets.tier_set(args.quick)
     sets.real_tiers(bench, ["woody"] if args.quick else [*TRAINING_MESHES, *HELDOUT_MESHES])
     jod = human.add_human(bench, args.human) if args.human else None
-    nets_rows = [("shipped nets", shipped), ("tolerant nets", tuned)]
-    nets_rows += [(f"tolerant nets x {s:g}", blended(shipped, tuned, s)) for s in args.blend]
     metrics = {}
     for suffix, config in CONFIGS.items():
-        for nets, metric in nets_rows:
+        for nets, metric in (("metric nets", metric_nets), ("tolerant nets", tuned)):
             metrics[nets + suffix] = with_nets(config, metric.detector, metric.descriptor).eval()
     results = {
         "command": f"python bench/real_nets.py --out {args.out} --steps {args.steps} "
         f"--lr {args.lr:g} --temperature {args.temperature:g}"
         + (" --simplification" if args.simplification else "")
-        + (" --blend " + " ".join(f"{s:g}" for s in args.blend) if args.blend else "")
         + (" --quick" if args.quick else "")
         + (" --human DIR" if args.human else ""),
         "data": {

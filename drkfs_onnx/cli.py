@@ -112,8 +112,8 @@ def train(
     quick: Annotated[bool, typer.Option(help="A tiny plan that runs in seconds (tests).")] = False,
 ) -> None:
     """Render synthetic data, train the PoI detector and HardNet on view-pair correspondences
-    (the paper preset's nets), fine-tune them for the metric (the default's), write weights and
-    manifest.
+    (the paper preset's nets), fine-tune them for the metric (the metric nets, which drkfs
+    tune-tolerant turns into the default's), write weights and a new manifest.
 
     Rerunning after an interruption resumes from the last checkpoint in WORK.
     """
@@ -154,18 +154,22 @@ def tune_tolerant(
     ),
     quick: Annotated[bool, typer.Option(help="Two bases and 2 steps (tests).")] = False,
 ) -> None:
-    """Fine-tune the shipped metric nets for a viewer's tolerance (the default's nets): small
-    turns and shifts rank below surface defects, those below missing parts, and coarser
-    simplifications above finer ones. Run after drkfs train, whose manifest it adds to; then
-    drkfs export.
+    """Fine-tune the metric nets for a viewer's tolerance (the default's nets): small turns and
+    shifts rank below surface defects, those below missing parts, and coarser simplifications
+    above finer ones. It starts from the metric nets of OUT's manifest where drkfs train wrote
+    them there (else the shipped ones) and adds its entry to that manifest: run it after drkfs
+    train, which writes a new one, then drkfs export.
 
     Rerunning after an interruption resumes from the checkpoint in WORK.
     """
     from .training.tolerance import ship_tolerant
 
-    work.mkdir(parents=True, exist_ok=True)
-    command = f"drkfs tune-tolerant --out {out}" + (" --quick" if quick else "")
-    entry = ship_tolerant(out, work, command, quick)
+    command = f"drkfs tune-tolerant --out {out} --work {work}" + (" --quick" if quick else "")
+    try:
+        entry = ship_tolerant(out, work, command, quick)
+    except ValueError as exc:  # MissingWeights among them
+        typer.echo(f"error: {exc}", err=True)
+        raise typer.Exit(2) from exc
     made = entry["made_by"]
     typer.echo(
         f"{out / entry['file']}: objective {made['objective']['before']:.3f} -> "

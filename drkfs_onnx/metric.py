@@ -148,8 +148,10 @@ class DRKFS(nn.Module):
                     f"no trained weights in models/ for {nets.nets} nets at width "
                     f"{nets.descriptor_width:g}, detector {nets.detector_n}x{nets.detector_m} "
                     f"{nets.detector_kernel}x{nets.detector_kernel}, descriptor dim "
-                    f"{nets.descriptor_dim}: train them (drkfs train --out models), or pass "
-                    "random_weights=True for seeded random nets"
+                    f"{nets.descriptor_dim} (the tolerant nets come at width 0.5, the metric and "
+                    "correspondence nets at 1, 0.5 and 0.25): train them (drkfs train --out "
+                    "models, then drkfs tune-tolerant --out models), or pass random_weights=True "
+                    "for seeded random nets"
                 )
             with torch.random.fork_rng():
                 torch.manual_seed(RANDOM_SEED)

@@ -78,10 +78,10 @@ def test_cli_names_the_bad_file(tmp_path):
 
 
 def test_no_command_writes_into_shipped_files_by_default(monkeypatch):
-    """train, export, bench and bench/fit.py write under runs/ unless --out names models/ or
-    bench/."""
+    """train, tune-tolerant, export, bench and bench/fit.py write under runs/ unless --out
+    names models/ or bench/."""
     commands = typer.main.get_command(app).commands
-    for name in ("train", "export", "bench"):
+    for name in ("train", "tune-tolerant", "export", "bench"):
         (out,) = [p for p in commands[name].params if p.name == "out"]
         assert Path(out.default).parts[0] == RUNS.name, name
 

@@ -23,7 +23,7 @@ from drkfs_onnx.synthetic.tiers import TIERS
 from drkfs_onnx.training import tolerance
 
 ROOT = Path(__file__).resolve().parents[1]
-CONFIG = PipelineConfig(num_views=2, image_size=64, temperature=0.03)
+CONFIG = PipelineConfig(num_views=2, image_size=64, temperature=0.03, nets="metric")
 
 
 @pytest.fixture(scope="module")
@@ -117,7 +117,19 @@ def test_the_simplification_term_asks_a_coarser_simplification_to_score_higher(c
 def test_tune_tolerant_adds_its_weights_and_how_they_were_made_to_the_manifest(tmp_path):
     out = tmp_path / "models"
     out.mkdir()
-    kept = {"file": "drkfs_metric_w0.5.pt", "sha256": "0" * 64, "config": {}, "default": True}
+    # a drkfs train run's metric nets in --out (here the shipped ones, moved a little): the
+    # tolerant nets start from them, not from the shipped ones
+    metric = PipelineConfig(nets="metric")
+    state = DRKFS.pretrained(metric).state_dict()
+    state["detector.conv.bias"] = state["detector.conv.bias"] + 0.01
+    torch.save(state, out / "drkfs_metric_w0.5.pt")
+    digest = hashlib.sha256((out / "drkfs_metric_w0.5.pt").read_bytes()).hexdigest()
+    kept = {
+        "file": "drkfs_metric_w0.5.pt",
+        "sha256": digest,
+        "config": shipped_entry(metric, any_rendering=True)["config"],
+        "default": True,
+    }
     (out / MANIFEST).write_text(json.dumps({"command": "drkfs train", "weights": [kept]}))
     for _ in range(2):  # a rerun replaces its own entry and keeps the others
         result = CliRunner().invoke(
@@ -131,13 +143,26 @@ def test_tune_tolerant_adds_its_weights_and_how_they_were_made_to_the_manifest(t
     assert hashlib.sha256((out / entry["file"]).read_bytes()).hexdigest() == entry["sha256"]
     assert PipelineConfig.from_dict(entry["config"]) == PipelineConfig(nets="tolerant")
     made = entry["made_by"]
-    assert made["from"] == {k: shipped_entry(PipelineConfig(nets="metric"))[k]
-                            for k in ("file", "sha256")}  # fmt: skip
+    assert made["from"] == {"file": "drkfs_metric_w0.5.pt", "sha256": digest}
     assert made["command"].startswith("drkfs tune-tolerant") and made["steps"] == 2
     assert made["objective"]["after"] < made["objective"]["before"]
     assert made["resumed_at"] == 2  # the rerun found the finished checkpoint
-    tuned = DRKFS(PipelineConfig(nets="tolerant"))
-    tuned.load_state_dict(torch.load(out / entry["file"], weights_only=True))
+    tuned = torch.load(out / entry["file"], weights_only=True)
+    assert not torch.equal(tuned["detector.conv.bias"], state["detector.conv.bias"])
+    DRKFS(PipelineConfig(nets="tolerant")).load_state_dict(tuned)
+
+
+def test_tune_tolerant_refuses_metric_nets_that_do_not_match_their_manifest(tmp_path):
+    out = tmp_path / "models"
+    out.mkdir()
+    entry = dict(shipped_entry(PipelineConfig(nets="metric"), any_rendering=True))
+    (out / entry["file"]).write_bytes(b"not the trained weights")
+    (out / MANIFEST).write_text(json.dumps({"weights": [entry]}))
+    result = CliRunner().invoke(
+        app, ["tune-tolerant", "--quick", "--out", str(out), "--work", str(tmp_path / "w")]
+    )
+    assert result.exit_code == 2 and "sha256 does not match" in result.output
+    assert not (out / "drkfs_tolerant_w0.5.pt").exists()
 
 
 @pytest.mark.slow  # a study's end to end check
@@ -151,12 +176,12 @@ def test_the_bench_script_fine_tunes_and_judges_on_its_quick_plan(tmp_path):
     assert done.returncode == 0, done.stderr[-2000:]
     results = json.loads(out.read_text())
     assert results["data"]["simplification_series"] >= 1
-    assert {"shipped nets", "tolerant nets", "tolerant nets, softmax t = 0.05"} <= set(
+    assert {"metric nets", "tolerant nets", "tolerant nets, softmax t = 0.05"} <= set(
         results["rows"]
     )
     for row in results["rows"].values():
         assert 0.0 <= row["tiers"]["invisible_vs_structural"] <= 1.0
         assert row["real"]["training"]["invisible_vs_surface"] is not None  # woody, training side
-    shipped = DRKFS.pretrained(PipelineConfig()).state_dict()
+    start = DRKFS.pretrained(PipelineConfig(nets="metric")).state_dict()  # what it tunes
     tuned = torch.load(nets, weights_only=True)
-    assert any(not torch.equal(shipped[k], tuned[k]) for k in shipped if k.startswith("descr"))
+    assert any(not torch.equal(start[k], tuned[k]) for k in start if k.startswith("descr"))

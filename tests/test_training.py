@@ -151,7 +151,7 @@ def test_shipped_weights_match_the_manifest_and_serve_every_preset():
     assert default["file"] == "drkfs_tolerant_w0.5.pt"
     metric = shipped_entry(PipelineConfig(nets="metric"), any_rendering=True)
     assert default["made_by"]["from"] == {"file": metric["file"], "sha256": metric["sha256"]}
-    assert default["made_by"]["command"] == "drkfs tune-tolerant --out models"
+    assert default["made_by"]["command"].startswith("drkfs tune-tolerant --out models")
     assert shipped_entry(PipelineConfig.structure(), any_rendering=True) == default
     paper = PipelineConfig.from_dict(shipped_entry(PipelineConfig.paper())["config"])
     # the paper preset's nets were trained the paper's way, at its cameras and image size

@@ -61,7 +61,13 @@ def shipped_entry(config: PipelineConfig, any_rendering: bool = False) -> dict |
     any_rendering: also accept weights trained at other RENDER_FIELDS values. The match
     settings never matter: they do not touch the nets.
     """
-    for entry in shipped_weights():
+    return entry_for(shipped_weights(), config, any_rendering)
+
+
+def entry_for(entries: list[dict], config: PipelineConfig, any_rendering: bool) -> dict | None:
+    """The first of a manifest's weights ``entries`` trained for ``config`` (as
+    ``shipped_entry``), or None."""
+    for entry in entries:
         trained = PipelineConfig.from_dict(entry["config"])
         if any_rendering:
             trained = trained.replace(**{name: getattr(config, name) for name in RENDER_FIELDS})

@@ -17,7 +17,6 @@ judgments stay a check, never training data).
 
 from __future__ import annotations
 
-import copy
 import json
 import time
 from dataclasses import dataclass
@@ -29,7 +28,7 @@ import torch.nn.functional as F
 
 from ..contract.config import PipelineConfig
 from ..contract.mesh import frame_of
-from ..contract.model_files import MANIFEST, sha256, shipped_entry
+from ..contract.model_files import MANIFEST, entry_for, sha256, shipped_entry
 from ..match import match_score
 from ..metric import DRKFS, with_nets
 from ..render.renderer import Renderer
@@ -231,9 +230,9 @@ def tolerance_ranking(
             return loss
         series = [describe(v) for v in simplification[int(rng.integers(len(simplification)))]]
         coarser = []
-        for reference in (0, 1):
-            d = torch.stack([match_score(s, series[reference], config)
-                             for s in series[reference + 1:]])  # fmt: skip
+        for finest in (0, 1):  # against the smoothed shape, then its finest simplification
+            d = torch.stack([match_score(s, series[finest], config)
+                             for s in series[finest + 1:]])  # fmt: skip
             coarser += [ranking_loss(d[i : i + 1], d[i + 1 : i + 2], SIMPLIFY_MARGIN)
                         for i in range(len(d) - 1)]  # fmt: skip
         return loss + torch.stack(coarser).mean()
@@ -271,23 +270,43 @@ def fine_tune(
     data: TierViews,
     steps: int,
     lr: float,
-    checkpoint: Path,
+    temperature: float,
+    work: Path,
     simplification: torch.Tensor | None = None,
 ) -> DRKFS:
-    """A copy of ``start``'s nets after ``steps`` of ``tolerance_ranking`` on ``data`` (and
-    ``simplification``), resumable from ``checkpoint``."""
-    metric = copy.deepcopy(start)
+    """``start``'s nets at its config with softmax ``temperature``, after ``steps`` of
+    ``tolerance_ranking`` on ``data`` (and ``simplification``) at that config, resumable from
+    their checkpoint in ``work`` (``checkpoint_path``)."""
+    config = start.config.replace(temperature=temperature)
+    metric = with_nets(config, start.detector, start.descriptor)
     metric.detector.requires_grad_(True)
     metric.descriptor.requires_grad_(True)
     loss_fn = tolerance_ranking(data, TRAIN_SEED, simplification)
+    checkpoint = checkpoint_path(work, steps, lr, temperature, simplification is not None)
     train_steps(metric, loss_fn, steps, lr, checkpoint, 20)
     return metric.requires_grad_(False)
 
 
-def checkpoint_name(steps: int, lr: float, temperature: float, simplification: bool) -> str:
-    """The fine-tuning's checkpoint file in its work folder (one per setting)."""
+def checkpoint_path(work: Path, steps: int, lr: float, temperature: float, series: bool) -> Path:
+    """The fine-tuning's checkpoint in its work folder (one per setting)."""
     name = f"tolerant_{steps}_{lr:g}_t{temperature:g}"
-    return name + ("_simplification" if simplification else "") + ".pt"
+    return work / (name + ("_simplification" if series else "") + ".pt")
+
+
+def start_nets(out: Path, source: PipelineConfig) -> tuple[DRKFS, dict]:
+    """The nets of ``source`` to fine-tune and their weights entry: those in ``out``'s manifest
+    where a drkfs train run wrote them there, else the shipped ones."""
+    manifest = out / MANIFEST
+    entries = json.loads(manifest.read_text()).get("weights", []) if manifest.exists() else []
+    entry = entry_for(entries, source, any_rendering=True)
+    if entry is None:
+        return DRKFS.pretrained(source).eval(), shipped_entry(source, any_rendering=True)
+    path = out / entry["file"]
+    if not path.is_file() or sha256(path) != entry["sha256"]:
+        raise ValueError(f"{path}: missing, or its sha256 does not match {manifest}")
+    metric = DRKFS(source)
+    metric.load_state_dict(torch.load(path, map_location="cpu", weights_only=True))
+    return metric.eval(), entry
 
 
 @torch.no_grad()
@@ -297,28 +316,29 @@ def objective(metric: DRKFS, loss_fn: LossFn, draws: int) -> float:
 
 
 def ship_tolerant(out: Path, work: Path, command: str, quick: bool = False) -> dict:
-    """Fine-tune the shipped metric nets (TUNE_*, with the simplification series; resumable from
-    ``work``), write them as ``out/drkfs_tolerant_w*.pt`` and put their entry, with how they were
-    made, into ``out/manifest.json`` (replacing an older one of the same file). quick: the quick
-    data and 2 steps (tests). Returns the entry."""
+    """Fine-tune the metric nets (``start_nets``: ``out``'s or the shipped ones; TUNE_*, with
+    the simplification series; resumable from ``work``), write them as
+    ``out/drkfs_tolerant_w*.pt`` and put their entry, with how they were made, into
+    ``out/manifest.json`` (replacing an older one of the same file). quick: the quick data and 2
+    steps, in a folder of ``work`` of their own (tests). Returns the entry."""
     commit = git_commit()
     source = PipelineConfig(nets="metric")
-    start = DRKFS.pretrained(source).eval()
+    start, origin = start_nets(out, source)
+    work = work / ("quick" if quick else "full")
+    work.mkdir(parents=True, exist_ok=True)
     data, series = tier_views(work, source, quick), simplified_views(work, source, quick)
     steps = 2 if quick else TUNE_STEPS
-    began = time.perf_counter()
-    tuning = source.replace(temperature=TUNE_TEMPERATURE)
-    checkpoint = work / checkpoint_name(steps, TUNE_LR, TUNE_TEMPERATURE, True)
+    checkpoint = checkpoint_path(work, steps, TUNE_LR, TUNE_TEMPERATURE, True)
     resumed = torch.load(checkpoint, weights_only=True)["step"] if checkpoint.exists() else 0
-    before = with_nets(tuning, start.detector, start.descriptor).eval()
-    tuned = fine_tune(before, data, steps, TUNE_LR, checkpoint, series).eval()
+    began = time.perf_counter()
+    tuned = fine_tune(start, data, steps, TUNE_LR, TUNE_TEMPERATURE, work, series).eval()
     seconds = time.perf_counter() - began
+    before = with_nets(tuned.config, start.detector, start.descriptor).eval()
     loss_fn, draws = tolerance_ranking(data, TRAIN_SEED, series), 2 if quick else EVAL_DRAWS
     config = source.replace(nets="tolerant")
     out.mkdir(parents=True, exist_ok=True)
     path = out / f"drkfs_tolerant_w{config.descriptor_width:g}.pt"
     torch.save(tuned.state_dict(), path)
-    origin = shipped_entry(source, any_rendering=True)
     entry = {
         "file": path.name,
         "sha256": sha256(path),
