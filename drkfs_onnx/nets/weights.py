@@ -29,10 +29,18 @@ def load_shipped_state(config: PipelineConfig, any_rendering: bool = False):
     path = model_files.models_dir() / entry["file"]
     if not path.is_file():
         return _state_from_graph(entry)
+    return load_checked(path, entry)
+
+
+def load_checked(path, entry: dict) -> dict:
+    """The torch state dict in ``path``, read once; ValueError unless the file is there with
+    the sha256 its manifest ``entry`` records."""
+    if not path.is_file():
+        raise ValueError(f"{path}: missing, though the manifest names it")
     data = path.read_bytes()
     digest = hashlib.sha256(data).hexdigest()
     if digest != entry["sha256"]:
-        raise ValueError(f"{path}: sha256 {digest} does not match the manifest")
+        raise ValueError(f"{path}: sha256 does not match the manifest (it is {digest[:12]})")
     return torch.load(io.BytesIO(data), map_location="cpu", weights_only=True)
 
 

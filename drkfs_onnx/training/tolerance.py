@@ -31,6 +31,7 @@ from ..contract.mesh import frame_of
 from ..contract.model_files import MANIFEST, entry_for, sha256, shipped_entry
 from ..match import match_score
 from ..metric import DRKFS, with_nets
+from ..nets.weights import load_checked
 from ..render.renderer import Renderer
 from ..synthetic.shapes import FAMILIES, Part, assemble, random_shape
 from ..synthetic.tiers import FINE_SUBDIVISIONS, TIERS, part_tiers, simplified, smoothed, turned
@@ -240,14 +241,18 @@ def tolerance_ranking(
     return loss_fn
 
 
+def _bases(quick: bool) -> tuple[list[str], int]:
+    """The families and bases per family the training data draw (quick: two, one each)."""
+    return (list(FAMILIES)[:2], 1) if quick else (list(FAMILIES), SHAPES_PER_FAMILY)
+
+
 def tier_views(work: Path, config: PipelineConfig, quick: bool) -> TierViews:
     """The training views at ``config``, rendered once per work folder (quick: two families,
     one base each)."""
     path = work / f"tier_views_{plan_key(config)}.pt"  # views of another config never mix
     if path.exists():
         return TierViews.from_dict(torch.load(path, weights_only=True))
-    families = list(FAMILIES)[:2] if quick else list(FAMILIES)
-    data = render_tier_views(config, families, 1 if quick else SHAPES_PER_FAMILY, TRAIN_SEED)
+    data = render_tier_views(config, *_bases(quick), TRAIN_SEED)
     torch.save(data.to_dict(), path)
     return data
 
@@ -258,9 +263,7 @@ def simplified_views(work: Path, config: PipelineConfig, quick: bool) -> torch.T
     path = work / f"simplified_views_{plan_key(config)}.pt"
     if path.exists():
         return torch.load(path, weights_only=True)
-    families = list(FAMILIES)[:2] if quick else list(FAMILIES)
-    views = render_simplified_views(config, families, 1 if quick else SHAPES_PER_FAMILY,
-                                    SIMPLIFY_SEED)  # fmt: skip
+    views = render_simplified_views(config, *_bases(quick), SIMPLIFY_SEED)
     torch.save(views, path)
     return views
 
@@ -301,11 +304,8 @@ def start_nets(out: Path, source: PipelineConfig) -> tuple[DRKFS, dict]:
     entry = entry_for(entries, source, any_rendering=True)
     if entry is None:
         return DRKFS.pretrained(source).eval(), shipped_entry(source, any_rendering=True)
-    path = out / entry["file"]
-    if not path.is_file() or sha256(path) != entry["sha256"]:
-        raise ValueError(f"{path}: missing, or its sha256 does not match {manifest}")
     metric = DRKFS(source)
-    metric.load_state_dict(torch.load(path, map_location="cpu", weights_only=True))
+    metric.load_state_dict(load_checked(out / entry["file"], entry))
     return metric.eval(), entry
 
 
@@ -350,7 +350,7 @@ def ship_tolerant(out: Path, work: Path, command: str, quick: bool = False) -> d
             "torch": torch.__version__,
             "from": {"file": origin["file"], "sha256": origin["sha256"]},
             "data": {
-                "families": list(FAMILIES)[:2] if quick else list(FAMILIES),
+                "families": _bases(quick)[0],
                 "tier_bases": len(data),
                 "tier_seed": TRAIN_SEED,
                 "variants": list(data.kinds),
