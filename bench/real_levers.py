@@ -1,15 +1,20 @@
-"""Levers for a viewer's tolerance and attention (issue 71), measured without retraining: the
-default's nets under other matches, reductions and camera counts, on the benchmark's synthetic
-tiers and on both sides of its real-mesh tiers (a lever is chosen on the training side and
-judged on the held-out one).
+"""Levers for a viewer's tolerance and attention (issue 71), measured without retraining: a
+config's nets (the default's unless ``--nets``) under other matches, reductions, camera counts
+and view sizes, on the benchmark's synthetic tiers and on both sides of its real-mesh tiers (a
+lever is chosen on the training side and judged on the held-out one).
 
-    python bench/real_levers.py --out bench/results/real_levers.json
+    python bench/real_levers.py --out bench/results/real_levers_tolerant.json
+    python bench/real_levers.py --nets metric --out bench/results/real_levers.json
+
+A view size with no shipped feature graph for the nets is exported for the run into a
+temporary folder (the nets are convolutions: any size is the same weights).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import tempfile
 import time
 from pathlib import Path
 
@@ -18,40 +23,61 @@ from drkfs_onnx.benchmark import sets
 from drkfs_onnx.benchmark.methods import DrkfsOnnx
 from drkfs_onnx.benchmark.real_tiers import HELDOUT_MESHES, TRAINING_MESHES
 from drkfs_onnx.benchmark.run import lever_summary, score_everything, tier_accuracy
+from drkfs_onnx.contract.model_files import features_file, models_dir, shipped_entry
+from drkfs_onnx.export.onnx_files import export_features
+from drkfs_onnx.metric import DRKFS
 
-# the default's config with the metric nets, the default's when the levers were measured
-DEFAULT = PipelineConfig(nets="metric")
-LEVERS = {  # name -> the default with one lever moved (the shipped feature graph serves each)
-    "default": DEFAULT,
-    "window r1": DEFAULT.replace(window=1),
-    "softmax t = 0.03": DEFAULT.replace(temperature=0.03),
-    "tail 10%": DEFAULT.replace(reduction="tail", tail_fraction=0.1),
-    "12 cameras": DEFAULT.replace(num_views=12),
-    "12 cameras, window r1": DEFAULT.replace(num_views=12, window=1),
+LEVERS = {  # name -> the settings the default moves
+    "default": {},
+    "window r1": {"window": 1},
+    "softmax t = 0.03": {"temperature": 0.03},
+    "tail 10%": {"reduction": "tail", "tail_fraction": 0.1},
+    "12 cameras": {"num_views": 12},
+    "12 cameras, window r1": {"num_views": 12, "window": 1},
+    "256 px": {"image_size": 256},
+    "256 px, softmax t = 0.05": {"image_size": 256, "temperature": 0.05},
 }
+
+
+def feature_graph(config: PipelineConfig, folder: Path) -> Path | None:
+    """The shipped feature graph for ``config`` (None: the scorer finds it), else one exported
+    into ``folder`` from the shipped weights."""
+    if (models_dir() / features_file(config)).is_file():
+        return None
+    path = folder / features_file(config)
+    if not path.exists():
+        export_features(DRKFS.pretrained(config), path, shipped_entry(config, True)["sha256"])
+    return path
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, required=True)
     parser.add_argument("--threads", type=int, default=2)
+    parser.add_argument("--nets", default=PipelineConfig().nets, help="the default's unless set")
     args = parser.parse_args()
     start = time.perf_counter()
+    default = PipelineConfig(nets=args.nets)
+    configs = {name: default.replace(**moves) for name, moves in LEVERS.items()}
     bench = sets.tier_set(quick=False)
     sets.real_tiers(bench, [*TRAINING_MESHES, *HELDOUT_MESHES])
-    methods = [DrkfsOnnx(name, config, None, args.threads) for name, config in LEVERS.items()]
-    scores, costs = score_everything(bench, methods, print)
+    with tempfile.TemporaryDirectory() as folder:
+        methods = [
+            DrkfsOnnx(name, config, feature_graph(config, Path(folder)), args.threads)
+            for name, config in configs.items()
+        ]
+        scores, costs = score_everything(bench, methods, print)
     rows = {}
     for name, values in scores.comparisons.items():
         rows[name] = {
-            "config": LEVERS[name].to_dict(),
+            "config": configs[name].to_dict(),
             "seconds_per_mesh": costs[name]["seconds_per_mesh"],
             **lever_summary(bench, values),
             "real_misses": tier_accuracy(bench, values, "real")["misses"],
         }
         print(name, json.dumps({k: rows[name][k] for k in ("tiers", "real", "checks")}))
     results = {
-        "command": f"python bench/real_levers.py --out {args.out}",
+        "command": f"python bench/real_levers.py --nets {args.nets} --out {args.out}",
         "threads": args.threads,
         "levers": rows,
         "values": {

@@ -3,11 +3,15 @@
     python bench/real_nets.py --out bench/results/real_nets.json [--steps N] [--quick]
     python bench/real_nets.py --out ... --save-nets FILE   # also the fine-tuned nets' state
     python bench/real_nets.py --out ... --simplification   # also simplification series
+    python bench/real_nets.py --out ... --salient   # also a removed tip and a cut hole a base
+    python bench/real_nets.py --out ... --simplification --series-weight 3   # that term x3
 
 1. The shipped metric nets (the default's before the tolerant ones) fine-tuned with
    ``training.tolerance.tolerance_ranking`` on synthetic tiers of other seeds than the
    benchmark's (work folder ``--work``, resumable);
-   with ``--simplification``, also ranking simplifications of smoothed synthetic shapes.
+   with ``--simplification``, also ranking simplifications of smoothed synthetic shapes; with
+   ``--salient``, each base also has the real tiers' two small structural changes
+   (``tolerance.small_regions_removed``).
 2. Both judged as ``bench/real_levers.py`` judges a lever: the benchmark's synthetic tiers,
    both sides of the real tiers and their checks, at the default's config and at each other
    config of ``CONFIGS`` (the same nets); with ``--human DIR``, their agreement with people on
@@ -79,6 +83,17 @@ def main() -> None:
         action="store_true",
         help="also rank quadric simplifications of smoothed synthetic shapes, coarser above finer",
     )
+    parser.add_argument(
+        "--salient",
+        action="store_true",
+        help="also a removed tip and a cut hole of each synthetic base as structural changes",
+    )
+    parser.add_argument(
+        "--series-weight",
+        type=float,
+        default=1.0,
+        help="the simplification term's weight against the tiers' (with --simplification)",
+    )
     parser.add_argument("--save-nets", type=Path)
     parser.add_argument("--human", type=Path, help="a Geo-metric clone (see drkfs bench --human)")
     parser.add_argument("--quick", action="store_true", help="two bases, the quick benchmark")
@@ -88,11 +103,19 @@ def main() -> None:
     work = args.work / ("quick" if args.quick else "full")
     work.mkdir(parents=True, exist_ok=True)
     metric_nets = DRKFS.pretrained(DEFAULT).eval()
-    data = tolerance.tier_views(work, DEFAULT, args.quick)
+    data = tolerance.tier_views(work, DEFAULT, args.quick, args.salient)
     series = tolerance.simplified_views(work, DEFAULT, args.quick) if args.simplification else None
     began = time.perf_counter()
     tuned = tolerance.fine_tune(
-        metric_nets, data, args.steps, args.lr, args.temperature, work, series
+        metric_nets,
+        data,
+        args.steps,
+        args.lr,
+        args.temperature,
+        work,
+        series,
+        args.salient,
+        args.series_weight,
     )
     train_seconds = time.perf_counter() - began
     if args.save_nets is not None:
@@ -109,6 +132,8 @@ def main() -> None:
         "command": f"python bench/real_nets.py --out {args.out} --steps {args.steps} "
         f"--lr {args.lr:g} --temperature {args.temperature:g}"
         + (" --simplification" if args.simplification else "")
+        + (" --salient" if args.salient else "")
+        + (f" --series-weight {args.series_weight:g}" if args.series_weight != 1.0 else "")
         + (" --quick" if args.quick else "")
         + (" --human DIR" if args.human else ""),
         "data": {

@@ -13,11 +13,11 @@ from drkfs_onnx.benchmark.real_tiers import (
     TRAINING_MESHES,
     mean_edge,
     real_variants,
-    salient_tip,
     second_piece,
 )
 from drkfs_onnx.benchmark.run import real_checks, tier_accuracy
 from drkfs_onnx.synthetic.tiers import smoothed
+from drkfs_onnx.synthetic.variants import salient_tip
 
 
 def _variants(name: str):

@@ -20,6 +20,7 @@ from drkfs_onnx.contract.model_files import MANIFEST, shipped_entry
 from drkfs_onnx.metric import DRKFS
 from drkfs_onnx.synthetic.shapes import assemble, random_shape
 from drkfs_onnx.synthetic.tiers import TIERS
+from drkfs_onnx.synthetic.variants import face_areas, salient_tip
 from drkfs_onnx.training import tolerance
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -63,6 +64,25 @@ def test_the_data_hold_every_tier_and_the_smallest_part_removed(chair_views):
     gone = len(assemble(parts, 1)[1]) - len(small.faces)
     assert gone == len(assemble([smallest], 1)[1])
     assert all(float(np.prod(p.size)) >= float(np.prod(smallest.size)) for p in parts)
+
+
+def test_salient_data_also_remove_a_tip_and_cut_a_hole_of_a_few_percent_of_the_area():
+    parts = random_shape("lamp", np.random.default_rng(tolerance.TRAIN_SEED))
+    plain = tolerance.tier_variants(parts, np.random.default_rng(0))
+    salient = tolerance.tier_variants(parts, np.random.default_rng(0), salient=True)
+    assert [v.name for v in salient[: len(plain)]] == [v.name for v in plain]
+    extra = {v.name: v for v in salient[len(plain) :]}
+    assert {v.kind for v in extra.values()} == {"structural"}
+    verts, faces = assemble(parts, tolerance.FINE_SUBDIVISIONS)
+    whole = float(face_areas(verts, faces).sum())
+    tip = salient_tip(verts, faces)
+    for name in ("tip_removed", "hole_cut"):
+        kept = extra[name].faces
+        assert np.array_equal(extra[name].verts, verts)  # the fine surface, only faces gone
+        assert 0.001 < 1 - face_areas(verts, kept).sum() / whole < 0.05, name
+    # the tip's own faces are gone
+    centres = verts[extra["tip_removed"].faces].mean(1)
+    assert np.linalg.norm(centres - tip, axis=1).min() > 0.05 * np.linalg.norm(np.ptp(verts, 0))
 
 
 def test_fine_tuning_lowers_the_objective_on_its_own_data(chair_views):

@@ -32,7 +32,13 @@ import trimesh
 
 from ..synthetic.shapes import subdivide
 from ..synthetic.tiers import simplified, smoothed, turned
-from ..synthetic.variants import Variant, _vertex_normals, without_region
+from ..synthetic.variants import (
+    Variant,
+    _vertex_normals,
+    face_areas,
+    salient_tip,
+    without_region,
+)
 
 TRAINING_MESHES = ("alligator", "beetle", "cow", "fandisk", "woody")
 HELDOUT_MESHES = ("beast", "cheburashka", "homer", "rocker-arm", "stanford-bunny")
@@ -56,25 +62,9 @@ RELABELLED = {
 }
 
 
-def _face_areas(verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    corners = verts[faces]
-    return np.linalg.norm(
-        np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1
-    )
-
-
 def mean_edge(verts: np.ndarray, faces: np.ndarray) -> float:
     """The mean length of the faces' edges (an edge of two faces counts twice)."""
     return float(np.linalg.norm(verts[faces[:, [1, 2, 0]]] - verts[faces], axis=-1).mean())
-
-
-def salient_tip(verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """(3,) the surface point furthest from the mesh's area-weighted centroid: the tip of what
-    sticks out most (a horn, an ear, a tail)."""
-    area = _face_areas(verts, faces)
-    centroid = (verts[faces].mean(1) * area[:, None]).sum(0) / area.sum()
-    used = np.unique(faces)
-    return verts[used[np.argmax(np.linalg.norm(verts[used] - centroid, axis=1))]]
 
 
 def second_piece(verts: np.ndarray, faces: np.ndarray) -> np.ndarray | None:
@@ -83,7 +73,7 @@ def second_piece(verts: np.ndarray, faces: np.ndarray) -> np.ndarray | None:
     labels = trimesh.graph.connected_component_labels(
         trimesh.Trimesh(verts, faces, process=False).face_adjacency, node_count=len(faces)
     )
-    area = _face_areas(verts, faces)
+    area = face_areas(verts, faces)
     per_piece = np.bincount(labels, area)
     if len(per_piece) < 2:
         return None

@@ -117,6 +117,23 @@ def without_region(faces: np.ndarray, verts: np.ndarray, centre: np.ndarray, rad
     return faces[~near]
 
 
+def face_areas(verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """(F,) twice each face's area."""
+    corners = verts[faces]
+    return np.linalg.norm(
+        np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1
+    )
+
+
+def salient_tip(verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """(3,) the surface point furthest from the mesh's area-weighted centroid: the tip of what
+    sticks out most (a horn, an ear, a tail)."""
+    area = face_areas(verts, faces)
+    centroid = (verts[faces].mean(1) * area[:, None]).sum(0) / area.sum()
+    used = np.unique(faces)
+    return verts[used[np.argmax(np.linalg.norm(verts[used] - centroid, axis=1))]]
+
+
 def surface_variants(
     verts: np.ndarray, faces: np.ndarray, rng: np.random.Generator
 ) -> list[Variant]:

@@ -35,7 +35,7 @@ from ..nets.weights import load_checked
 from ..render.renderer import Renderer
 from ..synthetic.shapes import FAMILIES, Part, assemble, random_shape
 from ..synthetic.tiers import FINE_SUBDIVISIONS, TIERS, part_tiers, simplified, smoothed, turned
-from ..synthetic.variants import Variant, without
+from ..synthetic.variants import Variant, salient_tip, without, without_region
 from .data import views_in_frame
 from .metric_losses import LossFn, ranking_loss
 from .run import git_commit, plan_key, train_steps
@@ -51,6 +51,10 @@ EXTRA_TURNS = (1.0, 3.0)  # degrees, invisible beside part_tiers' own 2-degree t
 SHIFT_PIXELS, SPIN_DEGREES, ZOOM = 1.5, 1.0, 0.01
 MARGIN = 0.5  # log-ratio: each tier's score >= e^0.5 = 1.65x the tier below's
 PER_TIER = 2  # variants of each tier drawn a step
+# with ``salient`` data, two more structural variants a base, made as the real tiers make theirs
+# (``benchmark.real_tiers``) on its fine tessellation: the surface within this share of the
+# diagonal of its furthest tip removed, and a hole as wide cut at a random vertex
+SALIENT_RADIUS = 0.06
 # the simplification series: bases of their own seed, a shape's fine tessellation smoothed into
 # a curved surface (as a scan's), quadric-simplified to these many faces, finest first; each
 # coarser one should score >= 1.25x the finer one
@@ -89,22 +93,47 @@ class TierViews:
         return cls(state["images"], tuple(state["kinds"]))
 
 
-def tier_variants(parts: list[Part], rng: np.random.Generator) -> list[Variant]:
+def tier_variants(
+    parts: list[Part], rng: np.random.Generator, salient: bool = False
+) -> list[Variant]:
     """The benchmark's tier variants of a part-based shape, with the extra turns and its
-    smallest part (by volume) removed: a small salient part."""
+    smallest part (by volume) removed: a small salient part; with ``salient``, also
+    ``small_regions_removed``'s two."""
     verts, faces = assemble(parts, 1)
     turns = [Variant(f"turned_{d:g}", "invisible", turned(verts, d), faces) for d in EXTRA_TURNS]
     smallest = min(parts, key=lambda p: float(np.prod(p.size))).name
     small = Variant("small_part_removed", "structural", *assemble(without(parts, smallest), 1))
-    return [*part_tiers(parts, rng), *turns, small]
+    extra = small_regions_removed(parts, rng) if salient else []
+    return [*part_tiers(parts, rng), *turns, small, *extra]
+
+
+def small_regions_removed(parts: list[Part], rng: np.random.Generator) -> list[Variant]:
+    """The shape's fine tessellation (finer than its base's: a change no viewer sees) less the
+    surface within SALIENT_RADIUS of the diagonal of its furthest tip, and less as wide a hole
+    around a random vertex: 0.3-3% of the area on the nine families."""
+    verts, faces = assemble(parts, FINE_SUBDIVISIONS)
+    radius = SALIENT_RADIUS * float(np.linalg.norm(np.ptp(verts, axis=0)))
+    used = np.unique(faces)
+    hole_centre = verts[used[int(rng.integers(len(used)))]]
+    return [
+        Variant("tip_removed", "structural", verts,
+                without_region(faces, verts, salient_tip(verts, faces), radius)),
+        Variant("hole_cut", "structural", verts,
+                without_region(faces, verts, hole_centre, radius)),
+    ]  # fmt: skip
 
 
 @torch.no_grad()
 def render_tier_views(
-    config: PipelineConfig, families: list[str], shapes_per_family: int, seed: int
+    config: PipelineConfig,
+    families: list[str],
+    shapes_per_family: int,
+    seed: int,
+    salient: bool = False,
 ) -> TierViews:
     """``shapes_per_family`` bases of each family (drawn from ``seed``) and their tier
-    variants, every mesh placed in its base's frame as the metric places a pair."""
+    variants (``tier_variants``), every mesh placed in its base's frame as the metric places a
+    pair."""
     rng = np.random.default_rng(seed)
     renderer = Renderer(config)
     images, kinds = [], None
@@ -112,7 +141,7 @@ def render_tier_views(
         for _ in range(shapes_per_family):
             parts = random_shape(family, rng)
             base = assemble(parts, 1)
-            variants = tier_variants(parts, rng)
+            variants = tier_variants(parts, rng, salient)
             kinds = kinds or tuple(v.kind for v in variants)
             assert kinds == tuple(v.kind for v in variants), "every base has the same variants"
             frame = frame_of(base[0])
@@ -178,7 +207,10 @@ def warped(
 
 
 def tolerance_ranking(
-    data: TierViews, seed: int, simplification: torch.Tensor | None = None
+    data: TierViews,
+    seed: int,
+    simplification: torch.Tensor | None = None,
+    series_weight: float = 1.0,
 ) -> LossFn:
     """Each step one base: PER_TIER variants of each tier and its views under a small warp
     (``warped``; invisible) scored against the base with ``match_score`` at the metric's config,
@@ -186,7 +218,8 @@ def tolerance_ranking(
     against itself, ranked below that variant against the base. With ``simplification`` ((N, 1 +
     L, K, S, S), ``render_simplified_views``), also one series: each simplification scored
     against the smoothed shape and against the finest simplification (as people judge them
-    against a reference), each coarser one ranked above the finer by SIMPLIFY_MARGIN."""
+    against a reference), each coarser one ranked above the finer by SIMPLIFY_MARGIN, that
+    term weighted by ``series_weight``."""
     invisible, surface, structural = (data.columns(t) for t in TIERS)
 
     def loss_fn(metric: DRKFS, step: int) -> torch.Tensor:
@@ -236,7 +269,7 @@ def tolerance_ranking(
                              for s in series[finest + 1:]])  # fmt: skip
             coarser += [ranking_loss(d[i : i + 1], d[i + 1 : i + 2], SIMPLIFY_MARGIN)
                         for i in range(len(d) - 1)]  # fmt: skip
-        return loss + torch.stack(coarser).mean()
+        return loss + series_weight * torch.stack(coarser).mean()
 
     return loss_fn
 
@@ -246,13 +279,14 @@ def _bases(quick: bool) -> tuple[list[str], int]:
     return (list(FAMILIES)[:2], 1) if quick else (list(FAMILIES), SHAPES_PER_FAMILY)
 
 
-def tier_views(work: Path, config: PipelineConfig, quick: bool) -> TierViews:
-    """The training views at ``config``, rendered once per work folder (quick: two families,
-    one base each)."""
-    path = work / f"tier_views_{plan_key(config)}.pt"  # views of another config never mix
+def tier_views(work: Path, config: PipelineConfig, quick: bool, salient: bool = False) -> TierViews:
+    """The training views at ``config`` (``render_tier_views``), rendered once per work
+    folder (quick: two families, one base each)."""
+    # views of another config, or of other variants, never mix
+    path = work / f"tier_views_{plan_key(config)}{'_salient' if salient else ''}.pt"
     if path.exists():
         return TierViews.from_dict(torch.load(path, weights_only=True))
-    data = render_tier_views(config, *_bases(quick), TRAIN_SEED)
+    data = render_tier_views(config, *_bases(quick), TRAIN_SEED, salient)
     torch.save(data.to_dict(), path)
     return data
 
@@ -276,24 +310,38 @@ def fine_tune(
     temperature: float,
     work: Path,
     simplification: torch.Tensor | None = None,
+    salient: bool = False,
+    series_weight: float = 1.0,
 ) -> DRKFS:
     """``start``'s nets at its config with softmax ``temperature``, after ``steps`` of
     ``tolerance_ranking`` on ``data`` (and ``simplification``) at that config, resumable from
-    their checkpoint in ``work`` (``checkpoint_path``)."""
+    their checkpoint in ``work`` (``checkpoint_path``; ``salient``: ``data`` hold
+    ``small_regions_removed``'s variants; ``series_weight``: ``tolerance_ranking``'s)."""
     config = start.config.replace(temperature=temperature)
     metric = with_nets(config, start.detector, start.descriptor)
     metric.detector.requires_grad_(True)
     metric.descriptor.requires_grad_(True)
-    loss_fn = tolerance_ranking(data, TRAIN_SEED, simplification)
-    checkpoint = checkpoint_path(work, steps, lr, temperature, simplification is not None)
+    loss_fn = tolerance_ranking(data, TRAIN_SEED, simplification, series_weight)
+    series = simplification is not None
+    checkpoint = checkpoint_path(work, steps, lr, temperature, series, salient, series_weight)
     train_steps(metric, loss_fn, steps, lr, checkpoint, 20)
     return metric.requires_grad_(False)
 
 
-def checkpoint_path(work: Path, steps: int, lr: float, temperature: float, series: bool) -> Path:
-    """The fine-tuning's checkpoint in its work folder (one per setting)."""
+def checkpoint_path(
+    work: Path,
+    steps: int,
+    lr: float,
+    temperature: float,
+    series: bool,
+    salient: bool = False,
+    series_weight: float = 1.0,
+) -> Path:
+    """The fine-tuning's checkpoint in its work folder (one per setting and data)."""
     name = f"tolerant_{steps}_{lr:g}_t{temperature:g}"
-    return work / (name + ("_simplification" if series else "") + ".pt")
+    name += ("_simplification" if series else "") + ("_salient" if salient else "")
+    name += f"_w{series_weight:g}" if series_weight != 1.0 else ""
+    return work / (name + ".pt")
 
 
 def start_nets(out: Path, source: PipelineConfig) -> tuple[DRKFS, dict]:
