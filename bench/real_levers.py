@@ -34,6 +34,8 @@ LEVERS = {  # name -> the settings the default moves
     "tail 10%": {"reduction": "tail", "tail_fraction": 0.1},
     "12 cameras": {"num_views": 12},
     "12 cameras, window r1": {"num_views": 12, "window": 1},
+    "160 px": {"image_size": 160},
+    "192 px": {"image_size": 192},
     "256 px": {"image_size": 256},
     "256 px, softmax t = 0.05": {"image_size": 256, "temperature": 0.05},
 }

@@ -190,12 +190,19 @@ def test_the_bench_script_fine_tunes_and_judges_on_its_quick_plan(tmp_path):
     out, nets = tmp_path / "real_nets.json", tmp_path / "nets.pt"
     done = subprocess.run(
         [sys.executable, "bench/real_nets.py", "--out", str(out), "--quick", "--steps", "2",
-         "--work", str(tmp_path / "work"), "--save-nets", str(nets), "--simplification"],
+         "--work", str(tmp_path / "work"), "--save-nets", str(nets), "--simplification",
+         "--salient", "--series-weight", "3"],
         cwd=ROOT, capture_output=True, text=True, timeout=600,
     )  # fmt: skip
     assert done.returncode == 0, done.stderr[-2000:]
     results = json.loads(out.read_text())
     assert results["data"]["simplification_series"] >= 1
+    plain = tolerance.tier_variants(random_shape("chair", np.random.default_rng(0)),
+                                    np.random.default_rng(0))  # fmt: skip
+    assert len(results["data"]["variants"]) == len(plain) + 2  # the tip and the hole
+    assert results["command"].endswith("--salient --series-weight 3 --quick")
+    assert (tmp_path / "work" / "quick" / "tolerant_2_0.0002_t0.1_simplification_salient_w3.pt"
+            ).exists()  # fmt: skip
     assert {"metric nets", "tolerant nets", "tolerant nets, softmax t = 0.05"} <= set(
         results["rows"]
     )
