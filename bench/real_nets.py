@@ -5,6 +5,7 @@
     python bench/real_nets.py --out ... --simplification   # also simplification series
     python bench/real_nets.py --out ... --salient   # also a removed tip and a cut hole a base
     python bench/real_nets.py --out ... --simplification --series-weight 3   # that term x3
+    python bench/real_nets.py --out ... --image-size 192   # trained and judged at 192-px views
 
 1. The shipped metric nets (the default's before the tolerant ones) fine-tuned with
    ``training.tolerance.tolerance_ranking`` on synthetic tiers of other seeds than the
@@ -94,6 +95,12 @@ def main() -> None:
         default=1.0,
         help="the simplification term's weight against the tiers' (with --simplification)",
     )
+    parser.add_argument(
+        "--image-size",
+        type=int,
+        default=DEFAULT.image_size,
+        help="the views' size, for the training data and the judging (the default's unless set)",
+    )
     parser.add_argument("--save-nets", type=Path)
     parser.add_argument("--human", type=Path, help="a Geo-metric clone (see drkfs bench --human)")
     parser.add_argument("--quick", action="store_true", help="two bases, the quick benchmark")
@@ -102,9 +109,12 @@ def main() -> None:
     start = time.perf_counter()
     work = args.work / ("quick" if args.quick else "full")
     work.mkdir(parents=True, exist_ok=True)
-    metric_nets = DRKFS.pretrained(DEFAULT).eval()
-    data = tolerance.tier_views(work, DEFAULT, args.quick, args.salient)
-    series = tolerance.simplified_views(work, DEFAULT, args.quick) if args.simplification else None
+    start_config = DEFAULT.replace(image_size=args.image_size)
+    metric_nets = DRKFS.pretrained(start_config).eval()
+    data = tolerance.tier_views(work, start_config, args.quick, args.salient)
+    series = (
+        tolerance.simplified_views(work, start_config, args.quick) if args.simplification else None
+    )
     began = time.perf_counter()
     tuned = tolerance.fine_tune(
         metric_nets,
@@ -125,7 +135,8 @@ def main() -> None:
     sets.real_tiers(bench, ["woody"] if args.quick else [*TRAINING_MESHES, *HELDOUT_MESHES])
     jod = human.add_human(bench, args.human) if args.human else None
     metrics = {}
-    for suffix, config in CONFIGS.items():
+    for suffix, named in CONFIGS.items():
+        config = named.replace(image_size=args.image_size)
         for nets, metric in (("metric nets", metric_nets), ("tolerant nets", tuned)):
             metrics[nets + suffix] = with_nets(config, metric.detector, metric.descriptor).eval()
     results = {
@@ -134,6 +145,7 @@ def main() -> None:
         + (" --simplification" if args.simplification else "")
         + (" --salient" if args.salient else "")
         + (f" --series-weight {args.series_weight:g}" if args.series_weight != 1.0 else "")
+        + (f" --image-size {args.image_size}" if args.image_size != DEFAULT.image_size else "")
         + (" --quick" if args.quick else "")
         + (" --human DIR" if args.human else ""),
         "data": {

@@ -85,6 +85,19 @@ def test_salient_data_also_remove_a_tip_and_cut_a_hole_of_a_few_percent_of_the_a
     assert np.linalg.norm(centres - tip, axis=1).min() > 0.05 * np.linalg.norm(np.ptp(verts, 0))
 
 
+def test_no_fine_tuning_resumes_the_checkpoint_of_other_data_or_views(tmp_path):
+    shipped = tolerance.checkpoint_path(tmp_path, 400, 2e-4, 0.05, True)
+    # the shipped nets' run keeps its name, so drkfs tune-tolerant resumes the judged checkpoint
+    assert shipped.name == "tolerant_400_0.0002_t0.05_simplification.pt"
+    others = [
+        tolerance.checkpoint_path(tmp_path, 400, 2e-4, 0.05, True, salient=True),
+        tolerance.checkpoint_path(tmp_path, 400, 2e-4, 0.05, True, series_weight=3.0),
+        tolerance.checkpoint_path(tmp_path, 400, 2e-4, 0.05, True, image_size=192),
+        tolerance.checkpoint_path(tmp_path, 400, 2e-4, 0.05, False),
+    ]
+    assert len({shipped, *others}) == 1 + len(others)
+
+
 def test_fine_tuning_lowers_the_objective_on_its_own_data(chair_views):
     metric = DRKFS.pretrained(CONFIG)
     loss_fn = tolerance.tolerance_ranking(chair_views, seed=0)

@@ -323,7 +323,9 @@ def fine_tune(
     metric.descriptor.requires_grad_(True)
     loss_fn = tolerance_ranking(data, TRAIN_SEED, simplification, series_weight)
     series = simplification is not None
-    checkpoint = checkpoint_path(work, steps, lr, temperature, series, salient, series_weight)
+    checkpoint = checkpoint_path(
+        work, steps, lr, temperature, series, salient, series_weight, config.image_size
+    )
     train_steps(metric, loss_fn, steps, lr, checkpoint, 20)
     return metric.requires_grad_(False)
 
@@ -336,11 +338,14 @@ def checkpoint_path(
     series: bool,
     salient: bool = False,
     series_weight: float = 1.0,
+    image_size: int = PipelineConfig().image_size,
 ) -> Path:
-    """The fine-tuning's checkpoint in its work folder (one per setting and data)."""
+    """The fine-tuning's checkpoint in its work folder (one per setting and data; views of
+    another size than the default's are named, so that no run resumes another size's)."""
     name = f"tolerant_{steps}_{lr:g}_t{temperature:g}"
     name += ("_simplification" if series else "") + ("_salient" if salient else "")
     name += f"_w{series_weight:g}" if series_weight != 1.0 else ""
+    name += f"_{image_size}px" if image_size != PipelineConfig().image_size else ""
     return work / (name + ".pt")
 
 
