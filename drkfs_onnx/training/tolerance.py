@@ -12,7 +12,9 @@ slightly (``warped``: a shift, a turn in the image plane, a change of scale), of
 invisible change) and of a surface variant against itself (moving a textured view is not adding
 texture). With ``simplification`` data, each step also ranks a smoothed synthetic shape's
 quadric simplifications coarser above finer (people judge simplified scans so: Geo-metric's
-judgments stay a check, never training data).
+judgments stay a check, never training data). With ``salient`` data, each base also has a
+removed tip and a cut hole as structural changes (``small_regions_removed``): measured, and not
+shipped, since they cost people's agreement (docs/training.md).
 """
 
 from __future__ import annotations
