@@ -5,6 +5,7 @@ lever is chosen on the training side and judged on the held-out one).
 
     python bench/real_levers.py --out bench/results/real_levers_tolerant.json
     python bench/real_levers.py --nets metric --out bench/results/real_levers.json
+    python bench/real_levers.py --out ... --levers default "192 px" --human DIR  # and people
 
 A view size with no shipped feature graph for the nets is exported for the run into a
 temporary folder (the nets are convolutions: any size is the same weights).
@@ -19,7 +20,7 @@ import time
 from pathlib import Path
 
 from drkfs_onnx import PipelineConfig
-from drkfs_onnx.benchmark import sets
+from drkfs_onnx.benchmark import human, sets
 from drkfs_onnx.benchmark.methods import DrkfsOnnx
 from drkfs_onnx.benchmark.real_tiers import HELDOUT_MESHES, TRAINING_MESHES
 from drkfs_onnx.benchmark.run import lever_summary, score_everything, tier_accuracy
@@ -38,6 +39,11 @@ LEVERS = {  # name -> the settings the default moves
     "192 px": {"image_size": 192},
     "256 px": {"image_size": 256},
     "256 px, softmax t = 0.05": {"image_size": 256, "temperature": 0.05},
+    # fewer, larger views: a finer view at about the default's cost a mesh
+    "4 cameras, 192 px": {"num_views": 4, "image_size": 192},
+    "4 cameras, 192 px, softmax t = 0.05": {"num_views": 4, "image_size": 192, "temperature": 0.05},
+    "3 cameras, 256 px, softmax t = 0.05": {"num_views": 3, "image_size": 256, "temperature": 0.05},
+    "4 cameras, 256 px, softmax t = 0.05": {"num_views": 4, "image_size": 256, "temperature": 0.05},
 }
 
 
@@ -57,12 +63,17 @@ def main() -> None:
     parser.add_argument("--out", type=Path, required=True)
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--nets", default=PipelineConfig().nets, help="the default's unless set")
+    parser.add_argument(
+        "--levers", nargs="+", choices=list(LEVERS), default=list(LEVERS), help="all unless set"
+    )
+    parser.add_argument("--human", type=Path, help="a Geo-metric clone (see drkfs bench --human)")
     args = parser.parse_args()
     start = time.perf_counter()
     default = PipelineConfig(nets=args.nets)
-    configs = {name: default.replace(**moves) for name, moves in LEVERS.items()}
+    configs = {name: default.replace(**LEVERS[name]) for name in args.levers}
     bench = sets.tier_set(quick=False)
     sets.real_tiers(bench, [*TRAINING_MESHES, *HELDOUT_MESHES])
+    jod = human.add_human(bench, args.human) if args.human else None
     with tempfile.TemporaryDirectory() as folder:
         methods = [
             DrkfsOnnx(name, config, feature_graph(config, Path(folder)), args.threads)
@@ -76,10 +87,13 @@ def main() -> None:
             "seconds_per_mesh": costs[name]["seconds_per_mesh"],
             **lever_summary(bench, values),
             "real_misses": tier_accuracy(bench, values, "real")["misses"],
+            "human": None if jod is None else human.human_agreement(bench, values, jod),
         }
-        print(name, json.dumps({k: rows[name][k] for k in ("tiers", "real", "checks")}))
+        print(name, json.dumps({k: rows[name][k] for k in ("tiers", "real", "checks", "human")}))
     results = {
-        "command": f"python bench/real_levers.py --nets {args.nets} --out {args.out}",
+        "command": f"python bench/real_levers.py --nets {args.nets} --out {args.out}"
+        + ("" if args.levers == list(LEVERS) else " --levers " + " ".join(map(repr, args.levers)))
+        + (" --human DIR" if args.human else ""),
         "threads": args.threads,
         "levers": rows,
         "values": {

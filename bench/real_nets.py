@@ -34,11 +34,12 @@ from drkfs_onnx.benchmark import human, sets
 from drkfs_onnx.benchmark.methods import DrkfsTorch
 from drkfs_onnx.benchmark.real_tiers import HELDOUT_MESHES, TRAINING_MESHES
 from drkfs_onnx.benchmark.run import TIER_PAIRS, lever_summary, score_everything, tier_accuracy
+from drkfs_onnx.contract.config import NETS_TRAINED_AT
 from drkfs_onnx.metric import DRKFS, with_nets
 from drkfs_onnx.training import tolerance
 
 # the nets fine-tuned: the metric nets (the default's before the tolerant nets), at their config
-DEFAULT = PipelineConfig(nets="metric")
+DEFAULT = PipelineConfig(nets="metric", **NETS_TRAINED_AT)
 CONFIGS = {
     "": DEFAULT,
     ", softmax t = 0.05": DEFAULT.replace(temperature=0.05),

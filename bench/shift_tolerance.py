@@ -32,6 +32,7 @@ from drkfs_onnx.benchmark.real_tiers import HELDOUT_MESHES, TRAINING_MESHES
 from drkfs_onnx.benchmark.run import lever_summary, score_everything
 from drkfs_onnx.contract import match_rules
 from drkfs_onnx.contract.cameras import make_cameras
+from drkfs_onnx.contract.config import NETS_TRAINED_AT
 from drkfs_onnx.contract.mesh import frame_of, load_mesh, place
 from drkfs_onnx.match import match_score
 from drkfs_onnx.metric import DRKFS
@@ -41,8 +42,8 @@ from drkfs_onnx.synthetic.tiers import turned
 from drkfs_onnx.synthetic.variants import rotation_y
 from drkfs_onnx.training.tolerance import warped
 
-# the default's config with the metric nets, the default's when this was measured
-DEFAULT = PipelineConfig(nets="metric")
+# the config the nets were trained at (the default's when this was measured), metric nets
+DEFAULT = PipelineConfig(nets="metric", **NETS_TRAINED_AT)
 SHIFTS = (0.5, 1.0, 2.0)  # pixels, along x
 TURNS = (1.0, 2.0, 3.0)  # degrees about the vertical
 SEARCHES = {  # name -> the (dx, dy) offsets searched, in pixels

@@ -93,12 +93,14 @@ def export_match(path: Path, dim: int) -> Path:
 
 def export_shipped(folder: Path) -> list[Path]:
     """Per weights file in the manifest, a feature graph at the image size it was trained at
-    (the paper preset's) and at the default config's, and the match graph, into folder."""
+    (the paper preset's), at the default config's and at the loss's, and the match graph, into
+    folder."""
     written = []
     dims = set()
+    sizes = {PipelineConfig().image_size, PipelineConfig.loss().image_size}
     for entry in shipped_weights():
         trained = PipelineConfig.from_dict(entry["config"])
-        for size in sorted({trained.image_size, PipelineConfig().image_size}):
+        for size in sorted({trained.image_size, *sizes}):
             config = trained.replace(image_size=size)
             path = folder / features_file(config)
             written.append(export_features(DRKFS.pretrained(config), path, entry["sha256"]))

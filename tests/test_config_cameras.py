@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from drkfs_onnx.contract.cameras import hemisphere_directions, make_cameras
-from drkfs_onnx.contract.config import PipelineConfig
+from drkfs_onnx.contract.config import NETS_TRAINED_AT, PipelineConfig
 
 
 def test_paper_preset_is_the_papers_pipeline():
@@ -19,8 +19,12 @@ def test_paper_preset_is_the_papers_pipeline():
 def test_training_preset_is_the_previous_default_with_a_softer_renderer():
     training, default = PipelineConfig.training(), PipelineConfig()
     assert training.sigma > default.sigma and training.gamma > default.gamma
-    previous = PipelineConfig.structure(nets="correspondence")
+    # at the cameras the nets were trained at, not the default's, so the loss stays as chosen
+    assert {name: getattr(training, name) for name in NETS_TRAINED_AT} == NETS_TRAINED_AT
+    assert (training.num_views, training.image_size) != (default.num_views, default.image_size)
+    previous = PipelineConfig.structure(nets="correspondence", **NETS_TRAINED_AT)
     assert training.replace(sigma=default.sigma, gamma=default.gamma) == previous
+    assert PipelineConfig.loss().features_part() == PipelineConfig.training().features_part()
     assert PipelineConfig.training(num_views=2).num_views == 2
 
 

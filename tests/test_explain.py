@@ -40,7 +40,9 @@ def test_the_top_patch_of_each_view_that_sees_the_missing_leg_lies_where_the_leg
         # the reference's patches search the chair without the leg: the leg's patch finds none
         row, column = np.unravel_index(no_leg.shares["b"][view].argmax(), (side, side))
         most = max(held(view, r, c) for r in range(side) for c in range(side))
-        assert held(view, row, column) >= 0.6 * most, (view, row, column)
+        # the leg spans several overlapping patches: the top one holds at least half as much
+        # of it as the one that holds most (most patches of a view hold none)
+        assert held(view, row, column) >= 0.5 * most, (view, row, column)
     assert no_leg.top_patches(1)[0]["view"] in seeing
 
 
@@ -80,5 +82,6 @@ def test_torch_patch_distances_are_the_runtimes(no_leg):
         found = metric.patch_distances(*tensors(pred), target)
     assert set(found) == {"a", "b"}
     for side, grid in found.items():
-        assert grid.shape == (6, 7, 7)
+        config = metric.config
+        assert grid.shape == (config.num_views, config.patches_per_side, config.patches_per_side)
         assert np.allclose(grid.numpy(), no_leg.distances[side], atol=2e-3)

@@ -302,8 +302,9 @@ def test_a_width_the_presets_nets_lack_is_refused_with_the_graphs_there_are():
     result = _run("pair", NO_LEG, CHAIR, "--width", "0.25")  # the tolerant nets come at 0.5
     assert result.exit_code == 2 and "Traceback" not in result.output
     said = " ".join(result.output.split())
-    assert "no features_tolerant_w0.25_128px.onnx" in said
-    assert "features_tolerant_w0.5_128px.onnx" in said and "--nets" in said
+    size = PipelineConfig().image_size
+    assert f"no features_tolerant_w0.25_{size}px.onnx" in said
+    assert f"features_tolerant_w0.5_{size}px.onnx" in said and "--nets" in said
 
 
 def test_symmetric_changes_the_paper_preset_alone_and_features_help_speaks_of_one_mesh():

@@ -15,7 +15,7 @@ import torch
 from typer.testing import CliRunner
 
 from drkfs_onnx.cli import app
-from drkfs_onnx.contract.config import PipelineConfig
+from drkfs_onnx.contract.config import NETS_TRAINED_AT, PipelineConfig
 from drkfs_onnx.contract.model_files import MANIFEST, shipped_entry
 from drkfs_onnx.metric import DRKFS
 from drkfs_onnx.synthetic.shapes import assemble, random_shape
@@ -174,7 +174,10 @@ def test_tune_tolerant_adds_its_weights_and_how_they_were_made_to_the_manifest(t
     assert [e["file"] for e in manifest["weights"]] == [kept["file"], "drkfs_tolerant_w0.5.pt"]
     entry = manifest["weights"][1]
     assert hashlib.sha256((out / entry["file"]).read_bytes()).hexdigest() == entry["sha256"]
-    assert PipelineConfig.from_dict(entry["config"]) == PipelineConfig(nets="tolerant")
+    # trained at the cameras the shipped nets were, whatever the default's
+    assert PipelineConfig.from_dict(entry["config"]) == PipelineConfig(
+        nets="tolerant", **NETS_TRAINED_AT
+    )
     made = entry["made_by"]
     assert made["from"] == {"file": "drkfs_metric_w0.5.pt", "sha256": digest}
     assert made["command"].startswith("drkfs tune-tolerant") and made["steps"] == 2

@@ -20,7 +20,7 @@ import torch
 from ..benchmark import sets
 from ..benchmark.methods import DrkfsTorch, Surface
 from ..benchmark.run import bars_summary, retrieval_summary, score_everything, tier_accuracy
-from ..contract.config import PipelineConfig
+from ..contract.config import NETS_TRAINED_AT, PipelineConfig
 from ..match import match_score
 from ..metric import DRKFS
 from ..synthetic.shapes import FAMILIES
@@ -81,10 +81,13 @@ class MetricPlan:
     steps: int = 100
     lr: float = 1e-4
     quick_benchmark: bool = False  # the benchmark's quick subset (tests)
-    # the cameras, image size and match the nets are trained and judged at: the default's (the
-    # detector fields are placeholders, as in TrainPlan.config)
+    # the cameras, image size and match the nets are trained and judged at: NETS_TRAINED_AT's
+    # with the structure preset's match (the detector fields are placeholders, as in
+    # TrainPlan.config)
     config: dict = field(
-        default_factory=lambda: PipelineConfig.structure(nets="metric", **PLAN_DETECTOR).to_dict()
+        default_factory=lambda: PipelineConfig.structure(
+            nets="metric", **PLAN_DETECTOR, **NETS_TRAINED_AT
+        ).to_dict()
     )
 
     @property

@@ -28,7 +28,7 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from ..contract.config import PipelineConfig
+from ..contract.config import NETS_TRAINED_AT, PipelineConfig
 from ..contract.mesh import frame_of
 from ..contract.model_files import MANIFEST, entry_for, sha256, shipped_entry
 from ..match import match_score
@@ -340,14 +340,14 @@ def checkpoint_path(
     series: bool,
     salient: bool = False,
     series_weight: float = 1.0,
-    image_size: int = PipelineConfig().image_size,
+    image_size: int = NETS_TRAINED_AT["image_size"],
 ) -> Path:
     """The fine-tuning's checkpoint in its work folder (one per setting and data; views of
-    another size than the default's are named, so that no run resumes another size's)."""
+    another size than ``NETS_TRAINED_AT``'s are named, so that no run resumes another size's)."""
     name = f"tolerant_{steps}_{lr:g}_t{temperature:g}"
     name += ("_simplification" if series else "") + ("_salient" if salient else "")
     name += f"_w{series_weight:g}" if series_weight != 1.0 else ""
-    name += f"_{image_size}px" if image_size != PipelineConfig().image_size else ""
+    name += f"_{image_size}px" if image_size != NETS_TRAINED_AT["image_size"] else ""
     return work / (name + ".pt")
 
 
@@ -377,7 +377,7 @@ def ship_tolerant(out: Path, work: Path, command: str, quick: bool = False) -> d
     ``out/manifest.json`` (replacing an older one of the same file). quick: the quick data and 2
     steps, in a folder of ``work`` of their own (tests). Returns the entry."""
     commit = git_commit()
-    source = PipelineConfig(nets="metric")
+    source = PipelineConfig(nets="metric", **NETS_TRAINED_AT)
     start, origin = start_nets(out, source)
     work = work / ("quick" if quick else "full")
     work.mkdir(parents=True, exist_ok=True)
