@@ -31,7 +31,7 @@ from drkfs_onnx.contract.model_files import features_file, models_dir, shipped_e
 from drkfs_onnx.export.onnx_files import export_features
 from drkfs_onnx.metric import DRKFS
 
-LEVERS = {  # name -> the settings the default moves
+LEVERS = {  # name -> the settings the lever moves (from NETS_TRAINED_AT's config)
     "default": {},
     "window r1": {"window": 1},
     "softmax t = 0.03": {"temperature": 0.03},

@@ -24,12 +24,12 @@ REDUCTIONS = ("sum", "mean", "tail", "power", "softmax")
 # tolerance to small turns and shifts and for simplifications, ``training.tolerance``; the
 # default's and ``PipelineConfig.structure()``'s)
 NETS = ("tolerant", "metric", "correspondence")
-# The settings that shape only the match of two descriptor sets, not the descriptors: a feature
-# graph or features file serves every value of these.
 # The cameras, view size and softmax temperature the shipped nets were trained at and the loss
 # was chosen and timed with: the default's before it moved to 4 views of 192 px. Training keeps
 # them, so that drkfs train and tune-tolerant remake the shipped nets.
 NETS_TRAINED_AT = {"num_views": 6, "image_size": 128, "temperature": 0.1}
+# The settings that shape only the match of two descriptor sets, not the descriptors: a feature
+# graph or features file serves every value of these.
 MATCH_FIELDS = (
     "matching", "window", "direction", "reduction", "tail_fraction", "power", "temperature",
 )  # fmt: skip
