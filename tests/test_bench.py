@@ -274,13 +274,13 @@ def test_quick_bench_stability_rows_and_torch_checks(quick):
     assert scores[0] == 0.0 and scores[-1] == max(scores) > 0  # a slid leg scores, most at 5%
 
 
-def test_quick_bench_score_rises_with_every_step_as_a_leg_slides(quick):
-    # The default rises with every step of the slide but fails the slide's own jump limit
-    # (its largest step 3.3 times the mean, the limit 3: docs/benchmark.md); 4 views of 128 px
-    # fell back once the leg left its place.
+def test_quick_bench_score_rises_without_a_jump_as_a_leg_slides(quick):
+    # no step of the slide more than 3 times the mean step, the default as shipped (4 views of
+    # 192 px failed this: their largest step was 3.3 times the mean)
     _, results = quick
     slide = results["torch_stability"]["slide"]
-    assert (np.diff(slide["scores"]) > 0).all()
+    assert slide["passed"] and slide["max_over_mean_step"] <= slide["limit"] == 3
+    assert slide["scores"][-1] == max(slide["scores"]) > 0
     assert drkfs_configs(quick=True)[DEFAULT_NAME] == PipelineConfig()  # as shipped
 
 

@@ -125,7 +125,7 @@ def test_the_runtime_imports_from_the_repository_root_without_the_editable_finde
 
 # what the wheel's models/ holds: each preset's nets once, as the feature graphs it loads
 PRESET_GRAPHS = {
-    "features_tolerant_w0.5_192px.onnx", "features_correspondence_w1_256px.onnx",
+    "features_tolerant_w0.5_144px.onnx", "features_correspondence_w1_256px.onnx",
     "features_correspondence_w0.5_128px.onnx",
 }  # fmt: skip
 
