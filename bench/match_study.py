@@ -62,7 +62,7 @@ GOALS = {
     "bars": 1.6,
 }
 # speed: the goals (0.2 s per new mesh, 1 ms per match on 2 cores) are measured by
-# bench/score.py, where the default takes 0.02-0.06 s and 0.3 ms; a sweep's own timings share
+# bench/score.py (bench/results/score.json holds the default's latest); a sweep's own timings share
 # the machine with everything else, so a candidate may cost at most this many times the
 # current default's time measured in the same run
 SLOWER = 4.0

@@ -55,6 +55,12 @@ LEVERS = {  # name -> the settings the lever moves (from NETS_TRAINED_AT's confi
     "144 px, softmax t = 0.05": {"image_size": 144, "temperature": 0.05},
     "5 cameras, 144 px, softmax t = 0.05": {"num_views": 5, "image_size": 144, "temperature": 0.05},
     "4 cameras, 144 px, softmax t = 0.05": {"num_views": 4, "image_size": 144, "temperature": 0.05},
+    # the neighbours of the default's 5 cameras of 144 px at t = 0.05
+    "5 cameras, 144 px": {"num_views": 5, "image_size": 144},
+    "5 cameras, 144 px, softmax t = 0.07": {"num_views": 5, "image_size": 144, "temperature": 0.07},
+    "5 cameras, 144 px, softmax t = 0.04": {"num_views": 5, "image_size": 144, "temperature": 0.04},
+    "5 cameras, 128 px, softmax t = 0.05": {"num_views": 5, "temperature": 0.05},
+    "5 cameras, 160 px, softmax t = 0.05": {"num_views": 5, "image_size": 160, "temperature": 0.05},
     "4 cameras, 192 px": {"num_views": 4, "image_size": 192},
     "4 cameras, 192 px, softmax t = 0.05": {"num_views": 4, "image_size": 192, "temperature": 0.05},
     "3 cameras, 256 px, softmax t = 0.05": {"num_views": 3, "image_size": 256, "temperature": 0.05},

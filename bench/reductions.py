@@ -32,7 +32,7 @@ from drkfs_onnx.runtime.match import best_matches
 
 DEFAULT = PipelineConfig()
 REDUCTIONS = {  # name -> the default with another reduction of the same distances
-    "default (softmax, t = 0.1)": DEFAULT,
+    f"default (softmax, t = {DEFAULT.temperature:g})": DEFAULT,
     "softmax, t = 0.03": DEFAULT.replace(temperature=0.03),
     "softmax, t = 1": DEFAULT.replace(temperature=1.0),
     "mean": DEFAULT.replace(reduction="mean"),

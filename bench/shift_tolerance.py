@@ -12,7 +12,8 @@
    each patch's best-match distance is the least over the other mesh's views translated by
    every offset of a set, per patch (``patch``) or one offset per view (``view``); judged on
    the benchmark's synthetic tiers and both sides of the real tiers. With ``--nets`` only the
-   sensitivity runs, at the default's config (softmax t = 0.1).
+   sensitivity runs, at the config the nets were trained at (``NETS_TRAINED_AT``: softmax
+   t = 0.1).
 """
 
 from __future__ import annotations
