@@ -440,7 +440,7 @@ def test_the_reductions_script_reproduces_the_benchmarks_default_from_one_set_of
             for key in (c.shape, c.reference)
         )
         values[i] = method.compare(shape, reference)[0]
-    default = rows["default (softmax, t = 0.1)"]
+    default = rows[f"default (softmax, t = {PipelineConfig().temperature:g})"]
     accuracy = tier_accuracy(bench, values)
     assert default["tiers"] == {pair: accuracy[pair] for pair in TIER_PAIRS}
     agreement = human.human_agreement(bench, values, jod)
