@@ -6,6 +6,7 @@
     python bench/real_nets.py --out ... --salient   # also a removed tip and a cut hole a base
     python bench/real_nets.py --out ... --simplification --series-weight 3   # that term x3
     python bench/real_nets.py --out ... --image-size 192   # trained and judged at 192-px views
+    python bench/real_nets.py --out ... --num-views 5 --image-size 144  # at the default's views
 
 1. The shipped metric nets (the default's before the tolerant ones) fine-tuned with
    ``training.tolerance.tolerance_ranking`` on synthetic tiers of other seeds than the
@@ -14,10 +15,10 @@
    ``--salient``, each base also has the real tiers' two small structural changes
    (``tolerance.small_regions_removed``).
 2. Both judged as ``bench/real_levers.py`` judges a lever: the benchmark's synthetic tiers,
-   both sides of the real tiers and their checks, at the default's config and at each other
-   config of ``CONFIGS`` (the same nets); with ``--human DIR``, their agreement with people on
-   Geo-metric's simplifications (as ``drkfs bench --human``). The results committed so
-   far name the metric nets' rows "shipped nets".
+   both sides of the real tiers and their checks, the bars test and the slide check, at each
+   config of ``CONFIGS`` (the same nets, at the views trained at); with ``--human DIR``, their
+   agreement with people on Geo-metric's simplifications (as ``drkfs bench --human``). The
+   results committed so far name the metric nets' rows "shipped nets".
 """
 
 from __future__ import annotations
@@ -30,10 +31,16 @@ from pathlib import Path
 import torch
 
 from drkfs_onnx import PipelineConfig
-from drkfs_onnx.benchmark import human, sets
+from drkfs_onnx.benchmark import human, sets, torch_checks
 from drkfs_onnx.benchmark.methods import DrkfsTorch
 from drkfs_onnx.benchmark.real_tiers import HELDOUT_MESHES, TRAINING_MESHES
-from drkfs_onnx.benchmark.run import TIER_PAIRS, lever_summary, score_everything, tier_accuracy
+from drkfs_onnx.benchmark.run import (
+    TIER_PAIRS,
+    bars_summary,
+    lever_summary,
+    score_everything,
+    tier_accuracy,
+)
 from drkfs_onnx.contract.config import NETS_TRAINED_AT
 from drkfs_onnx.metric import DRKFS, with_nets
 from drkfs_onnx.training import tolerance
@@ -48,8 +55,8 @@ CONFIGS = {
 
 
 def judged(bench: sets.BenchSet, metrics: dict[str, DRKFS], jod: dict | None) -> dict:
-    """Each metric's synthetic tier shares, real tier shares per side and real checks, and with
-    ``jod`` its agreement with people."""
+    """Each metric's synthetic tier shares, real tier shares per side and real checks, the bars
+    test and the slide check, and with ``jod`` its agreement with people."""
     scores, _ = score_everything(bench, [DrkfsTorch(name, m) for name, m in metrics.items()], print)
     rows = {}
     for name, values in scores.comparisons.items():
@@ -60,6 +67,8 @@ def judged(bench: sets.BenchSet, metrics: dict[str, DRKFS], jod: dict | None) ->
                             for half in ("synthetic", "shared")},
             "tier_misses": synthetic["misses"],
             "real_misses": tier_accuracy(bench, values, "real")["misses"],
+            "bars": bars_summary(bench, values),
+            "slide": torch_checks.slide(metrics[name]),
             "values": {f"{c.base}/{c.label}": values.get(i) for i, c in enumerate(bench.comparisons)
                        if c.group == "real"},
             "human": None if jod is None else human.human_agreement(bench, values, jod),
@@ -100,7 +109,13 @@ def main() -> None:
         "--image-size",
         type=int,
         default=DEFAULT.image_size,
-        help="the views' size, for the training data and the judging (the default's unless set)",
+        help="the views' size, for the training data and the judging (NETS_TRAINED_AT's if unset)",
+    )
+    parser.add_argument(
+        "--num-views",
+        type=int,
+        default=DEFAULT.num_views,
+        help="the cameras, for the training data and the judging (NETS_TRAINED_AT's if unset)",
     )
     parser.add_argument("--save-nets", type=Path)
     parser.add_argument("--human", type=Path, help="a Geo-metric clone (see drkfs bench --human)")
@@ -110,7 +125,8 @@ def main() -> None:
     start = time.perf_counter()
     work = args.work / ("quick" if args.quick else "full")
     work.mkdir(parents=True, exist_ok=True)
-    start_config = DEFAULT.replace(image_size=args.image_size)
+    views = {"image_size": args.image_size, "num_views": args.num_views}
+    start_config = DEFAULT.replace(**views)
     metric_nets = DRKFS.pretrained(start_config).eval()
     data = tolerance.tier_views(work, start_config, args.quick, args.salient)
     series = (
@@ -134,10 +150,11 @@ def main() -> None:
         torch.save(tuned.state_dict(), args.save_nets)
     bench = sets.tier_set(args.quick)
     sets.real_tiers(bench, ["woody"] if args.quick else [*TRAINING_MESHES, *HELDOUT_MESHES])
+    sets.bars(bench)
     jod = human.add_human(bench, args.human) if args.human else None
     metrics = {}
     for suffix, named in CONFIGS.items():
-        config = named.replace(image_size=args.image_size)
+        config = named.replace(**views)
         for nets, metric in (("metric nets", metric_nets), ("tolerant nets", tuned)):
             metrics[nets + suffix] = with_nets(config, metric.detector, metric.descriptor).eval()
     results = {
@@ -147,6 +164,7 @@ def main() -> None:
         + (" --salient" if args.salient else "")
         + (f" --series-weight {args.series_weight:g}" if args.series_weight != 1.0 else "")
         + (f" --image-size {args.image_size}" if args.image_size != DEFAULT.image_size else "")
+        + (f" --num-views {args.num_views}" if args.num_views != DEFAULT.num_views else "")
         + (" --quick" if args.quick else "")
         + (" --human DIR" if args.human else ""),
         "data": {

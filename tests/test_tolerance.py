@@ -93,6 +93,8 @@ def test_no_fine_tuning_resumes_the_checkpoint_of_other_data_or_views(tmp_path):
         tolerance.checkpoint_path(tmp_path, 400, 2e-4, 0.05, True, salient=True),
         tolerance.checkpoint_path(tmp_path, 400, 2e-4, 0.05, True, series_weight=3.0),
         tolerance.checkpoint_path(tmp_path, 400, 2e-4, 0.05, True, image_size=192),
+        tolerance.checkpoint_path(tmp_path, 400, 2e-4, 0.05, True, image_size=144),
+        tolerance.checkpoint_path(tmp_path, 400, 2e-4, 0.05, True, image_size=144, num_views=5),
         tolerance.checkpoint_path(tmp_path, 400, 2e-4, 0.05, False),
     ]
     assert len({shipped, *others}) == 1 + len(others)

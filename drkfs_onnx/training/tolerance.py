@@ -325,8 +325,9 @@ def fine_tune(
     metric.descriptor.requires_grad_(True)
     loss_fn = tolerance_ranking(data, TRAIN_SEED, simplification, series_weight)
     series = simplification is not None
+    views = {"image_size": config.image_size, "num_views": config.num_views}
     checkpoint = checkpoint_path(
-        work, steps, lr, temperature, series, salient, series_weight, config.image_size
+        work, steps, lr, temperature, series, salient, series_weight, **views
     )
     train_steps(metric, loss_fn, steps, lr, checkpoint, 20)
     return metric.requires_grad_(False)
@@ -341,13 +342,16 @@ def checkpoint_path(
     salient: bool = False,
     series_weight: float = 1.0,
     image_size: int = NETS_TRAINED_AT["image_size"],
+    num_views: int = NETS_TRAINED_AT["num_views"],
 ) -> Path:
     """The fine-tuning's checkpoint in its work folder (one per setting and data; views of
-    another size than ``NETS_TRAINED_AT``'s are named, so that no run resumes another size's)."""
+    another size or count than ``NETS_TRAINED_AT``'s are named, so that no run resumes
+    another's)."""
     name = f"tolerant_{steps}_{lr:g}_t{temperature:g}"
     name += ("_simplification" if series else "") + ("_salient" if salient else "")
     name += f"_w{series_weight:g}" if series_weight != 1.0 else ""
     name += f"_{image_size}px" if image_size != NETS_TRAINED_AT["image_size"] else ""
+    name += f"_{num_views}views" if num_views != NETS_TRAINED_AT["num_views"] else ""
     return work / (name + ".pt")
 
 
