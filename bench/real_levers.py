@@ -51,7 +51,7 @@ LEVERS = {  # name -> the settings the lever moves (from NETS_TRAINED_AT's confi
     "192 px": {"image_size": 192},
     "256 px": {"image_size": 256},
     "256 px, softmax t = 0.05": {"image_size": 256, "temperature": 0.05},
-    # fewer, larger views: a finer view at about the default's cost a mesh
+    # finer views at about the default's cost a mesh (from 144 px, with fewer cameras)
     "144 px, softmax t = 0.05": {"image_size": 144, "temperature": 0.05},
     "5 cameras, 144 px, softmax t = 0.05": {"num_views": 5, "image_size": 144, "temperature": 0.05},
     "4 cameras, 144 px, softmax t = 0.05": {"num_views": 4, "image_size": 144, "temperature": 0.05},
