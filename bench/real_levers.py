@@ -25,7 +25,7 @@ from pathlib import Path
 
 from drkfs_onnx import PipelineConfig
 from drkfs_onnx.benchmark import human, sets, torch_checks
-from drkfs_onnx.benchmark.methods import DrkfsOnnx
+from drkfs_onnx.benchmark.methods import DrkfsOnnx, Method, Placed
 from drkfs_onnx.benchmark.real_tiers import HELDOUT_MESHES, TRAINING_MESHES
 from drkfs_onnx.benchmark.run import (
     bars_summary,
@@ -34,6 +34,7 @@ from drkfs_onnx.benchmark.run import (
     score_everything,
     tier_accuracy,
 )
+from drkfs_onnx.contract.cameras import rotation_y
 from drkfs_onnx.contract.config import NETS_TRAINED_AT
 from drkfs_onnx.contract.model_files import features_file, models_dir, shipped_entry
 from drkfs_onnx.export.onnx_files import export_features
@@ -59,6 +60,18 @@ LEVERS = {  # name -> the settings the lever moves (from NETS_TRAINED_AT's confi
     "5 cameras, 144 px": {"num_views": 5, "image_size": 144},
     "5 cameras, 144 px, softmax t = 0.07": {"num_views": 5, "image_size": 144, "temperature": 0.07},
     "5 cameras, 144 px, softmax t = 0.04": {"num_views": 5, "image_size": 144, "temperature": 0.04},
+    "5 cameras, 144 px, softmax t = 0.03": {"num_views": 5, "image_size": 144, "temperature": 0.03},
+    # the cameras and a second ring turned by 2 degrees (PipelineConfig.turn_degrees): the least
+    # of own ring against own ring and each one's own against the other's turned ring
+    **{
+        f"rings 0 and 2, 5 cameras, 144 px, softmax t = {t:g}": {
+            "num_views": 5,
+            "image_size": 144,
+            "temperature": t,
+            "turn_degrees": 2.0,
+        }
+        for t in (0.05, 0.04, 0.03)
+    },
     "5 cameras, 128 px, softmax t = 0.05": {"num_views": 5, "temperature": 0.05},
     "5 cameras, 160 px, softmax t = 0.05": {"num_views": 5, "image_size": 160, "temperature": 0.05},
     "4 cameras, 192 px": {"num_views": 4, "image_size": 192},
@@ -66,6 +79,55 @@ LEVERS = {  # name -> the settings the lever moves (from NETS_TRAINED_AT's confi
     "3 cameras, 256 px, softmax t = 0.05": {"num_views": 3, "image_size": 256, "temperature": 0.05},
     "4 cameras, 256 px, softmax t = 0.05": {"num_views": 4, "image_size": 256, "temperature": 0.05},
 }
+DEFAULT_LEVER = "5 cameras, 144 px, softmax t = 0.05"  # PipelineConfig()'s cameras and softmax
+# name -> (a lever above, pairings): A and B each described turned about the vertical by the
+# angles (degrees) of the pairings (A's, B's) it takes part in, the score the least over the
+# pairings; a viewer does not see a slight turn. Per mesh, one render of the views per angle.
+TURN_SEARCHES = {
+    f"turn search +-{a:g}, {lever}": (lever, ((0.0, -a), (0.0, 0.0), (0.0, a)))
+    for a in (1.0, 1.5, 2.0)
+    for lever in (DEFAULT_LEVER, "5 cameras, 144 px, softmax t = 0.04")
+} | {
+    f"turn search +-1, +-2, {DEFAULT_LEVER}": (
+        DEFAULT_LEVER, tuple((0.0, b) for b in (-2.0, -1.0, 0.0, 1.0, 2.0))
+    ),
+} | {  # every mesh seen from two rings of cameras 2 degrees apart: turns of 0 and +-2 between them
+    f"two rings +-1, {lever}": (lever, ((-1.0, -1.0), (-1.0, 1.0), (1.0, -1.0), (1.0, 1.0)))
+    for lever in (DEFAULT_LEVER, "5 cameras, 144 px, softmax t = 0.04",
+                  "5 cameras, 144 px, softmax t = 0.03")
+} | {  # what the two rings' search does without its turns: the cameras moved, no search
+    f"cameras turned 1, {DEFAULT_LEVER}": (DEFAULT_LEVER, ((1.0, 1.0),)),
+    f"two rings +-1, each ring alone, {DEFAULT_LEVER}": (DEFAULT_LEVER, ((-1.0, -1.0), (1.0, 1.0))),
+}  # fmt: skip
+
+
+def _turned(placed: Placed, angle: float) -> Placed:
+    """``placed`` turned about its frame's vertical, kept with it so that searches over the same
+    angles share renders."""
+    if angle == 0.0:
+        return placed
+    turn = Placed(f"{placed.key}@{angle:g}", placed.verts @ rotation_y(angle).T, placed.faces)
+    return placed.shared(("turned", angle), lambda: turn)[0]
+
+
+class TurnSearch(Method):
+    """A lever's scorer over turns: ``prepare`` describes a mesh turned about the frame's
+    vertical by each angle of the pairings, ``compare(a, b)`` is the least score over the
+    pairings (A turned by the first angle, B by the second)."""
+
+    def __init__(self, method: DrkfsOnnx, name: str, pairings: tuple[tuple[float, float], ...]):
+        self.method, self.outputs, self.pairings = method, (name,), pairings
+        self.symmetric = set(pairings) == {(b, a) for a, b in pairings} and method.symmetric
+
+    def prepare(self, placed):
+        turned, seconds = {}, 0.0
+        for angle in dict.fromkeys(angle for pairing in self.pairings for angle in pairing):
+            turned[angle], cost = self.method.prepare(_turned(placed, angle))
+            seconds += cost
+        return turned, seconds
+
+    def compare(self, a, b):
+        return (min(self.method.compare(a[i], b[j])[0] for i, j in self.pairings),)
 
 
 def feature_graph(config: PipelineConfig, folder: Path) -> Path | None:
@@ -85,13 +147,21 @@ def main() -> None:
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--nets", default=PipelineConfig().nets, help="the default's unless set")
     parser.add_argument(
-        "--levers", nargs="+", choices=list(LEVERS), default=list(LEVERS), help="all unless set"
+        "--levers",
+        nargs="+",
+        choices=[*LEVERS, *TURN_SEARCHES],
+        default=list(LEVERS),
+        metavar="LEVER",
+        help="every lever but the turn searches unless set",
     )
     parser.add_argument("--human", type=Path, help="a Geo-metric clone (see drkfs bench --human)")
     args = parser.parse_args()
     start = time.perf_counter()
     default = PipelineConfig(nets=args.nets, **NETS_TRAINED_AT)
-    configs = {name: default.replace(**LEVERS[name]) for name in args.levers}
+    configs = {
+        name: default.replace(**LEVERS[TURN_SEARCHES[name][0] if name in TURN_SEARCHES else name])
+        for name in args.levers
+    }
     bench = sets.tier_set(quick=False)
     sets.real_tiers(bench, [*TRAINING_MESHES, *HELDOUT_MESHES])
     sets.bars(bench)  # the benchmark's own targets a default must keep
@@ -102,6 +172,11 @@ def main() -> None:
             DrkfsOnnx(name, config, feature_graph(config, Path(folder)), args.threads)
             for name, config in configs.items()
         ]
+        methods = [
+            TurnSearch(m, m.outputs[0], TURN_SEARCHES[m.outputs[0]][1])
+            if m.outputs[0] in TURN_SEARCHES else m
+            for m in methods
+        ]  # fmt: skip
         scores, costs = score_everything(bench, methods, print)
     rows = {}
     for name, values in scores.comparisons.items():
@@ -112,6 +187,7 @@ def main() -> None:
             "real_misses": tier_accuracy(bench, values, "real")["misses"],
             "bars": bars_summary(bench, values),
             "retrieval": retrieval_summary(bench, scores.retrieval[name]),
+            # the torch path has no turn search: its slide check is the lever's without one
             "slide": torch_checks.slide(DRKFS.pretrained(configs[name])),
             "human": None if jod is None else human.human_agreement(bench, values, jod),
         }

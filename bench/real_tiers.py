@@ -23,7 +23,7 @@ from drkfs_onnx.benchmark.real_tiers import HELDOUT_MESHES, TRAINING_MESHES
 from drkfs_onnx.benchmark.run import peer_methods, real_summary, score_everything
 
 DEFAULT_METHODS = "DR-KFS,DR-KFS paper,DR-KFS structure,pixel MSE,Chamfer-L1,F-score 1%,LFD"
-RENDER = PipelineConfig(num_views=6, image_size=256)  # the figure's cameras: view VIEW of them
+RENDER = PipelineConfig(num_views=6, turn_degrees=0.0, image_size=256)  # the figure's: view VIEW
 VIEW = 1
 PIXEL_CHANGE = 0.1  # a grey level change a viewer sees at once
 

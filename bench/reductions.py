@@ -53,7 +53,10 @@ def main() -> None:
     bench = sets.tier_set(args.quick)
     jod = human.add_human(bench, args.human) if args.human else None
     method = DrkfsOnnx("DR-KFS", DEFAULT, None, args.threads)
-    distances = {}  # comparison index -> [(distances, weights)] per direction
+    # comparison index -> per pairing of rings (match_rules.ring_pairings), [(distances,
+    # weights)] per direction; a reduction's score is the least over the pairings
+    distances = {}
+    one = DEFAULT.one_ring()
     for reference in dict.fromkeys(c.reference for c in bench.comparisons):
         verts, faces = bench.shapes[reference]
         frame = frame_of(verts)
@@ -63,8 +66,13 @@ def main() -> None:
                 shape_verts, shape_faces = bench.shapes[c.shape]
                 shape, _ = method.prepare(Placed(c.shape, place(shape_verts, frame), shape_faces))
                 distances[i] = [
-                    best_matches(queries, targets, DEFAULT)
-                    for queries, targets in match_rules.directions(shape, described, DEFAULT)
+                    [
+                        best_matches(queries, targets, one)
+                        for queries, targets in match_rules.directions(
+                            shape.ring(a), described.ring(b), one
+                        )
+                    ]
+                    for a, b in match_rules.ring_pairings(DEFAULT)
                 ]
     results = {
         "command": f"python bench/reductions.py --out {args.out}"
@@ -76,8 +84,11 @@ def main() -> None:
     }
     for name, config in REDUCTIONS.items():
         values = {
-            i: float(np.mean([match_rules.reduce(d, w, config) for d, w in pairs]))
-            for i, pairs in distances.items()
+            i: min(
+                float(np.mean([match_rules.reduce(d, w, config) for d, w in pairs]))
+                for pairs in pairings
+            )
+            for i, pairings in distances.items()
         }
         accuracy = tier_accuracy(bench, values)
         row = {

@@ -32,7 +32,7 @@ from drkfs_onnx.benchmark.methods import Method, _timed
 from drkfs_onnx.benchmark.real_tiers import HELDOUT_MESHES, TRAINING_MESHES
 from drkfs_onnx.benchmark.run import lever_summary, score_everything
 from drkfs_onnx.contract import match_rules
-from drkfs_onnx.contract.cameras import make_cameras
+from drkfs_onnx.contract.cameras import make_cameras, rotation_y
 from drkfs_onnx.contract.config import NETS_TRAINED_AT
 from drkfs_onnx.contract.mesh import frame_of, load_mesh, place
 from drkfs_onnx.match import match_score
@@ -40,7 +40,6 @@ from drkfs_onnx.metric import DRKFS
 from drkfs_onnx.render.renderer import Renderer
 from drkfs_onnx.render.torch_ops import TORCH_OPS
 from drkfs_onnx.synthetic.tiers import turned
-from drkfs_onnx.synthetic.variants import rotation_y
 from drkfs_onnx.training.tolerance import warped
 
 # the config the nets were trained at (the default's when this was measured), metric nets

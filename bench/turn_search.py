@@ -26,9 +26,9 @@ import numpy as np
 from drkfs_onnx.benchmark import sets
 from drkfs_onnx.benchmark.methods import DrkfsOnnx, Placed
 from drkfs_onnx.benchmark.run import TIER_PAIRS, tier_accuracy
+from drkfs_onnx.contract.cameras import rotation_y
 from drkfs_onnx.contract.config import PipelineConfig
 from drkfs_onnx.contract.mesh import frame_of, place
-from drkfs_onnx.synthetic.variants import rotation_y
 
 TURN_SETS = {  # name -> degrees about the vertical
     "no turn": (0.0,),

@@ -104,7 +104,18 @@ def match_score(
     (B, K * P, D) (either side may be one set shared by the batch) -> (B,): the reduced
     best-match distances of each direction the config searches, averaged (``match_rules``);
     with a ``temperature``, soft best matches (``soft_match_distances``) in place of the hard
-    ones."""
+    ones. With a turned ring of cameras (``config.rings``), (K * T * P, D) sets and the least
+    score over ``match_rules.ring_pairings``."""
+    if len(config.rings) > 1:
+        one, rows = config.one_ring(), match_rules.ring_rows
+        scores = [
+            match_score(
+                desc_a[..., rows(i, config), :], desc_b[..., rows(j, config), :], one,
+                temperature, table,
+            )
+            for i, j in match_rules.ring_pairings(config)
+        ]  # fmt: skip
+        return torch.stack(scores).amin(0)
     scores = []
     for queries, targets in match_rules.directions(desc_a, desc_b, config):
         if temperature is None:

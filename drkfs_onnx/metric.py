@@ -209,8 +209,8 @@ class DRKFS(nn.Module):
 
     @_without_autocast
     def features(self, verts, faces=None) -> torch.Tensor:
-        """Descriptors of a mesh already in the metric's frame: (V, 3), (F, 3) -> (K * P, D);
-        a batch -> (B, K * P, D)."""
+        """Descriptors of a mesh already in the metric's frame: (V, 3), (F, 3) -> (K * T * P, D)
+        (T rings of K views); a batch -> (B, K * T * P, D)."""
         meshes = self._meshes(verts, faces)
         return meshes.unbatch(self._features(meshes))
 
@@ -286,24 +286,35 @@ class DRKFS(nn.Module):
         """Where mesh A, (V, 3), (F, 3), differs from a prepared reference: {side: (K, n, n)}
         best-match squared distance of each patch of A ('a', searching the reference) and of
         the reference ('b', searching A), for the sides the config's direction searches
-        (``match_rules.query_sides``); n patches per image side; a batch -> (B, K, n, n).
-        Differentiable like ``score_to``; log them (or ``drkfs-score explain``'s picture) to
-        see where a prediction is wrong."""
-        config = self.config
+        (``match_rules.query_sides``); n patches per image side; a batch -> (B, K, n, n). With
+        a turned ring of cameras, the patches of the rings whose comparison counts (the least
+        score of ``match_rules.ring_pairings``). Differentiable like ``score_to``; log them (or
+        ``drkfs-score explain``'s picture) to see where a prediction is wrong."""
+        config, one, rows = self.config, self.config.one_ring(), match_rules.ring_rows
         grid = (config.num_views, config.patches_per_side, config.patches_per_side)
         meshes = self._meshes(verts, faces)
         features = meshes.unbatch(self._features_to(meshes, target))
-        pairs = match_rules.directions(features, target.features, config)
+        pairs = [
+            (features[..., rows(i, config), :], target.features[..., rows(j, config), :])
+            for i, j in match_rules.ring_pairings(config)
+        ]
+        with torch.no_grad():  # (*lead,) the pairing whose score counts
+            least = torch.stack([match_score(a, b, one, table=self._table) for a, b in pairs])
+            least = least.argmin(0)
         found = {}
-        for side, (queries, targets) in zip(match_rules.query_sides(config), pairs, strict=True):
-            distances = best_match_distances(queries, targets, config, self._table)
+        for k, side in enumerate(match_rules.query_sides(one)):
+            per_pairing = torch.stack(
+                [best_match_distances(*match_rules.directions(a, b, one)[k], one, self._table)
+                 for a, b in pairs]
+            )  # fmt: skip
+            distances = torch.take_along_dim(per_pairing, least[None, ..., None], dim=0)[0]
             found[side] = distances.reshape(*distances.shape[:-1], *grid)
         return found
 
     @_without_autocast
     def features_to(self, verts, faces, target: Target) -> torch.Tensor:
-        """(K * P, D) descriptors of mesh A, (V, 3), (F, 3), placed as the reference ``target``
-        asks (its frame under 'joint'); a batch -> (B, K * P, D)."""
+        """(K * T * P, D) descriptors of mesh A, (V, 3), (F, 3), placed as the reference
+        ``target`` asks (its frame under 'joint'); a batch -> (B, K * T * P, D)."""
         meshes = self._meshes(verts, faces)
         return meshes.unbatch(self._features_to(meshes, target))
 
@@ -321,7 +332,7 @@ class DRKFS(nn.Module):
     def _check_target(self, target: Target) -> None:
         """A reference prepared by a metric of this config, on this metric's device."""
         config, features = self.config, target.features
-        shape = (config.num_views * config.patches_per_view, config.descriptor_dim)
+        shape = (config.views_per_mesh * config.patches_per_view, config.descriptor_dim)
         if tuple(features.shape[-2:]) != shape:
             raise ValueError(
                 f"target: {tuple(features.shape[-2:])} descriptors, where this metric's config "

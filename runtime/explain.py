@@ -25,7 +25,9 @@ class Explanation:
     """A scored pair, patch by patch. views: side -> (K, S, S) the views it was described from;
     distances, shares: side -> (K, n, n) best-match squared distance of each of that mesh's
     patches and its share of the whole score (sums to 1 over both sides), for the sides whose
-    patches search the other mesh (``match_rules.query_sides``)."""
+    patches search the other mesh (``match_rules.query_sides``); rings: side -> the ring of
+    cameras (``config.rings``) these views and patches come from, those of the comparison
+    whose score counts."""
 
     score: float
     config: PipelineConfig
@@ -33,6 +35,7 @@ class Explanation:
     views: dict[str, np.ndarray]
     distances: dict[str, np.ndarray]
     shares: dict[str, np.ndarray]
+    rings: dict[str, int]
 
     def top_patches(self, count: int = 5) -> list[dict]:
         """The ``count`` patches with the largest shares: mesh, view, grid row and column (the
@@ -67,20 +70,33 @@ def explain(scorer: Scorer, mesh_a: Mesh | str | Path, mesh_b: Mesh | str | Path
         "a": scorer.features(a, reference.frame if scorer.normalization == "joint" else None),
         "b": reference,
     }
-    config = scorer.config
+    config, one = scorer.config, scorer.config.one_ring()
+    # the rings of cameras whose comparison counts: the least score (one ring: (0, 0))
+    rings = min(
+        match_rules.ring_pairings(config),
+        key=lambda pair: match(features["a"].ring(pair[0]), features["b"].ring(pair[1]), one),
+    )
+    ring = {side: features[side].ring(r) for side, r in zip(SIDES, rings, strict=True)}
     grid = (config.num_views, config.patches_per_side, config.patches_per_side)
     found = {}  # side -> its patches' distances, their shares of its direction, its score
-    pairs = match_rules.directions(features["a"], features["b"], config)
-    for side, (queries, targets) in zip(match_rules.query_sides(config), pairs, strict=True):
-        distances, shares = patch_distances(queries, targets, config)
-        score = float(match_rules.reduce(distances, np.ones_like(distances), config))
+    pairs = match_rules.directions(ring["a"], ring["b"], one)
+    for side, (queries, targets) in zip(match_rules.query_sides(one), pairs, strict=True):
+        distances, shares = patch_distances(queries, targets, one)
+        score = float(match_rules.reduce(distances, np.ones_like(distances), one))
         found[side] = (distances.reshape(grid), shares.reshape(grid), score)
+    views = {
+        side: scorer.views(meshes[side], features[side].frame)[
+            ring_index * config.num_views : (ring_index + 1) * config.num_views
+        ]
+        for side, ring_index in zip(SIDES, rings, strict=True)
+    }
     total = sum(score for _, _, score in found.values())  # each direction's part of the mean
     return Explanation(
         score=match(features["a"], features["b"], config),
         config=config,
         names={"a": a.source, "b": b.source},
-        views={side: scorer.views(meshes[side], features[side].frame) for side in SIDES},
+        views=views,
+        rings=dict(zip(SIDES, rings, strict=True)),
         distances={side: d for side, (d, _, _) in found.items()},
         shares={side: s * score / total if total else s for side, (_, s, score) in found.items()},
     )

@@ -3,12 +3,13 @@ positions, and the one descriptor the background patches share."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import cached_property
 from pathlib import Path
 
 import numpy as np
 
+from drkfs_onnx.contract import match_rules
 from drkfs_onnx.contract.config import PipelineConfig
 
 from .nearest import lift, row_hashes
@@ -19,9 +20,10 @@ FORMAT = "drkfs-features-4"  # 4: records the normalisation
 @dataclass(frozen=True)
 class MeshFeatures:
     """descriptors: (N, D) float32 of the patches that see the mesh, at patch_index (N,) sorted
-    rows of the row-major (K * P) patch list; the other patches see only background and share
-    empty_descriptor (D,); centre (3,) and scale: the frame the mesh was placed in
-    (v' = (v - centre) / scale), which joint normalisation applies to meshes scored against it;
+    rows of the row-major (K * T * P) patch list (T rings of K views); the other patches see
+    only background and share empty_descriptor (D,); centre (3,) and scale: the frame the mesh
+    was placed in (v' = (v - centre) / scale), which joint normalisation applies to meshes
+    scored against it;
     normalization: the scorer's normalisation when they were made (it decides the frame, and a
     scorer with another one would place the meshes scored against them differently); model:
     sha256 of the feature graph that computed them; config: the pipeline config they were
@@ -45,8 +47,19 @@ class MeshFeatures:
 
     @property
     def patches(self) -> int:
-        """K * P: every patch of every view."""
-        return self.config.num_views * self.config.patches_per_view
+        """K * T * P: every patch of every view of every ring."""
+        return self.config.views_per_mesh * self.config.patches_per_view
+
+    def ring(self, ring: int) -> MeshFeatures:
+        """The features of one ring of cameras (``config.rings``), as a one-ring config's."""
+        rows = match_rules.ring_rows(ring, self.config)
+        chosen = (self.patch_index >= rows.start) & (self.patch_index < rows.stop)
+        return replace(
+            self,
+            descriptors=self.descriptors[chosen],
+            patch_index=self.patch_index[chosen] - rows.start,
+            config=self.config.one_ring(),
+        )
 
     @property
     def empty(self) -> int:
@@ -55,7 +68,8 @@ class MeshFeatures:
 
     @cached_property
     def dense(self) -> np.ndarray:
-        """(K * P, D) every patch's descriptor, background patches included (window matching)."""
+        """(K * T * P, D) every patch's descriptor, background patches included (window
+        matching)."""
         rows = np.tile(self.empty_descriptor, (self.patches, 1))
         rows[self.patch_index] = self.descriptors
         return rows
@@ -79,7 +93,7 @@ class MeshFeatures:
         return row_hashes(self.rows)
 
     def per_patch(self, values: np.ndarray) -> np.ndarray:
-        """(R,) one value per row of ``rows`` -> (K * P,) the value of every patch (the empty
+        """(R,) one value per row of ``rows`` -> (K * T * P,) the value of every patch (the empty
         patches all take the background row's)."""
         dense = np.full(self.patches, values[-1] if self.empty else 0.0, dtype=np.float64)
         dense[self.patch_index] = values[: len(self.descriptors)]

@@ -98,9 +98,13 @@ def check_features(
 
 def match(a: MeshFeatures, b: MeshFeatures, config: PipelineConfig) -> float:
     """DR-KFS of A against B from their features: each direction the config searches, its
-    best-match distances reduced (``match_rules.reduce``), averaged over the directions."""
+    best-match distances reduced (``match_rules.reduce``), averaged over the directions; with a
+    turned ring of cameras, the least such score over ``match_rules.ring_pairings``."""
     for features in (a, b):
         check_features(features, config, a.model, a.normalization)
+    if len(config.rings) > 1:  # the least score over the rings compared (match_rules)
+        one = config.one_ring()
+        return min(match(a.ring(i), b.ring(j), one) for i, j in match_rules.ring_pairings(config))
     scores = [
         float(match_rules.reduce(*best_matches(queries, targets, config), config))
         for queries, targets in match_rules.directions(a, b, config)

@@ -134,7 +134,7 @@ class Scorer:
         if long:
             self.progress(
                 f"{mesh.source}: {len(mesh.faces):,} faces; rendering and describing "
-                f"{self.config.num_views} views"
+                f"{self.config.views_per_mesh} views"
             )
         result = self.describe(self.views(mesh, frame), frame)
         if long:

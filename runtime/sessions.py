@@ -81,12 +81,13 @@ def open_features(
 ) -> Graph:
     """The feature graph for ``config`` (the shipped one unless ``path``), refused with a
     ModelMismatch naming the differing settings when it was built for another config (the match
-    settings and the view count aside: the graph describes any number of views)."""
+    settings and the cameras' count and turn aside: the graph describes any views)."""
     graph = Graph.open(*_read(path, features_file(config)), threads)
     if CONFIG_KEY not in graph.metadata:
         raise ModelMismatch(f"{graph.source}: no {CONFIG_KEY} metadata; not a DR-KFS feature graph")
     built = PipelineConfig.from_json(graph.metadata[CONFIG_KEY])
-    built = built.features_part().replace(num_views=config.num_views)
+    cameras = {"num_views": config.num_views, "turn_degrees": config.turn_degrees}
+    built = built.features_part().replace(**cameras)
     if built != config.features_part():
         raise ModelMismatch(
             f"{graph.source} was built for another pipeline config: "

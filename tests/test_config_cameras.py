@@ -5,7 +5,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from drkfs_onnx.contract.cameras import hemisphere_directions, make_cameras
+from drkfs_onnx.contract.cameras import hemisphere_directions, make_cameras, rotation_y
 from drkfs_onnx.contract.config import NETS_TRAINED_AT, PipelineConfig
 
 
@@ -47,7 +47,8 @@ def test_config_is_frozen_and_round_trips_through_json():
 @pytest.mark.parametrize(
     "bad",
     [{"num_views": 0}, {"image_size": 16}, {"detector_kernel": 4}, {"sigma": 0.0},
-     {"camera_distance": 0.9}, {"patch_size": 30}],
+     {"camera_distance": 0.9}, {"patch_size": 30}, {"turn_degrees": -2.0},
+     {"turn_degrees": 90.0}],
 )  # fmt: skip
 def test_invalid_configs_are_refused(bad):
     with pytest.raises(ValueError):
@@ -81,3 +82,18 @@ def test_cameras_look_at_the_origin_with_orthonormal_frames():
     # world up appears as image up (negative camera y) from every view
     up = cams.world_to_camera(np.array([[0.0, 0.5, 0.0]]))[:, 0]
     assert (up[:, 1] < 0).all()
+
+
+def test_a_turned_ring_repeats_the_cameras_turned_about_the_vertical():
+    default = PipelineConfig()
+    assert default.rings == (0.0, default.turn_degrees) and default.turn_degrees > 0
+    assert default.views_per_mesh == 2 * default.num_views
+    one = make_cameras(default.one_ring())
+    both = make_cameras(default)
+    assert len(one) == default.num_views and len(both) == default.views_per_mesh
+    assert np.array_equal(both.eyes[: len(one)], one.eyes)
+    # turned by -turn: each camera of the second ring sees the mesh as if turned by +turn
+    assert np.allclose(both.eyes[len(one) :], one.eyes @ rotation_y(-default.turn_degrees).T)
+    # the paper, the nets' training and the loss see one ring
+    for config in (PipelineConfig.paper(), PipelineConfig.training(), PipelineConfig.loss()):
+        assert config.rings == (0.0,) and config.views_per_mesh == config.num_views

@@ -12,6 +12,7 @@ from drkfs_onnx.contract import match_rules
 from drkfs_onnx.metric import DRKFS
 from drkfs_onnx.render.torch_ops import TORCH_OPS
 from drkfs_onnx.runtime.explain import explain
+from drkfs_onnx.runtime.match import match
 from drkfs_onnx.runtime.scorer import Scorer
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
@@ -24,8 +25,12 @@ def no_leg():
 
 
 def test_the_top_patch_of_each_view_that_sees_the_missing_leg_lies_where_the_leg_was(no_leg):
-    config = no_leg.config
-    leg = np.abs(no_leg.views["b"] - no_leg.views["a"]) > CHANGED  # (K, S, S), B's frame
+    config, scorer = no_leg.config, Scorer(threads=2)
+    # (K, S, S) where the leg was: B's views against A's from the same ring of cameras
+    ring = slice(no_leg.rings["b"] * config.num_views, (no_leg.rings["b"] + 1) * config.num_views)
+    frame = scorer.features(EXAMPLES / "chair.obj").frame
+    no_leg_views = scorer.views(load_mesh(EXAMPLES / "chair_no_leg.obj"), frame)[ring]
+    leg = np.abs(no_leg.views["b"] - no_leg_views) > CHANGED
     seeing = [view for view in range(config.num_views) if leg[view].sum() >= 20]
     assert len(seeing) >= 3
     side, size, stride = config.patches_per_side, config.patch_size, config.patch_stride
@@ -44,6 +49,19 @@ def test_the_top_patch_of_each_view_that_sees_the_missing_leg_lies_where_the_leg
         # of it as the one that holds most (most patches of a view hold none)
         assert held(view, row, column) >= 0.5 * most, (view, row, column)
     assert no_leg.top_patches(1)[0]["view"] in seeing
+
+
+def test_the_explained_rings_are_the_comparison_whose_score_counts(no_leg):
+    scorer = Scorer(threads=2)
+    b = scorer.features(EXAMPLES / "chair.obj")
+    a = scorer.features(EXAMPLES / "chair_no_leg.obj", b.frame)
+    one = scorer.config.one_ring()
+    scores = {
+        (i, j): match(a.ring(i), b.ring(j), one)
+        for i, j in match_rules.ring_pairings(scorer.config)
+    }
+    assert len(scores) == 3 and no_leg.score == min(scores.values())
+    assert scores[no_leg.rings["a"], no_leg.rings["b"]] == no_leg.score
 
 
 def test_shares_sum_to_one_over_both_meshes_and_zero_is_clear(no_leg):

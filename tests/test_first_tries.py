@@ -142,7 +142,7 @@ def test_a_large_mesh_says_what_it_is_doing_before_and_after(tmp_path, monkeypat
     lines = []
     scorer = Scorer(PipelineConfig(descriptor_width=0.25, nets="metric"), progress=lines.append)
     scorer.score(NO_LEG, _big_chair(tmp_path, 4))
-    views = PipelineConfig().num_views
+    views = PipelineConfig().views_per_mesh
     assert lines[0].endswith(f"big.obj: 1,152 faces; rendering and describing {views} views")
     assert lines[1].startswith(f"{tmp_path / 'big.obj'}: done in ")
     assert len(lines) == 2  # the 288-face mesh is not reported

@@ -12,7 +12,7 @@ from drkfs_onnx.render.torch_ops import TORCH_OPS
 from drkfs_onnx.runtime.features import MeshFeatures
 from drkfs_onnx.runtime.match import match
 
-GRID = PipelineConfig(num_views=3, image_size=96)  # 5 x 5 patches per view
+GRID = PipelineConfig(num_views=3, turn_degrees=0.0, image_size=96)  # one ring, 5 x 5 a view
 REDUCTIONS = [
     {"reduction": "sum"},
     {"reduction": "mean"},
@@ -159,6 +159,28 @@ def test_global_matching_sees_a_part_missing_from_a_only_backward_window_both_wa
     assert match(fa, fb, config.replace(direction="backward")) > 0.0
     window = config.replace(matching="window", window=0)
     assert min(match(fa, fb, window.replace(direction=d)) for d in DIRECTIONS) > 0.0
+
+
+@pytest.mark.parametrize("matching", ["global", "window"])
+def test_a_turned_ring_counts_the_least_of_own_against_own_and_own_against_turned(matching):
+    rings = GRID.replace(turn_degrees=2.0, matching=matching)
+    a, b, empty = _near_tie_sets()
+    other = np.random.default_rng(3).normal(size=a.shape).astype(np.float32)  # far from both
+
+    def score(a_rings, b_rings):
+        fa = _features(np.concatenate(a_rings), empty, rings)
+        fb = _features(np.concatenate(b_rings), empty, rings)
+        expected = float(match_score(torch.from_numpy(fa.dense), torch.from_numpy(fb.dense), rings))
+        assert match(fa, fb, rings) == pytest.approx(expected, rel=1e-5)  # torch = runtime
+        return expected
+
+    one_ring = match(_features(a, empty, GRID), _features(b, empty, GRID), GRID.replace(
+        matching=matching))  # fmt: skip
+    assert score([a, other], [b, other]) == pytest.approx(one_ring, rel=1e-6)  # own vs own
+    assert score([a, other], [other, a]) == 0.0  # A's own ring is B's turned ring
+    assert score([other, b], [b, other]) == 0.0  # and the other way round
+    # both turned is no turn between them: that pairing is not searched
+    assert score([other, a], [b[:, ::-1].copy(), a]) > 0.0
 
 
 def test_runtime_refuses_features_of_another_config_or_graph():

@@ -22,7 +22,7 @@ from drkfs_onnx.training.variant_views import (
     render_variant_views,
 )
 
-CONFIG = PipelineConfig(num_views=2, image_size=64, patch_size=16, patch_stride=8)
+CONFIG = PipelineConfig(turn_degrees=0.0, num_views=2, image_size=64, patch_size=16, patch_stride=8)
 
 
 @pytest.fixture(scope="module")

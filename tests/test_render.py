@@ -13,7 +13,7 @@ from drkfs_onnx.contract.config import PipelineConfig
 from drkfs_onnx.render.renderer import Renderer
 from drkfs_onnx.synthetic.shapes import assemble, chair
 
-SMALL = PipelineConfig(num_views=3, image_size=40)
+SMALL = PipelineConfig(turn_degrees=0.0, num_views=3, image_size=40)
 
 
 def _tensors(verts, faces, dtype=torch.float64):
@@ -56,7 +56,9 @@ def test_image_shows_the_mesh_on_background():
 
 
 def test_render_gradcheck_float64():
-    config = PipelineConfig(num_views=2, image_size=10, patch_size=8, sigma=2e-3, gamma=5e-2)
+    config = PipelineConfig(
+        turn_degrees=0.0, num_views=2, image_size=10, patch_size=8, sigma=2e-3, gamma=5e-2
+    )
     rng = np.random.default_rng(1)
     verts = torch.tensor(rng.uniform(-0.6, 0.6, (5, 3)), requires_grad=True)
     faces = torch.tensor([[0, 1, 2], [1, 3, 2], [2, 3, 4]])
@@ -115,7 +117,7 @@ def test_retessellation_barely_changes_the_image():
     from drkfs_onnx.synthetic.variants import shifted
 
     base = chair()
-    renderer = Renderer(PipelineConfig(num_views=6, image_size=128))
+    renderer = Renderer(PipelineConfig(turn_degrees=0.0, num_views=6, image_size=128))
 
     def render(parts, subdivisions=1):
         verts, faces = _tensors(*assemble(parts, subdivisions), dtype=torch.float32)
@@ -268,7 +270,7 @@ def _render_with_gradient(config: PipelineConfig) -> tuple[torch.Tensor, torch.T
 def test_equations_that_fail_to_compile_run_eagerly_after_one_warning(monkeypatch, compile_setting):
     """Where torch.compile fails (a CPU without a C++ compiler, say), each equation warns once,
     with the reason, and runs eagerly from then on: the same images and gradient as eager."""
-    config = PipelineConfig(num_views=2, image_size=32)
+    config = PipelineConfig(turn_degrees=0.0, num_views=2, image_size=32)
     compile_setting("0")
     expected = _render_with_gradient(config)
 
@@ -298,7 +300,7 @@ def test_a_cpu_training_step_compiles_its_equations_and_agrees_with_eager(compil
     from drkfs_onnx.render.kept_pairs import _terms_and_logits
     from drkfs_onnx.render.pixel_sums import _terms_grad_at
 
-    config = PipelineConfig(num_views=2, image_size=32)
+    config = PipelineConfig(turn_degrees=0.0, num_views=2, image_size=32)
     compile_setting("0")
     eager = _render_with_gradient(config)
     compile_setting("auto")

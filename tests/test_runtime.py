@@ -8,7 +8,8 @@ import pytest
 import torch
 
 from drkfs_onnx import DRKFS, PipelineConfig, load_mesh
-from drkfs_onnx.contract.mesh import place
+from drkfs_onnx.contract.cameras import rotation_y
+from drkfs_onnx.contract.mesh import Mesh, frame_of, place
 from drkfs_onnx.contract.model_files import features_file, models_dir
 from drkfs_onnx.runtime import MeshFeatures, ModelMismatch, Scorer
 
@@ -77,7 +78,7 @@ def test_precomputed_reference_features_round_trip(scorer, tmp_path):
     assert scorer.score(a, tmp_path / "chair.npz") == scorer.score(a, str(tmp_path / "chair.npz"))
     assert scorer.score(a, str(tmp_path / "chair.npz")) == scorer.score(a, loaded)
     config = PipelineConfig()
-    assert len(loaded.descriptors) + loaded.empty == config.num_views * config.patches_per_view
+    assert len(loaded.descriptors) + loaded.empty == config.views_per_mesh * config.patches_per_view
 
 
 def test_background_patches_share_the_blank_view_descriptor(scorer, metric):
@@ -112,3 +113,18 @@ def test_both_directions_are_order_free_and_joint_uses_the_reference_frame_for_b
         for d in ("forward", "backward")
     ]
     assert joint.score(a, b) == pytest.approx(sum(one_way) / 2, rel=1e-12)
+
+
+@pytest.mark.parametrize("sign", [1.0, -1.0])
+def test_a_turn_by_the_rings_angle_scores_as_the_mesh_itself(scorer, sign):
+    # a viewer does not see a 2-degree turn: one mesh's own ring sees it as the other's turned
+    # ring sees the unturned mesh (the turn is about the vertical through the frame's centre)
+    chair = load_mesh(EXAMPLES / "chair.obj")
+    centre, _ = frame_of(chair.vertices)
+    turn = rotation_y(sign * PipelineConfig().turn_degrees)
+    turned = Mesh((chair.vertices - centre) @ turn.T + centre, chair.faces, "turned")
+    one_ring = Scorer(PipelineConfig().one_ring(), threads=2)
+    assert scorer.score(turned, chair) < 1e-3 * one_ring.score(turned, chair)
+    # what the rings forgive is a turn, not a change: a missing leg still scores
+    missing = EXAMPLES / "chair_no_leg.obj"
+    assert scorer.score(missing, chair) > 0.5 * one_ring.score(missing, chair)

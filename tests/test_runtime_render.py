@@ -22,7 +22,7 @@ from drkfs_onnx.runtime.candidates import (
 from drkfs_onnx.runtime.render import VIEW_FACES_PER_CALL, NumpyRenderer
 from drkfs_onnx.synthetic.shapes import assemble, chair
 
-CONFIG = PipelineConfig(num_views=5, image_size=64)
+CONFIG = PipelineConfig(turn_degrees=0.0, num_views=5, image_size=64)
 
 
 def _chair():

@@ -24,7 +24,9 @@ from drkfs_onnx.synthetic.variants import face_areas, salient_tip
 from drkfs_onnx.training import tolerance
 
 ROOT = Path(__file__).resolve().parents[1]
-CONFIG = PipelineConfig(num_views=2, image_size=64, temperature=0.03, nets="metric")
+CONFIG = PipelineConfig(
+    turn_degrees=0.0, num_views=2, image_size=64, temperature=0.03, nets="metric"
+)
 
 
 @pytest.fixture(scope="module")

@@ -15,7 +15,7 @@ from drkfs_onnx.render import kept_pairs
 from drkfs_onnx.render.compile_policy import CompiledOrEager
 from drkfs_onnx.render.torch_ops import TORCH_OPS
 
-SMALL = PipelineConfig(num_views=2, image_size=64)
+SMALL = PipelineConfig(turn_degrees=0.0, num_views=2, image_size=64)
 
 
 def _sphere(radius: float = 0.5):

@@ -11,7 +11,7 @@ from matplotlib.figure import Figure
 from drkfs_onnx.contract.config import PipelineConfig
 from drkfs_onnx.runtime.render import NumpyRenderer
 
-VIEWS = PipelineConfig(num_views=2, image_size=128)  # a side view and one from above
+VIEWS = PipelineConfig(num_views=2, turn_degrees=0.0, image_size=128)  # a side view, one from above
 CELL_INCHES = 1.3  # per view
 
 

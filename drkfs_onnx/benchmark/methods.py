@@ -49,8 +49,10 @@ class Placed:
         return self._made[key]
 
     def views(self, renderer: NumpyRenderer) -> tuple[np.ndarray, float]:
-        """(K, S, S) images from the renderer's cameras, and the seconds they took to render."""
-        key = ("views", renderer.config.num_views, renderer.config.image_size)
+        """(K * T, S, S) images from the renderer's cameras (T rings of K), and the seconds they
+        took to render."""
+        config = renderer.config
+        key = ("views", config.num_views, config.turn_degrees, config.image_size)
         return self.shared(key, lambda: renderer.render(self.verts, self.faces))
 
 

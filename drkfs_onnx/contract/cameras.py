@@ -68,7 +68,18 @@ def look_at(eyes: np.ndarray, target: np.ndarray | None = None) -> np.ndarray:
     return np.stack([right, down, forward], axis=1)
 
 
+def rotation_y(degrees: float) -> np.ndarray:
+    """(3, 3): a turn of ``degrees`` about the vertical (y) axis."""
+    c, s = math.cos(math.radians(degrees)), math.sin(math.radians(degrees))
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+
 def make_cameras(config: PipelineConfig) -> Cameras:
-    eyes = hemisphere_directions(config.num_views) * config.camera_distance
+    """The config's ``num_views`` hemisphere cameras, then the same turned by each further ring
+    (``config.rings``): K * T cameras, ring after ring."""
+    ring = hemisphere_directions(config.num_views)
+    # cameras turned by -θ see a mesh turned by θ: the light is fixed in the camera frame
+    directions = np.concatenate([ring @ rotation_y(-turn).T for turn in config.rings])
+    eyes = directions * config.camera_distance
     focal = 1.0 / math.tan(math.radians(config.fov_degrees) / 2.0)
     return Cameras(rotations=look_at(eyes), eyes=eyes, focal=focal)

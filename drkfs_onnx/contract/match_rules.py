@@ -1,6 +1,7 @@
 """The match contract, written once for torch and numpy: which patches a query may match
-(``window_table``), which directions are searched (``directions``), and how the best-match
-squared distances become one score (``reduce``).
+(``window_table``), which directions are searched (``directions``), which rings of cameras are
+compared (``ring_pairings``), and how the best-match squared distances become one score
+(``reduce``).
 
 Torch-free: ``reduce`` runs on numpy arrays, or on torch tensors with ``ops=TORCH_OPS``
 (``array_ops``' convention). A row stands for ``weight`` patches: the torch path gives
@@ -52,6 +53,19 @@ def directions(a: T, b: T, config: PipelineConfig) -> list[tuple[T, T]]:
     ``query_sides``: A -> B, B -> A, or the two (their reductions are averaged)."""
     pairs = {"a": (a, b), "b": (b, a)}
     return [pairs[side] for side in query_sides(config)]
+
+
+def ring_pairings(config: PipelineConfig) -> tuple[tuple[int, int], ...]:
+    """(A's ring, B's ring) of each comparison whose least score is the score: own ring against
+    own ring, and with a turned ring each mesh's own ring against the other's turned one (a
+    turn either way). Both turned is a turn of 0 again, and is left out."""
+    return ((0, 0), (0, 1), (1, 0)) if len(config.rings) == 2 else ((0, 0),)
+
+
+def ring_rows(ring: int, config: PipelineConfig) -> slice:
+    """The rows of ``ring``'s patches in a mesh's row-major (K * T * P) patch list."""
+    per_ring = config.num_views * config.patches_per_view
+    return slice(ring * per_ring, (ring + 1) * per_ring)
 
 
 def reduce(distances, weights, config: PipelineConfig, ops: ArrayOps = NUMPY_OPS):

@@ -50,9 +50,10 @@ def shipped_weights() -> list[dict]:
     return json.loads(manifest_file.read_text()).get("weights", [])
 
 
-# Settings that change what the nets are shown but not the nets: a reduced config (fitting, a
-# quick run) or the softer training renderer (``PipelineConfig.training()``) reuses the weights.
-RENDER_FIELDS = ("num_views", "image_size", "sigma", "gamma")
+# Settings that change what the nets are shown but not the nets: other cameras, a reduced config
+# (fitting, a quick run) or the softer training renderer (``PipelineConfig.training()``) reuses
+# the weights.
+RENDER_FIELDS = ("num_views", "turn_degrees", "image_size", "sigma", "gamma")
 
 
 def shipped_entry(config: PipelineConfig, any_rendering: bool = False) -> dict | None:

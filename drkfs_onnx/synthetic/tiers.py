@@ -21,6 +21,7 @@ from __future__ import annotations
 import numpy as np
 import trimesh
 
+from ..contract.cameras import rotation_y
 from .shapes import Part, assemble, subdivide
 from .variants import (
     Variant,
@@ -28,7 +29,6 @@ from .variants import (
     _vertex_normals,
     diagonal,
     make_variants,
-    rotation_y,
     shifted,
     surface_variants,
     thickened,

@@ -12,6 +12,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from ..contract.cameras import rotation_y
 from .shapes import Part, assemble, subdivide
 
 STRUCTURAL = ("part_removed", "part_added")
@@ -53,12 +54,6 @@ def thickened(parts: list[Part], name: str, factor: float) -> list[Part]:
 def diagonal(parts: list[Part]) -> float:
     verts, _ = assemble(parts)
     return float(np.linalg.norm(np.ptp(verts, axis=0)))
-
-
-def rotation_y(degrees: float) -> np.ndarray:
-    """(3, 3): a turn of ``degrees`` about the vertical (y) axis."""
-    c, s = np.cos(np.radians(degrees)), np.sin(np.radians(degrees))
-    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
 
 
 def make_variants(

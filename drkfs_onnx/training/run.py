@@ -94,14 +94,18 @@ QUICK_TRAIN = TrainPlan(
     hardnet_steps=6,
     hardnet_batch=32,
     checkpoint_every=3,
-    config=PipelineConfig(num_views=4, image_size=128, nets="correspondence").to_dict(),
+    config=PipelineConfig(
+        num_views=4, turn_degrees=0.0, image_size=128, nets="correspondence"
+    ).to_dict(),
     metric=MetricPlan(
         shapes_per_family=2,
         objectives=("ranking", "patch contrast"),
         objective_width=0.25,
         steps=2,
         quick_benchmark=True,
-        config=PipelineConfig.structure(nets="metric", num_views=2, image_size=64).to_dict(),
+        config=PipelineConfig.structure(
+            nets="metric", num_views=2, turn_degrees=0.0, image_size=64
+        ).to_dict(),
     ),
 )
 
