@@ -72,6 +72,16 @@ LEVERS = {  # name -> the settings the lever moves (from NETS_TRAINED_AT's confi
         }
         for t in (0.05, 0.04, 0.03)
     },
+    # the ring at other angles than the tiers' own 2-degree turn, which it matches exactly
+    **{
+        f"rings 0 and {a:g}, 5 cameras, 144 px, softmax t = 0.05": {
+            "num_views": 5,
+            "image_size": 144,
+            "temperature": 0.05,
+            "turn_degrees": a,
+        }
+        for a in (1.5, 2.5, 3.0)
+    },
     "5 cameras, 128 px, softmax t = 0.05": {"num_views": 5, "temperature": 0.05},
     "5 cameras, 160 px, softmax t = 0.05": {"num_views": 5, "image_size": 160, "temperature": 0.05},
     "4 cameras, 192 px": {"num_views": 4, "image_size": 192},

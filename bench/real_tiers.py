@@ -120,7 +120,8 @@ def main() -> None:
         print(
             f"{name:24} held-out inv<str {held['invisible_vs_structural']}, sur<str "
             f"{held['surface_vs_structural']}, inv<sur {held['invisible_vs_surface']}; turn "
-            f"{checks['turn_below_every_surface']}, "
+            f"{checks['turn_below_every_surface']}, every turn "
+            f"{checks['every_turn_below_every_surface']}, "
             f"salient {checks['salient_above_every_invisible']}"
         )
 

@@ -225,13 +225,17 @@ def bench(
         cells += [row["retrieval"]["nearest_neighbour_accuracy"]]
         cells += [row["bars"]["deletion_over_max_shift"], row["seconds_per_pair"]]
         typer.echo(f"{name:36}" + "".join(f"{_fmt(c):>10}" for c in cells))
-    typer.echo("real-mesh tiers (held-out side): inv<str, sur<str, inv<sur, turn<surface, salient")
+    typer.echo(
+        "real-mesh tiers (held-out side): inv<str, sur<str, inv<sur, turn<surface, every turn, "
+        "salient"
+    )
     for name, row in results["methods"].items():
         real = row["real_tiers"]
         checks = real["checks"]["held_out"]
         cells = [real["held_out"][key] for key in ("invisible_vs_structural",
                  "surface_vs_structural", "invisible_vs_surface")]  # fmt: skip
         cells += [checks[key]["share"] for key in ("turn_below_every_surface",
+                                                   "every_turn_below_every_surface",
                                                    "salient_above_every_invisible")]  # fmt: skip
         typer.echo(f"{name:36}" + "".join(f"{_fmt(c):>10}" for c in cells))
     seconds = results["seconds_total"]

@@ -99,10 +99,12 @@ def test_a_second_piece_is_removed_only_where_it_is_a_part():
 def test_the_checks_count_meshes_on_each_side():
     bench = sets.BenchSet()
     values, i = {}, 0
-    # cow (training): the turn below both surface variants, the salient part above the turn;
-    # homer (held out): the turn above the noise, the salient part below the subdivision
+    # cow (training): the 2-degree turn below both surface variants, the 3-degree one above the
+    # smoothing, the salient part above the turns; homer (held out): the turn above the noise,
+    # the salient part below the subdivision
     rows = {
         "cow": {("invisible", "turned_2"): 0.1, ("invisible", "subdivided"): 0.05,
+                ("invisible", "turned_3"): 0.25,
                 ("surface", "noise"): 0.3, ("surface", "smoothed"): 0.2,
                 ("structural", "salient_part_removed"): 0.5},
         "homer": {("invisible", "turned_2"): 0.1, ("invisible", "subdivided"): 0.6,
@@ -119,9 +121,10 @@ def test_the_checks_count_meshes_on_each_side():
     checks = real_checks(bench, values)
     assert checks["training"]["turn_below_every_surface"] == {"share": 1.0, "failed": []}
     assert checks["held_out"]["turn_below_every_surface"] == {"share": 0.0, "failed": ["homer"]}
+    assert checks["training"]["every_turn_below_every_surface"] == {"share": 0.0, "failed": ["cow"]}
     assert checks["held_out"]["salient_above_every_invisible"]["failed"] == ["homer"]
     accuracy = tier_accuracy(bench, values, "real")
-    assert accuracy["training"]["invisible_vs_surface"] == 1.0
+    assert accuracy["training"]["invisible_vs_surface"] == 5 / 6  # the 3-degree turn's miss
     assert accuracy["held_out"]["invisible_vs_surface"] == 0.25  # smoothed above the turn only
 
 
