@@ -1,11 +1,14 @@
 """Levers for a viewer's tolerance and attention, measured without retraining: a config's nets
-(the default's unless ``--nets``) under other matches, reductions, camera counts and view sizes,
-on the benchmark's synthetic tiers and on both sides of its real-mesh tiers (a lever is chosen
-on the training side and judged on the held-out one), with the bench's targets a default must
-keep (the bars test, retrieval, the slide check; people's judgments with --human). Each lever
+(the default's unless ``--nets``) under other matches, reductions, camera counts, view sizes,
+turned rings of cameras and searches over turns of the meshes, on the benchmark's synthetic
+tiers and on both sides of its real-mesh tiers (a lever is chosen on the training side and
+judged on the held-out one), with the bench's targets a default must keep (the bars test,
+retrieval, the slide check; people's judgments with --human). Each lever
 moves the config the nets were trained at (``NETS_TRAINED_AT``: 6 views of 128 px, t = 0.1,
-the default's until the lever "5 cameras, 144 px, softmax t = 0.05" became the default), named
-"default" in the results.
+one ring, the default's until the lever "5 cameras, 144 px, softmax t = 0.05" became the
+default, and then "rings 0 and 2.5, ..."), named "default" in the results. The turn searches
+(``TURN_SEARCHES``, not run unless named) wrap a lever's scorer; their slide check is the
+lever's own, as the torch path has no search.
 
     python bench/real_levers.py --out bench/results/real_levers_tolerant.json
     python bench/real_levers.py --nets metric --out bench/results/real_levers.json
@@ -89,7 +92,7 @@ LEVERS = {  # name -> the settings the lever moves (from NETS_TRAINED_AT's confi
     "3 cameras, 256 px, softmax t = 0.05": {"num_views": 3, "image_size": 256, "temperature": 0.05},
     "4 cameras, 256 px, softmax t = 0.05": {"num_views": 4, "image_size": 256, "temperature": 0.05},
 }
-DEFAULT_LEVER = "5 cameras, 144 px, softmax t = 0.05"  # PipelineConfig()'s cameras and softmax
+DEFAULT_LEVER = "5 cameras, 144 px, softmax t = 0.05"  # the default before its turned ring
 # name -> (a lever above, pairings): A and B each described turned about the vertical by the
 # angles (degrees) of the pairings (A's, B's) it takes part in, the score the least over the
 # pairings; a viewer does not see a slight turn. Per mesh, one render of the views per angle.

@@ -51,15 +51,27 @@ class MeshFeatures:
         return self.config.views_per_mesh * self.config.patches_per_view
 
     def ring(self, ring: int) -> MeshFeatures:
-        """The features of one ring of cameras (``config.rings``), as a one-ring config's."""
-        rows = match_rules.ring_rows(ring, self.config)
-        chosen = (self.patch_index >= rows.start) & (self.patch_index < rows.stop)
-        return replace(
-            self,
-            descriptors=self.descriptors[chosen],
-            patch_index=self.patch_index[chosen] - rows.start,
-            config=self.config.one_ring(),
-        )
+        """The features of one ring of cameras (``config.rings``), as a one-ring config's; made
+        once per mesh, so their match forms are too."""
+        return self._rings[ring]
+
+    @cached_property
+    def _rings(self) -> tuple[MeshFeatures, ...]:
+        if len(self.config.rings) == 1:
+            return (self,)
+        found = []
+        for ring in range(len(self.config.rings)):
+            rows = match_rules.ring_rows(ring, self.config)
+            chosen = (self.patch_index >= rows.start) & (self.patch_index < rows.stop)
+            found.append(
+                replace(
+                    self,
+                    descriptors=self.descriptors[chosen],
+                    patch_index=self.patch_index[chosen] - rows.start,
+                    config=self.config.one_ring(),
+                )
+            )
+        return tuple(found)
 
     @property
     def empty(self) -> int:
