@@ -64,26 +64,18 @@ LEVERS = {  # name -> the settings the lever moves (from NETS_TRAINED_AT's confi
     "5 cameras, 144 px, softmax t = 0.07": {"num_views": 5, "image_size": 144, "temperature": 0.07},
     "5 cameras, 144 px, softmax t = 0.04": {"num_views": 5, "image_size": 144, "temperature": 0.04},
     "5 cameras, 144 px, softmax t = 0.03": {"num_views": 5, "image_size": 144, "temperature": 0.03},
-    # the cameras and a second ring turned by 2 degrees (PipelineConfig.turn_degrees): the least
-    # of own ring against own ring and each one's own against the other's turned ring
+    # the cameras and a second ring turned by an angle (PipelineConfig.turn_degrees): the least
+    # of own ring against own ring and each one's own against the other's turned ring; at 2
+    # degrees with sharper softmaxes, and at other angles than the tiers' own 2-degree turn,
+    # which a ring at 2 matches exactly
     **{
-        f"rings 0 and 2, 5 cameras, 144 px, softmax t = {t:g}": {
+        f"rings 0 and {a:g}, 5 cameras, 144 px, softmax t = {t:g}": {
             "num_views": 5,
             "image_size": 144,
             "temperature": t,
-            "turn_degrees": 2.0,
-        }
-        for t in (0.05, 0.04, 0.03)
-    },
-    # the ring at other angles than the tiers' own 2-degree turn, which it matches exactly
-    **{
-        f"rings 0 and {a:g}, 5 cameras, 144 px, softmax t = 0.05": {
-            "num_views": 5,
-            "image_size": 144,
-            "temperature": 0.05,
             "turn_degrees": a,
         }
-        for a in (1.5, 2.5, 3.0)
+        for a, t in ((2.0, 0.05), (2.0, 0.04), (2.0, 0.03), (1.5, 0.05), (2.5, 0.05), (3.0, 0.05))
     },
     "5 cameras, 128 px, softmax t = 0.05": {"num_views": 5, "temperature": 0.05},
     "5 cameras, 160 px, softmax t = 0.05": {"num_views": 5, "image_size": 160, "temperature": 0.05},
@@ -119,8 +111,10 @@ def _turned(placed: Placed, angle: float) -> Placed:
     angles share renders."""
     if angle == 0.0:
         return placed
-    turn = Placed(f"{placed.key}@{angle:g}", placed.verts @ rotation_y(angle).T, placed.faces)
-    return placed.shared(("turned", angle), lambda: turn)[0]
+    return placed.shared(
+        ("turned", angle),
+        lambda: Placed(f"{placed.key}@{angle:g}", placed.verts @ rotation_y(angle).T, placed.faces),
+    )[0]
 
 
 class TurnSearch(Method):

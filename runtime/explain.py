@@ -71,11 +71,12 @@ def explain(scorer: Scorer, mesh_a: Mesh | str | Path, mesh_b: Mesh | str | Path
         "b": reference,
     }
     config, one = scorer.config, scorer.config.one_ring()
-    # the rings of cameras whose comparison counts: the least score (one ring: (0, 0))
-    rings = min(
-        match_rules.ring_pairings(config),
-        key=lambda pair: match(features["a"].ring(pair[0]), features["b"].ring(pair[1]), one),
-    )
+    # each pairing of rings' score; the least is the score, and its rings are explained
+    scores = {
+        (i, j): match(features["a"].ring(i), features["b"].ring(j), one)
+        for i, j in match_rules.ring_pairings(config)
+    }
+    rings = min(scores, key=scores.get)
     ring = {side: features[side].ring(r) for side, r in zip(SIDES, rings, strict=True)}
     grid = (config.num_views, config.patches_per_side, config.patches_per_side)
     found = {}  # side -> its patches' distances, their shares of its direction, its score
@@ -92,7 +93,7 @@ def explain(scorer: Scorer, mesh_a: Mesh | str | Path, mesh_b: Mesh | str | Path
     }
     total = sum(score for _, _, score in found.values())  # each direction's part of the mean
     return Explanation(
-        score=match(features["a"], features["b"], config),
+        score=scores[rings],
         config=config,
         names={"a": a.source, "b": b.source},
         views=views,

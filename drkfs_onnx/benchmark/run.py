@@ -206,10 +206,10 @@ def tier_accuracy(
 
 def real_checks(bench: sets.BenchSet, values: dict[int, float | None]) -> dict:
     """Per side of the real tiers, the share of meshes where the 2-degree turn scores below
-    every surface variant, where every turn (1, 2 and 3 degrees: a turned ring of cameras at
-    2 degrees matches the 2-degree turn exactly) does, and where the removed salient part scores
-    above every invisible one (of the meshes where the method scores them); with the meshes
-    each fails on."""
+    every surface variant, where every turn (1, 2 and 3 degrees: a ring of cameras turned by
+    exactly 2 degrees would match the 2-degree turn alone) does, and where the removed salient
+    part scores above every invisible one (of the meshes where the method scores them); with
+    the meshes each fails on."""
     groups = _tier_values(bench, values, "real")
     result = {}
     for half, bases in _halves("real", list(groups)).items():
