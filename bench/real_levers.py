@@ -77,6 +77,41 @@ LEVERS = {  # name -> the settings the lever moves (from NETS_TRAINED_AT's confi
         }
         for a, t in ((2.0, 0.05), (2.0, 0.04), (2.0, 0.03), (1.5, 0.05), (2.5, 0.05), (3.0, 0.05))
     },
+    # a solid change of the views added to the score (``contract.solid_change``): weight, reach
+    # of the shift it forgives (pixels) and block (a square of pixels that changes as a whole)
+    **{
+        f"solid change x{w:g} shift {shift} block {block}"
+        + (f" floor {floor:g}" if floor else "")
+        + ", rings 0 and 2.5, 5 cameras, 144 px, softmax t = 0.05": {
+            "num_views": 5,
+            "image_size": 144,
+            "temperature": 0.05,
+            "turn_degrees": 2.5,
+            "solid_weight": w,
+            "solid_shift": shift,
+            "solid_block": block,
+            "solid_floor": floor,
+        }
+        for w, shift, block, floor in (
+            (0.3, 1, 3, 0.0),
+            (0.5, 1, 3, 0.0),
+            (1.0, 1, 3, 0.0),
+            (0.3, 2, 3, 0.0),
+            (0.5, 2, 3, 0.0),
+            (0.7, 2, 3, 0.0),
+            (1.0, 2, 3, 0.0),
+            (0.5, 3, 3, 0.0),
+            (1.0, 3, 3, 0.0),
+            (0.5, 1, 5, 0.0),
+            (1.0, 1, 5, 0.0),
+            (1.0, 2, 5, 0.0),
+            (0.5, 2, 3, 0.1),
+            (1.0, 2, 3, 0.1),
+            (1.0, 1, 3, 0.1),
+            (1.0, 1, 3, 0.2),
+            (2.0, 2, 3, 0.2),
+        )
+    },  # fmt: skip
     "5 cameras, 128 px, softmax t = 0.05": {"num_views": 5, "temperature": 0.05},
     "5 cameras, 160 px, softmax t = 0.05": {"num_views": 5, "image_size": 160, "temperature": 0.05},
     "4 cameras, 192 px": {"num_views": 4, "image_size": 192},

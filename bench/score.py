@@ -142,9 +142,12 @@ def run_case(path: Path, preset: str, repeats: int) -> dict:
     faces = torch.tensor(mesh.faces)
     with torch.no_grad():
         torch_new_s, target = _best(lambda: metric.target(verts, faces), repeats)
-        torch_pred = metric.features(verts_other, faces)
+        torch_pred, pred_views = metric.described(verts_other, faces)
         torch_match_s, torch_score = _best(
-            lambda: match_score(torch_pred, target.features, config), 5 * repeats
+            lambda: match_score(
+                torch_pred, target.features, config, None, None, pred_views, target.views
+            ),
+            5 * repeats,
         )
 
     def training_step():

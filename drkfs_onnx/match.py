@@ -6,6 +6,7 @@ import torch
 
 from .contract import match_rules
 from .contract.config import PipelineConfig
+from .contract.solid_change import solid_change
 from .render.torch_ops import TORCH_OPS
 
 CHUNK_ROWS = 2048
@@ -99,23 +100,66 @@ def match_score(
     config: PipelineConfig,
     temperature: float | None = None,
     table: torch.Tensor | None = None,
+    views_a: torch.Tensor | None = None,
+    views_b: torch.Tensor | None = None,
 ) -> torch.Tensor:
     """DR-KFS score from the (K * P, D) descriptor sets of A and B -> (), or of a batch's
     (B, K * P, D) (either side may be one set shared by the batch) -> (B,): the reduced
     best-match distances of each direction the config searches, averaged (``match_rules``);
     with a ``temperature``, soft best matches (``soft_match_distances``) in place of the hard
-    ones. With a turned ring of cameras (``config.rings``), (K * T * P, D) sets and the least
-    score over ``match_rules.ring_pairings``."""
+    ones. A config with a solid change (``solid_weight`` > 0) adds that of the (K, S, S) or
+    (B, K, S, S) views of A and B (``contract.solid_change``), which it then needs. With a
+    turned ring of cameras (``config.rings``), (K * T * P, D) sets and (K * T, S, S) views, and
+    the least score over ``match_rules.ring_pairings``."""
     if len(config.rings) > 1:
         one, rows = config.one_ring(), match_rules.ring_rows
         scores = [
             match_score(
                 desc_a[..., rows(i, config), :], desc_b[..., rows(j, config), :], one,
-                temperature, table,
+                temperature, table, ring_views(views_a, i, config),
+                ring_views(views_b, j, config),
             )
             for i, j in match_rules.ring_pairings(config)
         ]  # fmt: skip
         return torch.stack(scores).amin(0)
+    score = _descriptor_score(desc_a, desc_b, config, temperature, table)
+    if not config.solid_weight:
+        return score
+    if views_a is None or views_b is None:
+        raise ValueError(
+            f"a config with a solid change (solid_weight {config.solid_weight:g}) compares the "
+            "two meshes' views: pass views_a and views_b"
+        )
+    return score + config.solid_weight * solid_change(views_a, views_b, config, TORCH_OPS)
+
+
+def descriptor_score(
+    desc_a: torch.Tensor,
+    desc_b: torch.Tensor,
+    config: PipelineConfig,
+    temperature: float | None = None,
+    table: torch.Tensor | None = None,
+) -> torch.Tensor:
+    """``match_score`` of the descriptors alone, without the views' solid change: what the nets
+    are trained to order (the solid change has no weights to train)."""
+    return match_score(desc_a, desc_b, config.replace(solid_weight=0.0), temperature, table)
+
+
+def ring_views(views: torch.Tensor | None, ring: int, config: PipelineConfig):
+    """The (..., K, S, S) views of one ring of cameras of (..., K * T, S, S), or None."""
+    per_ring = config.num_views
+    return None if views is None else views[..., ring * per_ring : (ring + 1) * per_ring, :, :]
+
+
+def _descriptor_score(
+    desc_a: torch.Tensor,
+    desc_b: torch.Tensor,
+    config: PipelineConfig,
+    temperature: float | None,
+    table: torch.Tensor | None,
+) -> torch.Tensor:
+    """One ring's score from the descriptors alone: each direction's reduced best-match
+    distances, averaged."""
     scores = []
     for queries, targets in match_rules.directions(desc_a, desc_b, config):
         if temperature is None:

@@ -13,7 +13,7 @@ from torch import nn
 from .contract import match_rules
 from .contract.config import PipelineConfig
 from .contract.mesh import Mesh, check_normalization, normalize_pair, place_by, reference_frame
-from .match import best_match_distances, match_score, window_index
+from .match import best_match_distances, match_score, ring_views, window_index
 from .nets.detector import PoIDetector
 from .nets.hardnet import HardNet
 from .nets.patches import nonempty_patches_on_device, select_patches
@@ -46,17 +46,24 @@ def _without_autocast(method: Callable) -> Callable:
     return run
 
 
+def _unbatched(meshes: MeshBatch, views: torch.Tensor | None) -> torch.Tensor | None:
+    """A batch's (B, ...) views as ``meshes.unbatch`` gives its descriptors, or None."""
+    return None if views is None else meshes.unbatch(views)
+
+
 class MissingWeights(ValueError):
     """No shipped weights serve the asked config."""
 
 
 class Target(NamedTuple):
     """A reference mesh prepared once: the frame predictions are placed in ((3,) centre, ()
-    scale) and its (N, D) descriptors; or a batch of B references, one per prediction: (B, 3)
-    and (B,) frames, (B, N, D) descriptors."""
+    scale), its (N, D) descriptors and, for a config with a solid change, its (K * T, S, S)
+    views (else None); or a batch of B references, one per prediction: (B, 3) and (B,) frames,
+    (B, N, D) descriptors, (B, K * T, S, S) views."""
 
     frame: tuple[torch.Tensor, torch.Tensor] | None
     features: torch.Tensor
+    views: torch.Tensor | None = None
 
     @property
     def batch(self) -> int | None:
@@ -65,14 +72,16 @@ class Target(NamedTuple):
 
     def to(self, device: torch.device | str) -> Target:
         frame = None if self.frame is None else tuple(t.to(device) for t in self.frame)
-        return Target(frame, self.features.to(device))
+        views = None if self.views is None else self.views.to(device)
+        return Target(frame, self.features.to(device), views)
 
     @staticmethod
     def stack(targets: list[Target]) -> Target:
         """One reference each -> a batch of them, in order."""
         frames = [t.frame for t in targets]
         frame = None if frames[0] is None else tuple(map(torch.stack, zip(*frames, strict=True)))
-        return Target(frame, torch.stack([t.features for t in targets]))
+        views = None if targets[0].views is None else torch.stack([t.views for t in targets])
+        return Target(frame, torch.stack([t.features for t in targets]), views)
 
 
 class DRKFS(nn.Module):
@@ -211,13 +220,26 @@ class DRKFS(nn.Module):
     def features(self, verts, faces=None) -> torch.Tensor:
         """Descriptors of a mesh already in the metric's frame: (V, 3), (F, 3) -> (K * T * P, D)
         (T rings of K views); a batch -> (B, K * T * P, D)."""
-        meshes = self._meshes(verts, faces)
-        return meshes.unbatch(self._features(meshes))
+        return self.described(verts, faces)[0]
 
-    def _features(self, meshes: MeshBatch) -> torch.Tensor:
+    @_without_autocast
+    def described(self, verts, faces=None) -> tuple[torch.Tensor, torch.Tensor | None]:
+        """``features`` and, for a config with a solid change, the (K * T, S, S) views they
+        describe, (B, K * T, S, S) for a batch (else None): both sides of ``match_score``."""
+        meshes = self._meshes(verts, faces)
+        descriptors, views = self._described(meshes)
+        return meshes.unbatch(descriptors), _unbatched(meshes, views)
+
+    def _described(self, meshes: MeshBatch) -> tuple[torch.Tensor, torch.Tensor | None]:
+        """(B, K * T * P, D) descriptors and, for a config with a solid change, the
+        (B, K * T, S, S) views they describe (else None)."""
         images = self.renderer.render(meshes, mode=self.render_mode).unsqueeze(1)
         descriptors = self.describe(images)
-        return descriptors.reshape(len(meshes), -1, descriptors.shape[-1])
+        views = images.reshape(len(meshes), -1, *images.shape[-2:])
+        return (
+            descriptors.reshape(len(meshes), -1, descriptors.shape[-1]),
+            views if self.config.solid_weight else None,
+        )
 
     def _meshes(self, verts, faces) -> MeshBatch:
         """Any form ``MeshBatch.of`` takes, checked, on the metric's device."""
@@ -245,10 +267,12 @@ class DRKFS(nn.Module):
         meshes = self._meshes(verts, faces)
         mode = self.normalization
         frame = reference_frame(meshes.verts, mode, TORCH_OPS)
-        features = self._features(meshes.moved(place_by(meshes.verts, mode, frame, TORCH_OPS)))
+        features, views = self._described(
+            meshes.moved(place_by(meshes.verts, mode, frame, TORCH_OPS))
+        )
         if frame is not None:
             frame = tuple(meshes.unbatch(t) for t in frame)
-        return Target(frame, meshes.unbatch(features))
+        return Target(frame, meshes.unbatch(features), _unbatched(meshes, views))
 
     @_without_autocast
     def score_to(
@@ -273,8 +297,10 @@ class DRKFS(nn.Module):
             () for one mesh; a batch's () mean or sum, or its (B,) scores.
         """
         meshes = self._meshes(verts, faces)
-        features = self._features_to(meshes, target)
-        scores = match_score(features, target.features, self.config, temperature, self._table)
+        features, views = self._described_to(meshes, target)
+        scores = match_score(
+            features, target.features, self.config, temperature, self._table, views, target.views
+        )
         return over_batch(scores, meshes.single, batch_reduction)
 
     @property
@@ -293,14 +319,21 @@ class DRKFS(nn.Module):
         config, one, rows = self.config, self.config.one_ring(), match_rules.ring_rows
         grid = (config.num_views, config.patches_per_side, config.patches_per_side)
         meshes = self._meshes(verts, faces)
-        features = meshes.unbatch(self._features_to(meshes, target))
+        features, views = self._described_to(meshes, target)
+        features, views = meshes.unbatch(features), _unbatched(meshes, views)
         pairs = [
             (features[..., rows(i, config), :], target.features[..., rows(j, config), :])
             for i, j in match_rules.ring_pairings(config)
         ]
+        seen_views = [
+            (ring_views(views, i, config), ring_views(target.views, j, config))
+            for i, j in match_rules.ring_pairings(config)
+        ]
         with torch.no_grad():  # (*lead,) the pairing whose score counts
-            least = torch.stack([match_score(a, b, one, table=self._table) for a, b in pairs])
-            least = least.argmin(0)
+            least = torch.stack(
+                [match_score(a, b, one, None, self._table, *seen)
+                 for (a, b), seen in zip(pairs, seen_views, strict=True)]
+            ).argmin(0)  # fmt: skip
         found = {}
         for k, side in enumerate(match_rules.query_sides(one)):
             per_pairing = torch.stack(
@@ -316,16 +349,18 @@ class DRKFS(nn.Module):
         """(K * T * P, D) descriptors of mesh A, (V, 3), (F, 3), placed as the reference
         ``target`` asks (its frame under 'joint'); a batch -> (B, K * T * P, D)."""
         meshes = self._meshes(verts, faces)
-        return meshes.unbatch(self._features_to(meshes, target))
+        return meshes.unbatch(self._described_to(meshes, target)[0])
 
-    def _features_to(self, meshes: MeshBatch, target: Target) -> torch.Tensor:
+    def _described_to(
+        self, meshes: MeshBatch, target: Target
+    ) -> tuple[torch.Tensor, torch.Tensor | None]:
         self._check_target(target)
         if target.batch is not None and target.batch != len(meshes):
             raise ValueError(
                 f"target: a batch of {target.batch} references needs as many predictions; got "
                 f"{len(meshes)} (prepare one reference to share it with a whole batch)"
             )
-        return self._features(
+        return self._described(
             meshes.moved(place_by(meshes.verts, self.normalization, target.frame, TORCH_OPS))
         )
 
@@ -337,6 +372,11 @@ class DRKFS(nn.Module):
             raise ValueError(
                 f"target: {tuple(features.shape[-2:])} descriptors, where this metric's config "
                 f"makes {shape}: prepare it with this metric's target()"
+            )
+        if config.solid_weight and target.views is None:
+            raise ValueError(
+                f"target: no views, which this metric's solid change (solid_weight "
+                f"{config.solid_weight:g}) compares: prepare it with this metric's target()"
             )
         if features.device != self.window_table.device:
             raise ValueError(

@@ -189,6 +189,7 @@ def explain(
         write_explanation(out, explanation, top)
     if as_json:
         report = {"score": explanation.score, "mesh_a": str(mesh_a), "mesh_b": str(mesh_b)}
+        report["solid_change"] = explanation.solid_change
         report.update(picture=str(out), top_patches=explanation.top_patches(top))
         report.update(normalize=normalize, config=scorer.config.to_dict())
         typer.echo(json.dumps(report))

@@ -24,10 +24,11 @@ SIDES = ("a", "b")
 class Explanation:
     """A scored pair, patch by patch. views: side -> (K, S, S) the views it was described from;
     distances, shares: side -> (K, n, n) best-match squared distance of each of that mesh's
-    patches and its share of the whole score (sums to 1 over both sides), for the sides whose
-    patches search the other mesh (``match_rules.query_sides``); rings: side -> the ring of
-    cameras (``config.rings``) these views and patches come from, those of the comparison
-    whose score counts."""
+    patches and its share of the whole score, for the sides whose patches search the other mesh
+    (``match_rules.query_sides``); solid_change: the part of the score the views' solid change
+    adds (``contract.solid_change``; 0 without one), so the patches' shares sum to 1 less its
+    share; rings: side -> the ring of cameras (``config.rings``) these views and patches come
+    from, those of the comparison whose score counts."""
 
     score: float
     config: PipelineConfig
@@ -35,6 +36,7 @@ class Explanation:
     views: dict[str, np.ndarray]
     distances: dict[str, np.ndarray]
     shares: dict[str, np.ndarray]
+    solid_change: float
     rings: dict[str, int]
 
     def top_patches(self, count: int = 5) -> list[dict]:
@@ -92,6 +94,8 @@ def explain(scorer: Scorer, mesh_a: Mesh | str | Path, mesh_b: Mesh | str | Path
         for side, ring_index in zip(SIDES, rings, strict=True)
     }
     total = sum(score for _, _, score in found.values())  # each direction's part of the mean
+    solid = scores[rings] - total / len(found)  # what the match adds to the directions' mean
+    patches_part = 1.0 - solid / scores[rings] if scores[rings] else 1.0
     return Explanation(
         score=scores[rings],
         config=config,
@@ -99,5 +103,9 @@ def explain(scorer: Scorer, mesh_a: Mesh | str | Path, mesh_b: Mesh | str | Path
         views=views,
         rings=dict(zip(SIDES, rings, strict=True)),
         distances={side: d for side, (d, _, _) in found.items()},
-        shares={side: s * score / total if total else s for side, (_, s, score) in found.items()},
+        shares={
+            side: s * patches_part * score / total if total else s
+            for side, (_, s, score) in found.items()
+        },
+        solid_change=solid,
     )

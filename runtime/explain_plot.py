@@ -67,7 +67,13 @@ def write_explanation(path: Path, explanation: Explanation, top: int = 5) -> Non
         )
     figure.suptitle(
         f"DR-KFS {explanation.score:.4g}; top {len(outlined)} patches outlined "
-        f"({sum(p['share'] for p in outlined):.0%} of the score)",
+        f"({sum(p['share'] for p in outlined):.0%} of the score"
+        + (
+            f"; the views' solid change {explanation.solid_change:.3g}"
+            if explanation.solid_change
+            else ""
+        )
+        + ")",
         fontsize=9,
     )
     if heat is not None:

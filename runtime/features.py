@@ -10,7 +10,9 @@ from pathlib import Path
 import numpy as np
 
 from drkfs_onnx.contract import match_rules
+from drkfs_onnx.contract.array_ops import NUMPY_OPS
 from drkfs_onnx.contract.config import PipelineConfig
+from drkfs_onnx.contract.solid_change import view_range
 
 from .nearest import lift, row_hashes
 
@@ -27,8 +29,11 @@ class MeshFeatures:
     normalization: the scorer's normalisation when they were made (it decides the frame, and a
     scorer with another one would place the meshes scored against them differently); model:
     sha256 of the feature graph that computed them; config: the pipeline config they were
-    computed for (its match settings do not matter); source: where they were read from, for
-    error messages (not saved). The match's forms of the rows are computed once per mesh."""
+    computed for (its match settings do not matter); views: (K * T, S, S) float32 grey views
+    they were made from, which a solid change of the views compares (``contract.solid_change``;
+    None in a file written before they were kept); source: where they were read from, for
+    error messages (not saved). The match's forms of the rows, and of the views, are computed once
+    per mesh."""
 
     descriptors: np.ndarray
     patch_index: np.ndarray
@@ -38,6 +43,7 @@ class MeshFeatures:
     normalization: str
     model: str
     config: PipelineConfig
+    views: np.ndarray | None = None
     source: str = "<features>"
 
     @property
@@ -69,9 +75,26 @@ class MeshFeatures:
                     descriptors=self.descriptors[chosen],
                     patch_index=self.patch_index[chosen] - rows.start,
                     config=self.config.one_ring(),
+                    views=None if self.views is None else self.views[self._ring_views(ring)],
                 )
             )
         return tuple(found)
+
+    def _ring_views(self, ring: int) -> slice:
+        per_ring = self.config.num_views
+        return slice(ring * per_ring, (ring + 1) * per_ring)
+
+    def view_range(self, config: PipelineConfig) -> tuple[np.ndarray, np.ndarray]:
+        """The views' lowest and highest greys within ``config.solid_shift`` pixels
+        (``solid_change.view_range``), for a one-ring mesh's solid change; made once per mesh
+        and reach."""
+        if config.solid_shift not in self._view_ranges:
+            self._view_ranges[config.solid_shift] = view_range(self.views, config, NUMPY_OPS)
+        return self._view_ranges[config.solid_shift]
+
+    @cached_property
+    def _view_ranges(self) -> dict[int, tuple[np.ndarray, np.ndarray]]:
+        return {}
 
     @property
     def empty(self) -> int:
@@ -128,6 +151,7 @@ class MeshFeatures:
             normalization=self.normalization,
             model=self.model,
             config=self.config.features_part().to_json(),
+            **({} if self.views is None else {"views": self.views}),
         )
 
     @classmethod
@@ -159,6 +183,7 @@ class MeshFeatures:
                 normalization=str(arrays["normalization"]),
                 model=str(arrays["model"]),
                 config=PipelineConfig.from_json(str(arrays["config"])),
+                views=arrays.get("views"),
                 source=str(path),
             )
         except (KeyError, ValueError) as exc:

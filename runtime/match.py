@@ -6,7 +6,9 @@ from __future__ import annotations
 import numpy as np
 
 from drkfs_onnx.contract import match_rules
+from drkfs_onnx.contract.array_ops import NUMPY_OPS
 from drkfs_onnx.contract.config import PipelineConfig
+from drkfs_onnx.contract.solid_change import solid_change
 
 from .features import MeshFeatures
 from .nearest import exact_copies, nearest_lifted
@@ -94,12 +96,19 @@ def check_features(
             f"{features.normalization!r}, scoring asked {normalization!r}; describe "
             f"the reference again with --normalize {normalization}"
         )
+    if config.solid_weight and features.views is None:
+        raise ValueError(
+            f"{features.source}: features without their views, which the config's solid change "
+            f"(solid_weight {config.solid_weight:g}) compares; describe the mesh again with this "
+            "version's drkfs-score features"
+        )
 
 
 def match(a: MeshFeatures, b: MeshFeatures, config: PipelineConfig) -> float:
     """DR-KFS of A against B from their features: each direction the config searches, its
-    best-match distances reduced (``match_rules.reduce``), averaged over the directions; with a
-    turned ring of cameras, the least such score over ``match_rules.ring_pairings``."""
+    best-match distances reduced (``match_rules.reduce``), averaged over the directions, plus
+    the views' solid change times ``solid_weight`` (``contract.solid_change``); with a turned
+    ring of cameras, the least such score over ``match_rules.ring_pairings``."""
     for features in (a, b):
         check_features(features, config, a.model, a.normalization)
     if len(config.rings) > 1:  # the least score over the rings compared (match_rules)
@@ -109,4 +118,9 @@ def match(a: MeshFeatures, b: MeshFeatures, config: PipelineConfig) -> float:
         float(match_rules.reduce(*best_matches(queries, targets, config), config))
         for queries, targets in match_rules.directions(a, b, config)
     ]
-    return float(np.mean(scores))
+    score = float(np.mean(scores))
+    if config.solid_weight:
+        ranges = a.view_range(config), b.view_range(config)
+        change = solid_change(a.views, b.views, config, NUMPY_OPS, *ranges)
+        score += config.solid_weight * float(change)
+    return score

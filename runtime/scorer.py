@@ -189,6 +189,7 @@ class Scorer:
             normalization=self.normalization,
             model=self.features_graph.sha256,
             config=self.config.features_part(),
+            views=images.astype(np.float32),
         )
 
     def score(self, a: MeshLike, b: MeshLike | MeshFeatures) -> float:

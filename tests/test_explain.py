@@ -64,9 +64,15 @@ def test_the_explained_rings_are_the_comparison_whose_score_counts(no_leg):
     assert scores[no_leg.rings["a"], no_leg.rings["b"]] == no_leg.score
 
 
-def test_shares_sum_to_one_over_both_meshes_and_zero_is_clear(no_leg):
+def test_shares_and_the_solid_change_sum_to_the_score_and_zero_is_clear(no_leg):
     total = sum(float(s.sum()) for s in no_leg.shares.values())
-    assert total == pytest.approx(1.0)
+    assert 0.0 < no_leg.solid_change < no_leg.score  # the missing leg changes a solid region
+    assert total == pytest.approx(1.0 - no_leg.solid_change / no_leg.score)
+    config = Scorer(threads=2).config
+    descriptors_alone = Scorer(config.replace(solid_weight=0.0), threads=2)
+    alone = explain(descriptors_alone, EXAMPLES / "chair_no_leg.obj", EXAMPLES / "chair.obj")
+    assert alone.solid_change == 0.0
+    assert sum(float(s.sum()) for s in alone.shares.values()) == pytest.approx(1.0)
     same = explain(Scorer(threads=2), EXAMPLES / "chair.obj", EXAMPLES / "chair.obj")
     assert same.score == 0.0 and all(not s.any() for s in same.shares.values())
 

@@ -12,7 +12,8 @@ from drkfs_onnx.render.torch_ops import TORCH_OPS
 from drkfs_onnx.runtime.features import MeshFeatures
 from drkfs_onnx.runtime.match import match
 
-GRID = PipelineConfig(num_views=3, turn_degrees=0.0, image_size=96)  # one ring, 5 x 5 a view
+# one ring, 5 x 5 patches a view, the descriptors' match alone (test_solid_change: the views')
+GRID = PipelineConfig(num_views=3, turn_degrees=0.0, image_size=96, solid_weight=0.0)
 REDUCTIONS = [
     {"reduction": "sum"},
     {"reduction": "mean"},
@@ -83,7 +84,9 @@ def test_every_reduction_is_exactly_zero_on_zero_distances_with_finite_gradients
     assert torch.isfinite(zeros.grad).all()
 
 
-def _features(dense: np.ndarray, empty: np.ndarray, config: PipelineConfig) -> MeshFeatures:
+def _features(
+    dense: np.ndarray, empty: np.ndarray, config: PipelineConfig, views: np.ndarray | None = None
+) -> MeshFeatures:
     seen = np.flatnonzero((dense != empty).any(1))
     return MeshFeatures(
         descriptors=dense[seen],
@@ -94,6 +97,7 @@ def _features(dense: np.ndarray, empty: np.ndarray, config: PipelineConfig) -> M
         normalization="joint",
         model="test",
         config=config,
+        views=views,
     )
 
 
@@ -124,6 +128,48 @@ def test_torch_and_runtime_compute_the_same_score(options, matching, direction):
     expected = float(match_score(torch.from_numpy(a), torch.from_numpy(b), config))
     got = match(_features(a, empty, config), _features(b, empty, config), config)
     assert got == pytest.approx(expected, rel=1e-5)
+
+
+@pytest.mark.parametrize("turn", [0.0, 2.5])
+def test_a_solid_change_adds_the_same_term_to_torch_and_runtime_scores(turn):
+    config = GRID.replace(turn_degrees=turn, solid_weight=0.5)
+    rings = len(config.rings)
+    a, b, empty = _near_tie_sets()
+    a, b = np.concatenate([a] * rings), np.concatenate([b] * rings)
+    rng = np.random.default_rng(3)
+    views_a = rng.random((config.views_per_mesh, 96, 96)).astype(np.float32)
+    views_b = views_a.copy()
+    views_b[-1, 40:50, 40:50] += 0.5  # a solid change in the last view of the last ring
+    torch_score = match_score(
+        torch.from_numpy(a), torch.from_numpy(b), config, None, None,
+        torch.from_numpy(views_a), torch.from_numpy(views_b),
+    )  # fmt: skip
+    runtime = match(
+        _features(a, empty, config, views_a), _features(b, empty, config, views_b), config
+    )
+    assert runtime == pytest.approx(float(torch_score), rel=1e-5)
+    without = match(_features(a, empty, config), _features(b, empty, config), GRID.replace(
+        turn_degrees=turn))  # fmt: skip
+    assert runtime >= without  # the term only adds
+    with pytest.raises(ValueError, match="features without their views"):
+        match(_features(a, empty, config), _features(b, empty, config), config)
+
+
+def test_one_described_mesh_serves_every_solid_change_setting():
+    """A mesh's features serve every match setting (MATCH_FIELDS), the solid change's reach
+    included: each reach's view ranges are its own, not those of the first reach asked."""
+    config = GRID.replace(solid_weight=1.0)
+    a, b, empty = _near_tie_sets()
+    ramp = np.linspace(0.0, 1.0, 96, dtype=np.float32)  # a grey ramp along x, in every view
+    views_a = np.broadcast_to(ramp, (config.views_per_mesh, 96, 96)).copy()
+    views_b = np.roll(views_a, 2, axis=-1)  # a shift of 2 pixels: seen at reach 1, not at 2
+    shared = _features(a, empty, config, views_a), _features(b, empty, config, views_b)
+    for shift in (1, 2, 1):
+        asked = config.replace(solid_shift=shift)
+        fresh = _features(a, empty, config, views_a), _features(b, empty, config, views_b)
+        assert match(*shared, asked) == match(*fresh, asked)
+    reach_1, reach_2 = (match(*shared, config.replace(solid_shift=s)) for s in (1, 2))
+    assert reach_1 > reach_2
 
 
 @pytest.mark.parametrize("matching", ["global", "window"])

@@ -1,6 +1,7 @@
 """The onnxruntime scorer computes the torch metric's scores (parity), skips what a scene does not
 need (empty patches, fine tessellation, repeated references) and refuses foreign models."""
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -79,6 +80,16 @@ def test_precomputed_reference_features_round_trip(scorer, tmp_path):
     assert scorer.score(a, str(tmp_path / "chair.npz")) == scorer.score(a, loaded)
     config = PipelineConfig()
     assert len(loaded.descriptors) + loaded.empty == config.views_per_mesh * config.patches_per_view
+    assert np.array_equal(loaded.views, scorer.features(reference).views)  # the solid change's
+
+
+def test_a_features_file_without_views_serves_no_solid_change_and_says_so(scorer, tmp_path):
+    reference = replace(scorer.features(EXAMPLES / "chair.obj"), views=None)  # as files were
+    reference.save(tmp_path / "old.npz")
+    with pytest.raises(ValueError, match=r"old\.npz: features without their views"):
+        scorer.score(EXAMPLES / "chair_no_leg.obj", tmp_path / "old.npz")
+    descriptors_only = Scorer(scorer.config.replace(solid_weight=0.0), threads=2)
+    assert descriptors_only.score(EXAMPLES / "chair_no_leg.obj", tmp_path / "old.npz") > 0
 
 
 def test_background_patches_share_the_blank_view_descriptor(scorer, metric):

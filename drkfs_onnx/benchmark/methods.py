@@ -106,16 +106,18 @@ class DrkfsTorch(Method):
         self.outputs = (name,)
         self.metric = metric
 
-    def _features(self, placed: Placed) -> torch.Tensor:
+    def _described(self, placed: Placed) -> tuple[torch.Tensor, torch.Tensor | None]:
         verts = torch.as_tensor(placed.verts, dtype=torch.float32)
         with torch.no_grad():
-            return self.metric.features(verts, torch.as_tensor(placed.faces))
+            return self.metric.described(verts, torch.as_tensor(placed.faces))
 
     def prepare(self, placed):
-        return _timed(self._features, placed)
+        return _timed(self._described, placed)
 
     def compare(self, a, b):
-        return (float(match_score(a, b, self.metric.config)),)
+        (desc_a, views_a), (desc_b, views_b) = a, b
+        config = self.metric.config
+        return (float(match_score(desc_a, desc_b, config, None, None, views_a, views_b)),)
 
 
 class ImageMSE(Method):

@@ -68,12 +68,13 @@ def slide(metric: DRKFS, steps: int = SLIDE_STEPS) -> dict:
     offsets = np.linspace(0.0, SLIDE_RANGE, steps)
     scores = []
     with torch.no_grad():
-        ref_features = metric.features(*ref)
+        ref_features, ref_views = metric.described(*ref)
         for t in offsets:
             v, f = assemble(shifted(parts, "leg_3", (t * size, 0.0, 0.0)), 1)
             v = torch.as_tensor(place(v, frame), dtype=torch.float32)
-            own = metric.features(v, torch.as_tensor(f))
-            scores.append(float(match_score(own, ref_features, metric.config)))
+            own, views = metric.described(v, torch.as_tensor(f))
+            score = match_score(own, ref_features, metric.config, None, None, views, ref_views)
+            scores.append(float(score))
     steps_ = np.abs(np.diff(scores))
     ratio = float(steps_.max() / steps_.mean()) if steps_.mean() > 0 else float("inf")
     return {"offsets": offsets.tolist(), "scores": scores, "max_over_mean_step": ratio,

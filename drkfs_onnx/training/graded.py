@@ -22,7 +22,7 @@ import trimesh
 
 from ..contract.config import PipelineConfig
 from ..contract.mesh import frame_of
-from ..match import match_score
+from ..match import descriptor_score
 from ..metric import DRKFS
 from ..render.renderer import Renderer
 from ..synthetic.shapes import Part, assemble, random_shape
@@ -128,7 +128,7 @@ def graded_terms(metric: DRKFS, images: torch.Tensor) -> tuple[torch.Tensor, tor
     and each patch's aligned squared descriptor distance (G, K * P)."""
     reference = metric.describe(images[0][:, None])
     described = [metric.describe(edit[:, None]) for edit in images[1:]]
-    scores = torch.stack([match_score(d, reference, metric.config) for d in described])
+    scores = torch.stack([descriptor_score(d, reference, metric.config) for d in described])
     distances = torch.stack([((d - reference) ** 2).sum(-1) for d in described])
     return scores, distances
 

@@ -14,7 +14,7 @@ import numpy as np
 import torch
 
 from ..contract.patch_grid import nonempty_patches
-from ..match import match_score
+from ..match import descriptor_score
 from ..metric import DRKFS
 from ..nets.patches import select_patches
 from .net_losses import descriptor_distances, hardest_triplet_loss
@@ -56,7 +56,7 @@ def _other_bases(data: VariantViews, base: int, rng: np.random.Generator) -> tup
 
 def metric_ranking(data: VariantViews, seed: int, tiers: bool, retrieval: int = 0) -> LossFn:
     """End to end through the metric: each step scores one base's variants (part-based or
-    surface edits) against the base with ``match_score`` at the metric's config and ranks mild
+    surface edits) against the base with ``descriptor_score`` at the metric's config and ranks mild
     below structural. With ``tiers`` it also ranks a mild edit below a part moved by
     MOVED_SHIFT, the moved part below half a structural edit (the paper's bars test), a
     structural edit below a shape of another family, and another shape of the same family below
@@ -82,7 +82,7 @@ def metric_ranking(data: VariantViews, seed: int, tiers: bool, retrieval: int = 
 
         def scores(meshes) -> torch.Tensor:
             return torch.stack(
-                [match_score(metric.describe(m), reference, metric.config) for m in meshes]
+                [descriptor_score(metric.describe(m), reference, metric.config) for m in meshes]
             )
 
         d_mild, d_structural = scores(views[mild]), scores(views[structural])

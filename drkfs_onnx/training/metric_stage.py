@@ -21,7 +21,7 @@ from ..benchmark import sets
 from ..benchmark.methods import DrkfsTorch, Surface
 from ..benchmark.run import bars_summary, retrieval_summary, score_everything, tier_accuracy
 from ..contract.config import NETS_TRAINED_AT, PipelineConfig
-from ..match import match_score
+from ..match import descriptor_score
 from ..metric import DRKFS
 from ..synthetic.shapes import FAMILIES
 from ..synthetic.variants import structural_wins
@@ -181,7 +181,7 @@ def training_accuracy(metric: DRKFS, data: VariantViews) -> dict:
             len(views), -1, metric.config.descriptor_dim
         )
         for mild, structural in VariantViews.sources():
-            score = {j: float(match_score(features[j], features[0], metric.config))
+            score = {j: float(descriptor_score(features[j], features[0], metric.config))
                      for j in mild + structural}  # fmt: skip
             won, count = structural_wins([score[j] for j in structural], [score[j] for j in mild])
             wins, pairs = wins + won, pairs + count

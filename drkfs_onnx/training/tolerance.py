@@ -31,7 +31,7 @@ import torch.nn.functional as F
 from ..contract.config import NETS_TRAINED_AT, PipelineConfig
 from ..contract.mesh import frame_of
 from ..contract.model_files import MANIFEST, entry_for, sha256, shipped_entry
-from ..match import match_score
+from ..match import descriptor_score
 from ..metric import DRKFS, with_nets
 from ..nets.weights import load_checked
 from ..render.renderer import Renderer
@@ -215,10 +215,10 @@ def tolerance_ranking(
     series_weight: float = 1.0,
 ) -> LossFn:
     """Each step one base: PER_TIER variants of each tier and its views under a small warp
-    (``warped``; invisible) scored against the base with ``match_score`` at the metric's config,
-    ranked invisible < surface < structural by MARGIN; and a surface variant warped, scored
-    against itself, ranked below that variant against the base. With ``simplification`` ((N, 1 +
-    L, K, S, S), ``render_simplified_views``), also one series: each simplification scored
+    (``warped``; invisible) scored against the base with ``descriptor_score`` at the metric's
+    config, ranked invisible < surface < structural by MARGIN; and a surface variant warped,
+    scored against itself, ranked below that variant against the base. With ``simplification``
+    ((N, 1 + L, K, S, S), ``render_simplified_views``), also one series: each simplification scored
     against the smoothed shape and against the finest simplification (as people judge them
     against a reference), each coarser one ranked above the finer by SIMPLIFY_MARGIN, that
     term weighted by ``series_weight``."""
@@ -248,7 +248,7 @@ def tolerance_ranking(
         reference = describe(views[0])
 
         def scores(meshes: list[torch.Tensor], against: torch.Tensor = reference) -> torch.Tensor:
-            return torch.stack([match_score(describe(m), against, config) for m in meshes])
+            return torch.stack([descriptor_score(describe(m), against, config) for m in meshes])
 
         textured = views[int(rng.choice(surface))]
         d_invisible = scores([*views[draw(invisible)], moved(views[0])])
@@ -267,7 +267,7 @@ def tolerance_ranking(
         series = [describe(v) for v in simplification[int(rng.integers(len(simplification)))]]
         coarser = []
         for finest in (0, 1):  # against the smoothed shape, then its finest simplification
-            d = torch.stack([match_score(s, series[finest], config)
+            d = torch.stack([descriptor_score(s, series[finest], config)
                              for s in series[finest + 1:]])  # fmt: skip
             coarser += [ranking_loss(d[i : i + 1], d[i + 1 : i + 2], SIMPLIFY_MARGIN)
                         for i in range(len(d) - 1)]  # fmt: skip
