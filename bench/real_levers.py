@@ -80,9 +80,8 @@ LEVERS = {  # name -> the settings the lever moves (from NETS_TRAINED_AT's confi
     # a solid change of the views added to the score (``contract.solid_change``): weight, reach
     # of the shift it forgives (pixels) and block (a square of pixels that changes as a whole)
     **{
-        f"solid change x{w:g} shift {shift} block {block}"
-        + (f" floor {floor:g}" if floor else "")
-        + ", rings 0 and 2.5, 5 cameras, 144 px, softmax t = 0.05": {
+        f"solid change x{w:g} shift {shift} block {block}, rings 0 and 2.5, 5 cameras, 144 px, "
+        "softmax t = 0.05": {
             "num_views": 5,
             "image_size": 144,
             "temperature": 0.05,
@@ -90,26 +89,20 @@ LEVERS = {  # name -> the settings the lever moves (from NETS_TRAINED_AT's confi
             "solid_weight": w,
             "solid_shift": shift,
             "solid_block": block,
-            "solid_floor": floor,
         }
-        for w, shift, block, floor in (
-            (0.3, 1, 3, 0.0),
-            (0.5, 1, 3, 0.0),
-            (1.0, 1, 3, 0.0),
-            (0.3, 2, 3, 0.0),
-            (0.5, 2, 3, 0.0),
-            (0.7, 2, 3, 0.0),
-            (1.0, 2, 3, 0.0),
-            (0.5, 3, 3, 0.0),
-            (1.0, 3, 3, 0.0),
-            (0.5, 1, 5, 0.0),
-            (1.0, 1, 5, 0.0),
-            (1.0, 2, 5, 0.0),
-            (0.5, 2, 3, 0.1),
-            (1.0, 2, 3, 0.1),
-            (1.0, 1, 3, 0.1),
-            (1.0, 1, 3, 0.2),
-            (2.0, 2, 3, 0.2),
+        for w, shift, block in (
+            (0.3, 1, 3),
+            (0.5, 1, 3),
+            (1.0, 1, 3),
+            (0.3, 2, 3),
+            (0.5, 2, 3),
+            (0.7, 2, 3),
+            (1.0, 2, 3),
+            (0.5, 3, 3),
+            (1.0, 3, 3),
+            (0.5, 1, 5),
+            (1.0, 1, 5),
+            (1.0, 2, 5),
         )
     },  # fmt: skip
     "5 cameras, 128 px, softmax t = 0.05": {"num_views": 5, "temperature": 0.05},

@@ -52,16 +52,6 @@ def test_scattered_changes_and_thin_strips_do_not_count():
     assert _score(a, strip) == 0.0
 
 
-def test_a_floor_forgives_a_change_up_to_it():
-    a = _views()
-    b = a.copy()
-    b[2, 30:36, 30:36] -= 0.4
-    plain = _score(a, b)
-    floored = _score(a, b, CONFIG.replace(solid_floor=0.1))
-    assert floored == pytest.approx(plain - 0.1 / K, abs=1e-6)  # the one view's change, less it
-    assert _score(a, b, CONFIG.replace(solid_floor=0.5)) == 0.0
-
-
 @pytest.mark.parametrize("pixels", [1, 2])
 def test_a_shift_within_the_reach_changes_nothing(pixels):
     a = _views()
@@ -101,7 +91,7 @@ def test_window_extreme_is_the_min_over_each_square_that_fits():
 
 @pytest.mark.parametrize(
     "changes",
-    [{"solid_block": 2}, {"solid_weight": -1.0}, {"solid_shift": -1}, {"solid_floor": -0.1}],
+    [{"solid_block": 2}, {"solid_weight": -1.0}, {"solid_shift": -1}],
 )
 def test_bad_solid_settings_are_refused(changes):
     with pytest.raises(ValueError, match="solid"):

@@ -39,7 +39,7 @@ ADDED_FIELDS = {"turn_degrees": 0.0, "solid_weight": 0.0}
 # written before it kept its views serves no solid change).
 MATCH_FIELDS = (
     "matching", "window", "direction", "reduction", "tail_fraction", "power", "temperature",
-    "solid_weight", "solid_shift", "solid_block", "solid_floor",
+    "solid_weight", "solid_shift", "solid_block",
 )  # fmt: skip
 
 
@@ -134,7 +134,6 @@ class PipelineConfig:
     solid_weight: float = 0.5
     solid_shift: int = 2
     solid_block: int = 3
-    solid_floor: float = 0.0
 
     def __post_init__(self) -> None:
         if self.num_views < 1:
@@ -169,8 +168,8 @@ class PipelineConfig:
             raise ValueError("tail_fraction must be in (0, 1]")
         if self.power < 1 or self.temperature <= 0:
             raise ValueError("power must be at least 1 and temperature positive")
-        if min(self.solid_weight, self.solid_shift, self.solid_floor) < 0:
-            raise ValueError("solid_weight, solid_shift and solid_floor must be at least 0")
+        if self.solid_weight < 0 or self.solid_shift < 0:
+            raise ValueError("solid_weight and solid_shift must be at least 0")
         if self.solid_block < 1 or self.solid_block % 2 != 1:
             raise ValueError("solid_block must be odd and at least 1 (a square about a pixel)")
         if 2 * self.solid_shift + self.solid_block > self.image_size:

@@ -47,10 +47,10 @@ def view_range(views: Any, config: PipelineConfig, ops: ArrayOps) -> tuple[Any, 
     return window_extreme(views, shift, ops.minimum), window_extreme(views, shift, ops.maximum)
 
 
-def _beyond(grey: Any, lowest: Any, highest: Any, floor: float, ops: ArrayOps) -> Any:
-    """How far each pixel's grey lies outside [lowest - floor, highest + floor]; 0 inside, with
-    no gradient, so that views that do not change give the term none."""
-    outside = ops.maximum(grey - highest, lowest - grey) - floor
+def _beyond(grey: Any, lowest: Any, highest: Any, ops: ArrayOps) -> Any:
+    """How far each pixel's grey lies outside [lowest, highest]; 0 inside, with no gradient, so
+    that views that do not change give the term none."""
+    outside = ops.maximum(grey - highest, lowest - grey)
     return ops.where(outside > 0, outside, 0.0 * outside)
 
 
@@ -70,8 +70,8 @@ def solid_change(
     range_b = view_range(views_b, config, ops) if range_b is None else range_b
     inner = slice(shift, size - shift)
     change = ops.maximum(
-        _beyond(views_b[..., inner, inner], *range_a, config.solid_floor, ops),
-        _beyond(views_a[..., inner, inner], *range_b, config.solid_floor, ops),
+        _beyond(views_b[..., inner, inner], *range_a, ops),
+        _beyond(views_a[..., inner, inner], *range_b, ops),
     )
     held = window_extreme(change, (config.solid_block - 1) // 2, ops.minimum)
     return ops.amax(ops.amax(held, -1), -1).mean(-1)
