@@ -1,14 +1,15 @@
 """Levers for a viewer's tolerance and attention, measured without retraining: a config's nets
 (the default's unless ``--nets``) under other matches, reductions, camera counts, view sizes,
-turned rings of cameras and searches over turns of the meshes, on the benchmark's synthetic
-tiers and on both sides of its real-mesh tiers (a lever is chosen on the training side and
-judged on the held-out one), with the bench's targets a default must keep (the bars test,
-retrieval, the slide check; people's judgments with --human). Each lever
-moves the config the nets were trained at (``NETS_TRAINED_AT``: 6 views of 128 px, t = 0.1,
-one ring, the default's until the lever "5 cameras, 144 px, softmax t = 0.05" became the
-default, and then "rings 0 and 2.5, ..."), named "default" in the results. The turn searches
-(``TURN_SEARCHES``, not run unless named) wrap a lever's scorer; their slide check is the
-lever's own, as the torch path has no search.
+turned rings of cameras, solid changes of the views and searches over turns of the meshes, on
+the benchmark's synthetic tiers and on both sides of its real-mesh tiers (a lever is chosen on
+the training side and judged on the held-out one), with the bench's targets a default must keep
+(the bars test, retrieval, the slide check; people's judgments with --human). Each lever moves
+the config the nets were trained at (``NETS_TRAINED_AT``: 6 views of 128 px, t = 0.1, one
+ring, no solid change, the default's until the lever "5 cameras, 144 px, softmax t = 0.05"
+became the default, then "rings 0 and 2.5, ...", then "solid change x0.5 shift 2 block 3,
+..."), named "default" in the results. The turn searches (``TURN_SEARCHES``, not run unless
+named) wrap a lever's scorer; their slide check is the lever's own, as the torch path has no
+search.
 
     python bench/real_levers.py --out bench/results/real_levers_tolerant.json
     python bench/real_levers.py --nets metric --out bench/results/real_levers.json

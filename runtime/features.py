@@ -96,6 +96,12 @@ class MeshFeatures:
     def _view_ranges(self) -> dict[int, tuple[np.ndarray, np.ndarray]]:
         return {}
 
+    @cached_property
+    def seen_lines(self) -> tuple[np.ndarray, np.ndarray]:
+        """(S,) bool rows and (S,) bool columns where any view shows anything but background."""
+        seen = (self.views != self.config.background).any(axis=0)
+        return seen.any(axis=1), seen.any(axis=0)
+
     @property
     def empty(self) -> int:
         """How many patches see only background."""

@@ -3,6 +3,8 @@ score by the shared contract (``drkfs_onnx.contract.match_rules``)."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from drkfs_onnx.contract import match_rules
@@ -111,16 +113,46 @@ def match(a: MeshFeatures, b: MeshFeatures, config: PipelineConfig) -> float:
     ring of cameras, the least such score over ``match_rules.ring_pairings``."""
     for features in (a, b):
         check_features(features, config, a.model, a.normalization)
-    if len(config.rings) > 1:  # the least score over the rings compared (match_rules)
-        one = config.one_ring()
-        return min(match(a.ring(i), b.ring(j), one) for i, j in match_rules.ring_pairings(config))
+    one = config.one_ring()
+    pairs = [(a.ring(i), b.ring(j)) for i, j in match_rules.ring_pairings(config)]
+    parts = sorted(
+        ((descriptor_part(x, y, one), k) for k, (x, y) in enumerate(pairs)), key=lambda p: p[0]
+    )
+    best = math.inf
+    for part, k in parts:
+        if part >= best:  # the solid change only adds: this pairing cannot score less
+            break
+        solid = config.solid_weight * solid_term(*pairs[k], one) if config.solid_weight else 0.0
+        best = min(best, part + solid)
+    return best
+
+
+def descriptor_part(a: MeshFeatures, b: MeshFeatures, config: PipelineConfig) -> float:
+    """The descriptors' score of two one-ring meshes: each direction's best-match distances
+    reduced, averaged over the directions."""
     scores = [
         float(match_rules.reduce(*best_matches(queries, targets, config), config))
         for queries, targets in match_rules.directions(a, b, config)
     ]
-    score = float(np.mean(scores))
-    if config.solid_weight:
-        ranges = a.view_range(config), b.view_range(config)
-        change = solid_change(a.views, b.views, config, NUMPY_OPS, *ranges)
-        score += config.solid_weight * float(change)
-    return score
+    return float(np.mean(scores))
+
+
+def solid_term(a: MeshFeatures, b: MeshFeatures, config: PipelineConfig) -> float:
+    """The views' solid change of two one-ring meshes (``contract.solid_change``), computed in
+    the window of the views where either mesh shows anything, grown by the reach: a pixel
+    further than ``solid_shift`` from everything shown is background in both views and in the
+    other's range, so it changes by nothing, and the term is the whole views' to the bit."""
+    shift, size = config.solid_shift, config.image_size
+    box = []  # per axis: the inner pixels (whose range is taken) of the window, [start, stop)
+    for seen_a, seen_b in zip(a.seen_lines, b.seen_lines, strict=True):
+        seen = np.flatnonzero(seen_a | seen_b)
+        if len(seen) == 0:
+            return 0.0
+        box.append((max(seen[0] - shift, shift), min(seen[-1] + 1 + shift, size - shift)))
+    (top, bottom), (left, right) = box
+    views = np.s_[..., top - shift : bottom + shift, left - shift : right + shift]
+    ranges = np.s_[..., top - shift : bottom - shift, left - shift : right - shift]
+    range_a = tuple(r[ranges] for r in a.view_range(config))
+    range_b = tuple(r[ranges] for r in b.view_range(config))
+    change = solid_change(a.views[views], b.views[views], config, NUMPY_OPS, range_a, range_b)
+    return float(change)

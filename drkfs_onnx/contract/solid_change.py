@@ -25,33 +25,26 @@ from .config import PipelineConfig
 
 
 def window_extreme(images: Any, reach: int, pick: Callable) -> Any:
-    """(..., S, S) -> (..., S - 2 reach, S - 2 reach): ``pick`` (``ops.minimum`` or
+    """(..., H, W) -> (..., H - 2 reach, W - 2 reach): ``pick`` (``ops.minimum`` or
     ``ops.maximum``) over each pixel's (2 reach + 1)-square, where it fits inside the image."""
     if reach == 0:
         return images
-    inner = images.shape[-1] - 2 * reach
-    rows = images[..., 0:inner, :]
+    height, width = images.shape[-2] - 2 * reach, images.shape[-1] - 2 * reach
+    rows = images[..., 0:height, :]
     for offset in range(1, 2 * reach + 1):
-        rows = pick(rows, images[..., offset : offset + inner, :])
-    found = rows[..., 0:inner]
+        rows = pick(rows, images[..., offset : offset + height, :])
+    found = rows[..., 0:width]
     for offset in range(1, 2 * reach + 1):
-        found = pick(found, rows[..., offset : offset + inner])
+        found = pick(found, rows[..., offset : offset + width])
     return found
 
 
 def view_range(views: Any, config: PipelineConfig, ops: ArrayOps) -> tuple[Any, Any]:
-    """(..., K, S, S) views -> their (lowest, highest) grey within ``solid_shift`` pixels, each
-    (..., K, S - 2 shift, S - 2 shift): what the other mesh's pixels are compared with, made
+    """(..., K, H, W) views -> their (lowest, highest) grey within ``solid_shift`` pixels, each
+    (..., K, H - 2 shift, W - 2 shift): what the other mesh's pixels are compared with, made
     once per mesh."""
     shift = config.solid_shift
     return window_extreme(views, shift, ops.minimum), window_extreme(views, shift, ops.maximum)
-
-
-def _beyond(grey: Any, lowest: Any, highest: Any, ops: ArrayOps) -> Any:
-    """How far each pixel's grey lies outside [lowest, highest]; 0 inside, with no gradient, so
-    that views that do not change give the term none."""
-    outside = ops.maximum(grey - highest, lowest - grey)
-    return ops.where(outside > 0, outside, 0.0 * outside)
 
 
 def solid_change(
@@ -62,16 +55,21 @@ def solid_change(
     range_a: tuple[Any, Any] | None = None,
     range_b: tuple[Any, Any] | None = None,
 ) -> Any:
-    """(..., K, S, S) two meshes' views of the same cameras -> (...) the mean over the views of
-    the largest grey change held over a ``solid_block``-square (the module's doc). Each mesh's
-    ``view_range`` may be passed in, made once; it is made here otherwise."""
-    shift, size = config.solid_shift, views_a.shape[-1]
+    """(..., K, H, W) two meshes' views of the same cameras (or the same window of them) ->
+    (...) the mean over the views of the largest grey change held over a ``solid_block``-square
+    (the module's doc). Each mesh's ``view_range`` may be passed in, made once; it is made here
+    otherwise."""
+    shift, height, width = config.solid_shift, views_a.shape[-2], views_a.shape[-1]
     range_a = view_range(views_a, config, ops) if range_a is None else range_a
     range_b = view_range(views_b, config, ops) if range_b is None else range_b
-    inner = slice(shift, size - shift)
-    change = ops.maximum(
-        _beyond(views_b[..., inner, inner], *range_a, ops),
-        _beyond(views_a[..., inner, inner], *range_b, ops),
+    inner_b = views_b[..., shift : height - shift, shift : width - shift]
+    inner_a = views_a[..., shift : height - shift, shift : width - shift]
+    # how far each pixel's grey lies outside the other's range, the larger way
+    outside = ops.maximum(
+        ops.maximum(inner_b - range_a[1], range_a[0] - inner_b),
+        ops.maximum(inner_a - range_b[1], range_b[0] - inner_a),
     )
+    # 0 inside the range, with no gradient there, so that unchanged views give the term none
+    change = outside * (outside > 0)
     held = window_extreme(change, (config.solid_block - 1) // 2, ops.minimum)
     return ops.amax(ops.amax(held, -1), -1).mean(-1)
