@@ -1,4 +1,5 @@
-"""Best-match distances between descriptor sets and their reduction to a score (torch)."""
+"""Best-match distances between descriptor sets and their reduction to a score, plus the views'
+solid change (torch)."""
 
 from __future__ import annotations
 

@@ -14,7 +14,7 @@ from drkfs_onnx.contract import match_rules
 from drkfs_onnx.contract.config import PipelineConfig
 from drkfs_onnx.contract.mesh import Mesh
 
-from .match import check_features, match, patch_distances
+from .match import check_features, match, patch_distances, solid_term
 from .scorer import Scorer
 
 SIDES = ("a", "b")
@@ -94,7 +94,9 @@ def explain(scorer: Scorer, mesh_a: Mesh | str | Path, mesh_b: Mesh | str | Path
         for side, ring_index in zip(SIDES, rings, strict=True)
     }
     total = sum(score for _, _, score in found.values())  # each direction's part of the mean
-    solid = scores[rings] - total / len(found)  # what the match adds to the directions' mean
+    solid = (
+        config.solid_weight * solid_term(ring["a"], ring["b"], one) if config.solid_weight else 0.0
+    )
     patches_part = 1.0 - solid / scores[rings] if scores[rings] else 1.0
     return Explanation(
         score=scores[rings],

@@ -1,5 +1,6 @@
 """The match of two described meshes in numpy: best-match distances per row, reduced into a
-score by the shared contract (``drkfs_onnx.contract.match_rules``)."""
+score by the shared contract (``drkfs_onnx.contract.match_rules``), plus the views' solid change
+(``drkfs_onnx.contract.solid_change``)."""
 
 from __future__ import annotations
 
@@ -150,6 +151,8 @@ def solid_term(a: MeshFeatures, b: MeshFeatures, config: PipelineConfig) -> floa
             return 0.0
         box.append((max(seen[0] - shift, shift), min(seen[-1] + 1 + shift, size - shift)))
     (top, bottom), (left, right) = box
+    if min(bottom - top, right - left) < config.solid_block:
+        return 0.0  # every block of the whole views holds an unchanged pixel outside the window
     views = np.s_[..., top - shift : bottom + shift, left - shift : right + shift]
     ranges = np.s_[..., top - shift : bottom - shift, left - shift : right - shift]
     range_a = tuple(r[ranges] for r in a.view_range(config))

@@ -69,7 +69,8 @@ def test_shares_and_the_solid_change_sum_to_the_score_and_zero_is_clear(no_leg):
     assert 0.0 < no_leg.solid_change < no_leg.score  # the missing leg changes a solid region
     assert total == pytest.approx(1.0 - no_leg.solid_change / no_leg.score)
     config = Scorer(threads=2).config
-    descriptors_alone = Scorer(config.replace(solid_weight=0.0), threads=2)
+    # global matching reduces the rows in another order than explain's patches: still 0 exactly
+    descriptors_alone = Scorer(config.replace(solid_weight=0.0, matching="global"), threads=2)
     alone = explain(descriptors_alone, EXAMPLES / "chair_no_leg.obj", EXAMPLES / "chair.obj")
     assert alone.solid_change == 0.0
     assert sum(float(s.sum()) for s in alone.shares.values()) == pytest.approx(1.0)

@@ -6,11 +6,13 @@ import pytest
 import torch
 
 from drkfs_onnx.contract import match_rules
+from drkfs_onnx.contract.array_ops import NUMPY_OPS
 from drkfs_onnx.contract.config import DIRECTIONS, PipelineConfig
+from drkfs_onnx.contract.solid_change import solid_change
 from drkfs_onnx.match import match_score
 from drkfs_onnx.render.torch_ops import TORCH_OPS
 from drkfs_onnx.runtime.features import MeshFeatures
-from drkfs_onnx.runtime.match import match
+from drkfs_onnx.runtime.match import descriptor_part, match, solid_term
 
 # one ring, 5 x 5 patches a view, the descriptors' match alone (test_solid_change: the views')
 GRID = PipelineConfig(num_views=3, turn_degrees=0.0, image_size=96, solid_weight=0.0)
@@ -130,29 +132,90 @@ def test_torch_and_runtime_compute_the_same_score(options, matching, direction):
     assert got == pytest.approx(expected, rel=1e-5)
 
 
-@pytest.mark.parametrize("turn", [0.0, 2.5])
-def test_a_solid_change_adds_the_same_term_to_torch_and_runtime_scores(turn):
+def _shaded_views(config: PipelineConfig) -> np.ndarray:
+    """(K * T, 96, 96) views of a smoothly shaded square on background, as a mesh's."""
+    views = np.zeros((config.views_per_mesh, 96, 96), np.float32)
+    views[:, 20:70, 30:80] = np.linspace(0.3, 0.6, 50, dtype=np.float32)
+    return views
+
+
+@pytest.mark.parametrize(("turn", "hole"), [(0.0, 0.3), (2.5, 0.1)])
+def test_a_solid_change_adds_the_same_term_to_torch_and_runtime_scores(turn, hole):
+    """B holds a hole of 0.3 in its own ring's views and of 0.1 in its turned ring's: with one
+    ring the term sees the first, with two the least pairing, A's own ring against B's turned
+    one, the second (its descriptors tie with the others')."""
     config = GRID.replace(turn_degrees=turn, solid_weight=0.5)
     rings = len(config.rings)
     a, b, empty = _near_tie_sets()
     a, b = np.concatenate([a] * rings), np.concatenate([b] * rings)
-    rng = np.random.default_rng(3)
-    views_a = rng.random((config.views_per_mesh, 96, 96)).astype(np.float32)
+    views_a = _shaded_views(config)
     views_b = views_a.copy()
-    views_b[-1, 40:50, 40:50] += 0.5  # a solid change in the last view of the last ring
+    views_b[: config.num_views, 40:50, 40:50] += 0.3
+    views_b[config.num_views :, 40:50, 40:50] += 0.1
     torch_score = match_score(
         torch.from_numpy(a), torch.from_numpy(b), config, None, None,
         torch.from_numpy(views_a), torch.from_numpy(views_b),
     )  # fmt: skip
-    runtime = match(
-        _features(a, empty, config, views_a), _features(b, empty, config, views_b), config
-    )
-    assert runtime == pytest.approx(float(torch_score), rel=1e-5)
-    without = match(_features(a, empty, config), _features(b, empty, config), GRID.replace(
-        turn_degrees=turn))  # fmt: skip
-    assert runtime >= without  # the term only adds
+    fa, fb = _features(a, empty, config, views_a), _features(b, empty, config, views_b)
+    runtime = match(fa, fb, config)
+    descriptors = match(fa, fb, config.replace(solid_weight=0.0))
+    torch_descriptors = match_score(torch.from_numpy(a), torch.from_numpy(b), config.replace(
+        solid_weight=0.0))  # fmt: skip
+    # the solid part: 0.5 x the hole's change in each view, less the shading's slope within the
+    # reach; torch's to its float32 rounding of a descriptor part of 54
+    solid, torch_solid = runtime - descriptors, float(torch_score - torch_descriptors)
+    assert solid == pytest.approx(torch_solid, abs=2e-5)
+    assert 0.5 * (hole - 0.02) < solid <= 0.5 * hole + 1e-6
     with pytest.raises(ValueError, match="features without their views"):
         match(_features(a, empty, config), _features(b, empty, config), config)
+
+
+def test_the_runtimes_window_and_skipped_pairings_give_the_whole_computations_score(monkeypatch):
+    """The runtime computes the solid change only where either mesh shows anything, and skips a
+    ring pairing whose descriptors alone score the best total so far: neither moves a bit."""
+    import drkfs_onnx.runtime.match as runtime_match
+
+    config = GRID.replace(turn_degrees=2.5, solid_weight=0.5)
+    one = config.one_ring()
+    a, b, empty = _near_tie_sets()
+    far = b + np.float32(0.3)  # B's turned ring: its descriptors far from A's
+    a, b = np.concatenate([a, a]), np.concatenate([b, far])
+    views_a = _shaded_views(config)
+    views_b = views_a.copy()
+    views_b[:, 18:22, 28:40] = 0.8  # a solid change at the edge of what A shows
+    views_b[4, 60:66, 60:66] = 0.0  # and a hole in the own ring
+    fa, fb = _features(a, empty, config, views_a), _features(b, empty, config, views_b)
+    pairings = match_rules.ring_pairings(config)
+    for i, j in pairings:
+        whole = solid_change(fa.ring(i).views, fb.ring(j).views, one, NUMPY_OPS)
+        assert solid_term(fa.ring(i), fb.ring(j), one) == float(whole) > 0
+    every_pairing = min(
+        descriptor_part(fa.ring(i), fb.ring(j), one)
+        + 0.5 * float(solid_change(fa.ring(i).views, fb.ring(j).views, one, NUMPY_OPS))
+        for i, j in pairings
+    )
+    calls = []
+    counted = runtime_match.solid_term
+    monkeypatch.setattr(
+        runtime_match, "solid_term", lambda *args: calls.append(1) or counted(*args)
+    )
+    assert match(fa, fb, config) == every_pairing
+    assert len(calls) < len(pairings)  # a pairing far on its descriptors was never computed
+
+
+def test_a_window_narrower_than_a_block_changes_nothing():
+    """Where the meshes show only a line, or only the views' outer rows, no block changes as a
+    whole: the runtime's window says 0, as the whole views do, instead of failing."""
+    for shift, rows in ((0, slice(40, 41)), (2, slice(0, 1)), (1, slice(0, 2))):
+        config = GRID.replace(solid_weight=1.0, solid_shift=shift)
+        views_a = np.zeros((config.views_per_mesh, 96, 96), np.float32)
+        views_a[:, rows, 10:80] = 0.5
+        views_b = views_a.copy()
+        views_b[:, rows, 10:80] = 0.9
+        a, _, empty = _near_tie_sets()
+        fa, fb = _features(a, empty, config, views_a), _features(a, empty, config, views_b)
+        whole = float(solid_change(views_a, views_b, config, NUMPY_OPS))
+        assert solid_term(fa, fb, config) == whole == 0.0
 
 
 def test_one_described_mesh_serves_every_solid_change_setting():

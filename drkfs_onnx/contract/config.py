@@ -194,13 +194,12 @@ class PipelineConfig:
 
     @classmethod
     def structure(cls, **changes: Any) -> PipelineConfig:
-        """The default's nets and cameras with the previous default's match: every patch
-        searches all of the other mesh's (global, both directions) and the best-match distances
-        are reduced by their power mean of order 8, which listens to the few patches a missing
-        part changes. With the tolerant nets it ranks a missing part as the default does, surface
-        defects and people's judgments lower, and orders the held-out real-mesh tiers best of
-        the presets (docs/benchmark.md; with the metric nets it ranked structure higher than
-        the default, docs/matching.md)."""
+        """The default's nets, cameras and solid change of the views with the previous default's
+        match: every patch searches all of the other mesh's (global, both directions) and the
+        best-match distances are reduced by their power mean of order 8, which listens to the
+        few patches a missing part changes. With the tolerant nets it ranks a missing part as
+        the default does, surface defects and people's judgments lower (docs/benchmark.md; with
+        the metric nets it ranked structure higher than the default, docs/matching.md)."""
         previous = dict(matching="global", direction="both", reduction="power", power=8.0)
         return cls(**{**previous, **changes})
 
