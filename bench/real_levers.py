@@ -92,6 +92,8 @@ LEVERS = {  # name -> the settings the lever moves (from NETS_TRAINED_AT's confi
             "solid_block": block,
         }
         for w, shift, block in (
+            (0.2, 1, 3),
+            (0.25, 1, 3),
             (0.3, 1, 3),
             (0.5, 1, 3),
             (1.0, 1, 3),
