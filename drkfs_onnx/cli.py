@@ -16,6 +16,7 @@ from .contract.cli_options import (
     Normalize,
     Preset,
     Reduction,
+    SolidWeight,
     Symmetric,
     Window,
     pick_config,
@@ -78,11 +79,14 @@ def score(
     direction: Direction = None,
     reduction: Reduction = None,
     symmetric: Symmetric = False,
+    solid_weight: SolidWeight = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print a JSON object.")] = False,
 ) -> None:
     """Score MESH_A against the reference MESH_B (0 for identical meshes)."""
     try:
-        config = pick_config(preset, matching, window, direction, reduction, symmetric)
+        config = pick_config(
+            preset, matching, window, direction, reduction, symmetric, solid_weight
+        )
     except ValueError as exc:
         typer.echo(f"error: {exc}", err=True)
         raise typer.Exit(2) from exc

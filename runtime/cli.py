@@ -19,6 +19,7 @@ from drkfs_onnx.contract.cli_options import (
     Preset,
     Reduction,
     ReferenceNormalize,
+    SolidWeight,
     Symmetric,
     Window,
     pick_config,
@@ -124,6 +125,7 @@ def pair(
     direction: Direction = None,
     reduction: Reduction = None,
     symmetric: Symmetric = False,
+    solid_weight: SolidWeight = None,
     width: Width = None,
     nets: Nets = None,
     model: Model = None,
@@ -133,6 +135,7 @@ def pair(
     scorer = _scorer(_spec(
         threads, normalize, width, nets, model, max_faces, preset=preset, matching=matching,
         window=window, direction=direction, reduction=reduction, symmetric=symmetric,
+        solid_weight=solid_weight,
     ))  # fmt: skip
     start = time.perf_counter()
     with _exit_on(MeshError, ValueError):
@@ -164,6 +167,7 @@ def explain(
     direction: Direction = None,
     reduction: Reduction = None,
     symmetric: Symmetric = False,
+    solid_weight: SolidWeight = None,
     width: Width = None,
     nets: Nets = None,
     model: Model = None,
@@ -182,6 +186,7 @@ def explain(
     scorer = _scorer(_spec(
         threads, normalize, width, nets, model, max_faces, preset=preset, matching=matching,
         window=window, direction=direction, reduction=reduction, symmetric=symmetric,
+        solid_weight=solid_weight,
     ))  # fmt: skip
     with _exit_on(MeshError, ValueError):
         explanation = explain_pair(scorer, mesh_a, mesh_b)
@@ -292,6 +297,7 @@ def batch(
     direction: Direction = None,
     reduction: Reduction = None,
     symmetric: Symmetric = False,
+    solid_weight: SolidWeight = None,
     width: Width = None,
     nets: Nets = None,
     model: Model = None,
@@ -329,6 +335,7 @@ def batch(
     spec = _spec(
         threads, normalize, width, nets, model, max_faces, preset=preset, matching=matching,
         window=window, direction=direction, reduction=reduction, symmetric=symmetric,
+        solid_weight=solid_weight,
     )  # fmt: skip
     # checks the model and config here, before any worker starts; the progress bar says the rest
     scorer = _scorer(spec, progress=False)

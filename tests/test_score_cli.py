@@ -274,7 +274,7 @@ def test_symmetric_is_order_free_under_each_but_not_under_joint():
 @pytest.mark.parametrize(
     "option",
     ["--symmetric", "--threads=1", "--normalize=each", "--preset=paper", "--reduction=mean",
-     "--matching=window", "--window=2", "--direction=backward"],
+     "--matching=window", "--window=2", "--direction=backward", "--solid-weight=0"],
 )  # fmt: skip
 def test_options_are_accepted_and_a_mesh_scores_zero_against_itself(option):
     result = _run("pair", CHAIR, CHAIR, option, *(PAPER_FAST if "paper" in option else FAST))
@@ -318,6 +318,18 @@ def test_symmetric_changes_the_paper_preset_alone_and_features_help_speaks_of_on
     boxed = _run("features", "--help").output  # rich draws the options in a box
     help_text = " ".join(re.sub("[│╭╮╰╯─]", " ", boxed).split())
     assert "the two meshes" not in help_text and "this reference will be scored in" in help_text
+
+
+def test_solid_weight_sets_the_views_part_and_zero_leaves_the_descriptors_alone():
+    scores = {
+        weight: json.loads(_run("pair", NO_LEG, CHAIR, *FAST, "--json", "--solid-weight",
+                                weight).stdout)
+        for weight in ("0", "0.5", "1")
+    }  # fmt: skip
+    assert [scores[w]["config"]["solid_weight"] for w in ("0", "0.5", "1")] == [0.0, 0.5, 1.0]
+    no_views, half, whole = (scores[w]["score"] for w in ("0", "0.5", "1"))
+    assert whole - half == pytest.approx(half - no_views, rel=1e-6) and half > no_views
+    assert _run("pair", NO_LEG, CHAIR, "--solid-weight", "-1").exit_code == 2
 
 
 def test_json_report_carries_the_config_it_scored_with():

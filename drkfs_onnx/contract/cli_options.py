@@ -32,7 +32,8 @@ Preset = Annotated[
     str,
     typer.Option(
         help="default (chosen by the benchmark), paper (25 views, 256 px, global sum) or "
-        "structure (the default's nets, global match, power mean of order 8)."
+        "structure (the default's nets, cameras and solid change, global match, power mean of "
+        "order 8)."
     ),
 ]
 Matching = Annotated[
@@ -44,6 +45,14 @@ Direction = Annotated[
 ]
 Reduction = Annotated[
     str | None, typer.Option(help=f"Override the reduction: {', '.join(REDUCTIONS)}.")
+]
+SolidWeight = Annotated[
+    float | None,
+    typer.Option(
+        min=0.0,
+        help="Override the weight of the views' solid change (the default's 0.5; 0: the "
+        "descriptors' match alone, as scores before the solid change).",
+    ),
 ]
 Symmetric = Annotated[
     bool,
@@ -64,6 +73,7 @@ def pick_config(
     direction: str | None = None,
     reduction: str | None = None,
     symmetric: bool = False,
+    solid_weight: float | None = None,
     **changes,
 ) -> PipelineConfig:
     """The preset's config with the given overrides; ValueError names a bad value."""
@@ -73,7 +83,10 @@ def pick_config(
         if direction not in (None, "both"):
             raise ValueError(f"--symmetric searches both directions, not {direction!r}")
         direction = "both"
-    picked = dict(matching=matching, window=window, direction=direction, reduction=reduction)
+    picked = dict(
+        matching=matching, window=window, direction=direction, reduction=reduction,
+        solid_weight=solid_weight,
+    )  # fmt: skip
     changes.update({key: value for key, value in picked.items() if value is not None})
     config = PRESETS[preset]().replace(**changes)
     if window is not None and config.matching != "window":
