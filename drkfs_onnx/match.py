@@ -147,9 +147,9 @@ def descriptor_score(
 
 
 def ring_views(views: torch.Tensor | None, ring: int, config: PipelineConfig):
-    """The (..., K, S, S) views of one ring of cameras of (..., K * T, S, S), or None."""
-    per_ring = config.num_views
-    return None if views is None else views[..., ring * per_ring : (ring + 1) * per_ring, :, :]
+    """The (..., K, S, S) views of one ring of cameras of (..., K * T, S, S)
+    (``match_rules.ring_views``), or None."""
+    return None if views is None else views[..., match_rules.ring_views(ring, config), :, :]
 
 
 def _descriptor_score(

@@ -68,6 +68,7 @@ class MeshFeatures:
         found = []
         for ring in range(len(self.config.rings)):
             rows = match_rules.ring_rows(ring, self.config)
+            seen_from = match_rules.ring_views(ring, self.config)
             chosen = (self.patch_index >= rows.start) & (self.patch_index < rows.stop)
             found.append(
                 replace(
@@ -75,14 +76,10 @@ class MeshFeatures:
                     descriptors=self.descriptors[chosen],
                     patch_index=self.patch_index[chosen] - rows.start,
                     config=self.config.one_ring(),
-                    views=None if self.views is None else self.views[self._ring_views(ring)],
+                    views=None if self.views is None else self.views[seen_from],
                 )
             )
         return tuple(found)
-
-    def _ring_views(self, ring: int) -> slice:
-        per_ring = self.config.num_views
-        return slice(ring * per_ring, (ring + 1) * per_ring)
 
     def view_range(self, config: PipelineConfig) -> tuple[np.ndarray, np.ndarray]:
         """The views' lowest and highest greys within ``config.solid_shift`` pixels

@@ -68,6 +68,11 @@ def ring_rows(ring: int, config: PipelineConfig) -> slice:
     return slice(ring * per_ring, (ring + 1) * per_ring)
 
 
+def ring_views(ring: int, config: PipelineConfig) -> slice:
+    """The views of ``ring``'s cameras in a mesh's (K * T) views, ring after ring."""
+    return slice(ring * config.num_views, (ring + 1) * config.num_views)
+
+
 def reduce(distances, weights, config: PipelineConfig, ops: ArrayOps = NUMPY_OPS):
     """(..., R) best-match squared distances, (..., R) patch counts -> (...) score: one per
     leading index (a batch's meshes), reduced along the last axis.
