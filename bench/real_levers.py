@@ -29,6 +29,8 @@ import tempfile
 import time
 from pathlib import Path
 
+import numpy as np
+
 from drkfs_onnx import PipelineConfig
 from drkfs_onnx.benchmark import human, sets, torch_checks
 from drkfs_onnx.benchmark.methods import DrkfsOnnx, Method, Placed
@@ -48,7 +50,7 @@ from drkfs_onnx.contract.model_files import features_file, models_dir, shipped_e
 from drkfs_onnx.contract.solid_change import solid_change
 from drkfs_onnx.export.onnx_files import export_features
 from drkfs_onnx.metric import DRKFS
-from drkfs_onnx.runtime.match import descriptor_part, solid_term
+from drkfs_onnx.runtime.match import descriptor_part
 from drkfs_onnx.runtime.render import NumpyRenderer
 
 LEVERS = {  # name -> the settings the lever moves (from NETS_TRAINED_AT's config)
@@ -170,17 +172,23 @@ TURN_SEARCHES = {
 SOLID_LEVER = (  # the default (weight 0.5) and its neighbours
     "solid change x{w:g} shift 2 block 3, rings 0 and 2.5, 5 cameras, 144 px, softmax t = 0.05"
 )
-# name -> (a lever above, ceiling, solid cameras): what a config cannot say (``Recombined``)
+# name -> (a lever above, ceiling, solid cameras, views' power): what a config cannot say
+# (``Recombined``)
 RECOMBINED = {
     f"solid change from 6 cameras of 128 px, {SOLID_LEVER.format(w=w)}": (
-        SOLID_LEVER.format(w=w), None, (6, 128)
+        SOLID_LEVER.format(w=w), None, (6, 128), None
     )
     for w in (0.5, 0.7)
 } | {
     f"descriptors' part at most {c:g}, {SOLID_LEVER.format(w=0.5)}": (
-        SOLID_LEVER.format(w=0.5), c, None
+        SOLID_LEVER.format(w=0.5), c, None, None
     )
     for c in (0.1, 0.05)
+} | {  # a change one camera sees counts more than the mean over the views gives it
+    f"views' solid changes in a power mean p = {power:g}, {SOLID_LEVER.format(w=w)}": (
+        SOLID_LEVER.format(w=w), None, None, power
+    )
+    for power, w in ((4.0, 0.5), (math.inf, 0.3))
 }  # fmt: skip
 WRAPPED = {name: lever for name, (lever, *_) in (TURN_SEARCHES | RECOMBINED).items()}
 
@@ -221,13 +229,15 @@ class Recombined(Method):
     (``runtime.match.descriptor_part``), at most about ``ceiling`` where set (ceiling *
     tanh(part / ceiling): however strong a surface change, the descriptors' part of it stays
     below a large solid change), plus the config's solid weight times the solid change of the
-    views of ``solid_cameras`` (count, px) where set, else of the lever's own views; the least
-    over the ring pairings."""
+    views of ``solid_cameras`` (count, px) where set, else of the lever's own views, its views'
+    changes reduced by a power mean of ``view_power`` where set (inf: the largest) instead of
+    their mean; the least over the ring pairings."""
 
     def __init__(self, method: DrkfsOnnx, name: str, ceiling: float | None,
-                 solid_cameras: tuple[int, int] | None, threads: int):  # fmt: skip
+                 solid_cameras: tuple[int, int] | None, view_power: float | None,
+                 threads: int):  # fmt: skip
         self.method, self.outputs, self.symmetric = method, (name,), method.symmetric
-        self.config, self.ceiling = method.scorer.config, ceiling
+        self.config, self.ceiling, self.view_power = method.scorer.config, ceiling, view_power
         self.solid = None
         if solid_cameras is not None:
             count, size = solid_cameras
@@ -237,24 +247,28 @@ class Recombined(Method):
     def prepare(self, placed):
         features, seconds = self.method.prepare(placed)
         if self.solid is None:
-            return (features, None), seconds
+            return (features, features.views), seconds
         views, render_s = placed.views(self.solid)
         return (features, views), seconds + render_s
 
     def compare(self, a, b):
         one, scores = self.config.one_ring(), []
+        solid_config = self.config if self.solid is None else self.solid.config
         for i, j in match_rules.ring_pairings(self.config):
-            x, y = a[0].ring(i), b[0].ring(j)
-            part = descriptor_part(x, y, one)
+            part = descriptor_part(a[0].ring(i), b[0].ring(j), one)
             if self.ceiling is not None:
                 part = self.ceiling * math.tanh(part / self.ceiling)
-            if self.solid is None:
-                solid = solid_term(x, y, one)
-            else:  # the whole views' solid change: the runtime's windowed one to the bit
-                config = self.solid.config
-                views_a, views_b = (v[match_rules.ring_views(k, config)]
-                                    for v, k in ((a[1], i), (b[1], j)))  # fmt: skip
-                solid = float(solid_change(views_a, views_b, config.one_ring(), NUMPY_OPS))
+            # each view's solid change over the whole views: the runtime's windowed mean of
+            # them to the bit
+            views_a, views_b = (v[match_rules.ring_views(k, solid_config)][:, None]
+                                for v, k in ((a[1], i), (b[1], j)))  # fmt: skip
+            per_view = solid_change(views_a, views_b, solid_config.one_ring(), NUMPY_OPS)
+            if self.view_power is None:
+                solid = float(per_view.mean())
+            elif math.isinf(self.view_power):
+                solid = float(per_view.max())
+            else:
+                solid = float(np.mean(per_view**self.view_power) ** (1.0 / self.view_power))
             scores.append(part + self.config.solid_weight * solid)
         return (min(scores),)
 
