@@ -9,8 +9,9 @@ ring, no solid change, the default's until the lever "5 cameras, 144 px, softmax
 became the default, then "rings 0 and 2.5, ...", then "solid change x0.5 shift 2 block 3,
 ..."), named "default" in the results. The turn searches (``TURN_SEARCHES``, not run unless
 named) wrap a lever's scorer, and so do the recombinations (``RECOMBINED``, not run unless
-named: the descriptors' part bounded, or the solid change from other cameras than the
-descriptors'); their slide check is the lever's own, as the torch path has neither.
+named: the descriptors' part bounded, the solid change from other cameras than the
+descriptors', or the views' solid changes in a power mean); their slide check is the lever's
+own, as the torch path has neither.
 
     python bench/real_levers.py --out bench/results/real_levers_tolerant.json
     python bench/real_levers.py --nets metric --out bench/results/real_levers.json
