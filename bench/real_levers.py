@@ -10,8 +10,8 @@ became the default, then "rings 0 and 2.5, ...", then "solid change x0.5 shift 2
 ..."), named "default" in the results. The turn searches (``TURN_SEARCHES``, not run unless
 named) wrap a lever's scorer, and so do the recombinations (``RECOMBINED``, not run unless
 named: the descriptors' part bounded, the solid change from other cameras than the
-descriptors', or the views' solid changes in a power mean); their slide check is the lever's
-own, as the torch path has neither.
+descriptors', the views' solid changes in a power mean, or a shorter reach inside the mesh);
+their slide check is the lever's own, as the torch path has neither.
 
     python bench/real_levers.py --out bench/results/real_levers_tolerant.json
     python bench/real_levers.py --nets metric --out bench/results/real_levers.json
@@ -48,7 +48,12 @@ from drkfs_onnx.contract.array_ops import NUMPY_OPS
 from drkfs_onnx.contract.cameras import rotation_y
 from drkfs_onnx.contract.config import NETS_TRAINED_AT
 from drkfs_onnx.contract.model_files import features_file, models_dir, shipped_entry
-from drkfs_onnx.contract.solid_change import solid_change
+from drkfs_onnx.contract.solid_change import (
+    pixel_change,
+    solid_change,
+    view_range,
+    window_extreme,
+)
 from drkfs_onnx.export.onnx_files import export_features
 from drkfs_onnx.metric import DRKFS
 from drkfs_onnx.runtime.match import descriptor_part
@@ -173,23 +178,28 @@ TURN_SEARCHES = {
 SOLID_LEVER = (  # the default (weight 0.5) and its neighbours
     "solid change x{w:g} shift 2 block 3, rings 0 and 2.5, 5 cameras, 144 px, softmax t = 0.05"
 )
-# name -> (a lever above, ceiling, solid cameras, views' power): what a config cannot say
-# (``Recombined``)
+# name -> (a lever above, ceiling, solid cameras, views' power, inner reach): what a config
+# cannot say (``Recombined``)
 RECOMBINED = {
     f"solid change from 6 cameras of 128 px, {SOLID_LEVER.format(w=w)}": (
-        SOLID_LEVER.format(w=w), None, (6, 128), None
+        SOLID_LEVER.format(w=w), None, (6, 128), None, None
     )
     for w in (0.5, 0.7)
 } | {
     f"descriptors' part at most {c:g}, {SOLID_LEVER.format(w=0.5)}": (
-        SOLID_LEVER.format(w=0.5), c, None, None
+        SOLID_LEVER.format(w=0.5), c, None, None, None
     )
     for c in (0.1, 0.05)
 } | {  # a change one camera sees counts more than the mean over the views gives it
     f"views' solid changes in a power mean p = {power:g}, {SOLID_LEVER.format(w=w)}": (
-        SOLID_LEVER.format(w=w), None, None, power
+        SOLID_LEVER.format(w=w), None, None, power, None
     )
     for power, w in ((4.0, 0.5), (math.inf, 0.3))
+} | {  # a hole shows the mesh's inside, where a moved part's outline shows the background
+    f"solid change at reach 1 where both views show the mesh, {SOLID_LEVER.format(w=w)}": (
+        SOLID_LEVER.format(w=w), None, None, None, 1
+    )
+    for w in (0.5, 0.7)
 }  # fmt: skip
 WRAPPED = {name: lever for name, (lever, *_) in (TURN_SEARCHES | RECOMBINED).items()}
 
@@ -232,13 +242,15 @@ class Recombined(Method):
     below a large solid change), plus the config's solid weight times the solid change of the
     views of ``solid_cameras`` (count, px) where set, else of the lever's own views, its views'
     changes reduced by a power mean of ``view_power`` where set (inf: the largest) instead of
-    their mean; the least over the ring pairings."""
+    their mean, and taken at a reach of ``inner_reach`` (at most the config's) where set and
+    both views show the mesh (``inner_reach_change``); the least over the ring pairings."""
 
     def __init__(self, method: DrkfsOnnx, name: str, ceiling: float | None,
                  solid_cameras: tuple[int, int] | None, view_power: float | None,
-                 threads: int):  # fmt: skip
+                 inner_reach: int | None, threads: int):  # fmt: skip
         self.method, self.outputs, self.symmetric = method, (name,), method.symmetric
         self.config, self.ceiling, self.view_power = method.scorer.config, ceiling, view_power
+        self.inner_reach = inner_reach
         self.solid = None
         if solid_cameras is not None:
             count, size = solid_cameras
@@ -261,9 +273,14 @@ class Recombined(Method):
                 part = self.ceiling * math.tanh(part / self.ceiling)
             # each view's solid change over the whole views: the runtime's windowed mean of
             # them to the bit
-            views_a, views_b = (v[match_rules.ring_views(k, solid_config)][:, None]
+            views_a, views_b = (v[match_rules.ring_views(k, solid_config)]
                                 for v, k in ((a[1], i), (b[1], j)))  # fmt: skip
-            per_view = solid_change(views_a, views_b, solid_config.one_ring(), NUMPY_OPS)
+            if self.inner_reach is None:
+                per_view = solid_change(
+                    views_a[:, None], views_b[:, None], solid_config.one_ring(), NUMPY_OPS
+                )
+            else:
+                per_view = inner_reach_change(views_a, views_b, solid_config, self.inner_reach)
             if self.view_power is None:
                 solid = float(per_view.mean())
             elif math.isinf(self.view_power):
@@ -272,6 +289,27 @@ class Recombined(Method):
                 solid = float(np.mean(per_view**self.view_power) ** (1.0 / self.view_power))
             scores.append(part + self.config.solid_weight * solid)
         return (min(scores),)
+
+
+def inner_reach_change(
+    views_a: np.ndarray, views_b: np.ndarray, config: PipelineConfig, inner: int
+) -> np.ndarray:
+    """(K, H, W) two meshes' views -> (K,) each view's solid change (``contract.solid_change``)
+    with each pixel's change taken at a reach of ``inner`` where both views show the mesh and
+    at the config's ``solid_shift`` elsewhere: a hole shows the mesh's inside in both, a moved
+    part changes the outline."""
+    outer, maps = config.solid_shift, []
+    for reach in (inner, outer):
+        at = config.replace(solid_shift=reach)
+        ranges = (view_range(views_a, at, NUMPY_OPS), view_range(views_b, at, NUMPY_OPS))
+        change = pixel_change(views_a, views_b, *ranges, reach, NUMPY_OPS)
+        crop = outer - reach  # to the outer reach's window
+        maps.append(change[..., crop : change.shape[-2] - crop, crop : change.shape[-1] - crop])
+    height, width = views_a.shape[-2:]
+    window = np.s_[..., outer : height - outer, outer : width - outer]
+    shown = (views_a[window] != config.background) & (views_b[window] != config.background)
+    held = window_extreme(np.where(shown, *maps), (config.solid_block - 1) // 2, np.minimum)
+    return held.max(-1).max(-1)
 
 
 def feature_graph(config: PipelineConfig, folder: Path) -> Path | None:

@@ -59,17 +59,26 @@ def solid_change(
     (...) the mean over the views of the largest grey change held over a ``solid_block``-square
     (the module's doc). Each mesh's ``view_range`` may be passed in, made once; it is made here
     otherwise."""
-    shift, height, width = config.solid_shift, views_a.shape[-2], views_a.shape[-1]
     range_a = view_range(views_a, config, ops) if range_a is None else range_a
     range_b = view_range(views_b, config, ops) if range_b is None else range_b
+    change = pixel_change(views_a, views_b, range_a, range_b, config.solid_shift, ops)
+    held = window_extreme(change, (config.solid_block - 1) // 2, ops.minimum)
+    return ops.amax(ops.amax(held, -1), -1).mean(-1)
+
+
+def pixel_change(
+    views_a: Any, views_b: Any, range_a: tuple[Any, Any], range_b: tuple[Any, Any], shift: int,
+    ops: ArrayOps,
+) -> Any:  # fmt: skip
+    """(..., H, W) two meshes' views and each one's ``view_range`` at reach ``shift`` -> (...,
+    H - 2 shift, W - 2 shift): how far each pixel's grey lies outside the other view's range,
+    the larger way; 0 inside it."""
+    height, width = views_a.shape[-2], views_a.shape[-1]
     inner_b = views_b[..., shift : height - shift, shift : width - shift]
     inner_a = views_a[..., shift : height - shift, shift : width - shift]
-    # how far each pixel's grey lies outside the other's range, the larger way
     outside = ops.maximum(
         ops.maximum(inner_b - range_a[1], range_a[0] - inner_b),
         ops.maximum(inner_a - range_b[1], range_b[0] - inner_a),
     )
     # 0 inside the range, with no gradient there, so that unchanged views give the term none
-    change = outside * (outside > 0)
-    held = window_extreme(change, (config.solid_block - 1) // 2, ops.minimum)
-    return ops.amax(ops.amax(held, -1), -1).mean(-1)
+    return outside * (outside > 0)
