@@ -10,8 +10,9 @@ became the default, then "rings 0 and 2.5, ...", then "solid change x0.5 shift 2
 ..."), named "default" in the results. The turn searches (``TURN_SEARCHES``, not run unless
 named) wrap a lever's scorer, and so do the recombinations (``RECOMBINED``, not run unless
 named: the descriptors' part bounded, the solid change from other cameras than the
-descriptors', the views' solid changes in a power mean, or a shorter reach inside the mesh);
-their slide check is the lever's own, as the torch path has neither.
+descriptors', the views' solid changes in a power mean, or a shorter reach inside the mesh).
+A turn search's slide check is its lever's, as the torch path has none; a recombination's is
+its own, on the runtime path it is scored on (``runtime_slide``).
 
     python bench/real_levers.py --out bench/results/real_levers_tolerant.json
     python bench/real_levers.py --nets metric --out bench/results/real_levers.json
@@ -178,27 +179,33 @@ TURN_SEARCHES = {
 SOLID_LEVER = (  # the default (weight 0.5) and its neighbours
     "solid change x{w:g} shift 2 block 3, rings 0 and 2.5, 5 cameras, 144 px, softmax t = 0.05"
 )
-# name -> (a lever above, ceiling, solid cameras, views' power, inner reach): what a config
-# cannot say (``Recombined``)
+# name -> (a lever above, ``Recombined``'s settings): what a config cannot say
 RECOMBINED = {
     f"solid change from 6 cameras of 128 px, {SOLID_LEVER.format(w=w)}": (
-        SOLID_LEVER.format(w=w), None, (6, 128), None, None
+        SOLID_LEVER.format(w=w), {"solid_cameras": (6, 128)}
     )
     for w in (0.5, 0.7)
 } | {
     f"descriptors' part at most {c:g}, {SOLID_LEVER.format(w=0.5)}": (
-        SOLID_LEVER.format(w=0.5), c, None, None, None
+        SOLID_LEVER.format(w=0.5), {"ceiling": c}
     )
     for c in (0.1, 0.05)
 } | {  # a change one camera sees counts more than the mean over the views gives it
     f"views' solid changes in a power mean p = {power:g}, {SOLID_LEVER.format(w=w)}": (
-        SOLID_LEVER.format(w=w), None, None, power, None
+        SOLID_LEVER.format(w=w), {"view_power": power}
     )
     for power, w in ((4.0, 0.5), (math.inf, 0.3))
 } | {  # a hole shows the mesh's inside, where a moved part's outline shows the background
     f"solid change at reach 1 where both views show the mesh, {SOLID_LEVER.format(w=w)}": (
-        SOLID_LEVER.format(w=w), None, None, None, 1
+        SOLID_LEVER.format(w=w), {"inner_reach": 1}
     )
+    for w in (0.5, 0.7)
+} | {  # and a strong change of grey there counts more than a faint one (a facet's)
+    f"solid change at reach 1 and power {power:g} where both views show the mesh, "
+    f"{SOLID_LEVER.format(w=w)}": (
+        SOLID_LEVER.format(w=w), {"inner_reach": 1, "inner_power": power}
+    )
+    for power in (1.5, 2.0)
     for w in (0.5, 0.7)
 }  # fmt: skip
 WRAPPED = {name: lever for name, (lever, *_) in (TURN_SEARCHES | RECOMBINED).items()}
@@ -242,15 +249,16 @@ class Recombined(Method):
     below a large solid change), plus the config's solid weight times the solid change of the
     views of ``solid_cameras`` (count, px) where set, else of the lever's own views, its views'
     changes reduced by a power mean of ``view_power`` where set (inf: the largest) instead of
-    their mean, and taken at a reach of ``inner_reach`` (at most the config's) where set and
-    both views show the mesh (``inner_reach_change``); the least over the ring pairings."""
+    their mean, and taken at a reach of ``inner_reach`` (at most the config's), raised to
+    ``inner_power``, where set and both views show the mesh (``inner_reach_change``); the least
+    over the ring pairings."""
 
-    def __init__(self, method: DrkfsOnnx, name: str, ceiling: float | None,
-                 solid_cameras: tuple[int, int] | None, view_power: float | None,
-                 inner_reach: int | None, threads: int):  # fmt: skip
+    def __init__(self, method: DrkfsOnnx, name: str, threads: int, ceiling: float | None = None,
+                 solid_cameras: tuple[int, int] | None = None, view_power: float | None = None,
+                 inner_reach: int | None = None, inner_power: float = 1.0):  # fmt: skip
         self.method, self.outputs, self.symmetric = method, (name,), method.symmetric
         self.config, self.ceiling, self.view_power = method.scorer.config, ceiling, view_power
-        self.inner_reach = inner_reach
+        self.inner_reach, self.inner_power = inner_reach, inner_power
         self.solid = None
         if solid_cameras is not None:
             count, size = solid_cameras
@@ -280,7 +288,9 @@ class Recombined(Method):
                     views_a[:, None], views_b[:, None], solid_config.one_ring(), NUMPY_OPS
                 )
             else:
-                per_view = inner_reach_change(views_a, views_b, solid_config, self.inner_reach)
+                per_view = inner_reach_change(
+                    views_a, views_b, solid_config, self.inner_reach, self.inner_power
+                )
             if self.view_power is None:
                 solid = float(per_view.mean())
             elif math.isinf(self.view_power):
@@ -291,13 +301,25 @@ class Recombined(Method):
         return (min(scores),)
 
 
+def runtime_slide(method: Method) -> dict:
+    """The slide check (``torch_checks.slide_of``) of a method scored on the runtime path."""
+
+    def against(reference: tuple[np.ndarray, np.ndarray]):
+        prepared = method.prepare(Placed("chair", *reference))[0]
+        return lambda verts, faces: method.compare(
+            method.prepare(Placed("slid", verts, faces))[0], prepared
+        )[0]
+
+    return torch_checks.slide_of(against)
+
+
 def inner_reach_change(
-    views_a: np.ndarray, views_b: np.ndarray, config: PipelineConfig, inner: int
+    views_a: np.ndarray, views_b: np.ndarray, config: PipelineConfig, inner: int, power: float
 ) -> np.ndarray:
     """(K, H, W) two meshes' views -> (K,) each view's solid change (``contract.solid_change``)
-    with each pixel's change taken at a reach of ``inner`` where both views show the mesh and
-    at the config's ``solid_shift`` elsewhere: a hole shows the mesh's inside in both, a moved
-    part changes the outline."""
+    with each pixel's change taken at a reach of ``inner`` and raised to ``power`` where both
+    views show the mesh, and at the config's ``solid_shift`` elsewhere: a hole shows the mesh's
+    inside in both, a moved part changes the outline."""
     outer, maps = config.solid_shift, []
     for reach in (inner, outer):
         at = config.replace(solid_shift=reach)
@@ -308,7 +330,10 @@ def inner_reach_change(
     height, width = views_a.shape[-2:]
     window = np.s_[..., outer : height - outer, outer : width - outer]
     shown = (views_a[window] != config.background) & (views_b[window] != config.background)
-    held = window_extreme(np.where(shown, *maps), (config.solid_block - 1) // 2, np.minimum)
+    inside, outline = maps
+    held = window_extreme(
+        np.where(shown, inside**power, outline), (config.solid_block - 1) // 2, np.minimum
+    )
     return held.max(-1).max(-1)
 
 
@@ -354,11 +379,13 @@ def main() -> None:
         methods = [
             TurnSearch(m, m.outputs[0], TURN_SEARCHES[m.outputs[0]][1])
             if m.outputs[0] in TURN_SEARCHES
-            else Recombined(m, m.outputs[0], *RECOMBINED[m.outputs[0]][1:], args.threads)
+            else Recombined(m, m.outputs[0], args.threads, **RECOMBINED[m.outputs[0]][1])
             if m.outputs[0] in RECOMBINED else m
             for m in methods
         ]  # fmt: skip
         scores, costs = score_everything(bench, methods, print)
+        # a recombination's own slide check, on the runtime path it is scored on
+        slides = {m.outputs[0]: runtime_slide(m) for m in methods if isinstance(m, Recombined)}
     rows = {}
     for name, values in scores.comparisons.items():
         rows[name] = {
@@ -368,9 +395,8 @@ def main() -> None:
             "real_misses": tier_accuracy(bench, values, "real")["misses"],
             "bars": bars_summary(bench, values),
             "retrieval": retrieval_summary(bench, scores.retrieval[name]),
-            # the torch path has no turn search or recombination: the slide check of a wrapped
-            # lever is its lever's
-            "slide": torch_checks.slide(DRKFS.pretrained(configs[name])),
+            # the torch path has no turn search: the slide check of one is its lever's
+            "slide": slides.get(name) or torch_checks.slide(DRKFS.pretrained(configs[name])),
             "human": None if jod is None else human.human_agreement(bench, values, jod),
         }
         shown = ("tiers", "real", "checks", "bars", "human")

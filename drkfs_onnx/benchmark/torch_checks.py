@@ -59,22 +59,41 @@ def self_score(metric: DRKFS, mesh: tuple) -> float:
 
 def slide(metric: DRKFS, steps: int = SLIDE_STEPS) -> dict:
     """Score of a chair with one leg slid sideways by 0 .. SLIDE_RANGE of its diagonal against
-    the chair; passes when no step jumps more than JUMP_LIMIT times the mean step."""
+    the chair (``slide_of`` with the torch metric)."""
+
+    def against(reference: tuple[np.ndarray, np.ndarray]):
+        ref = tuple(torch.as_tensor(x) for x in (reference[0].astype(np.float32), reference[1]))
+        with torch.no_grad():
+            ref_features, ref_views = metric.described(*ref)
+
+        def score(verts: np.ndarray, faces: np.ndarray) -> float:
+            with torch.no_grad():
+                own, views = metric.described(
+                    torch.as_tensor(verts, dtype=torch.float32), torch.as_tensor(faces)
+                )
+                return float(
+                    match_score(own, ref_features, metric.config, None, None, views, ref_views)
+                )
+
+        return score
+
+    return slide_of(against, steps)
+
+
+def slide_of(against, steps: int = SLIDE_STEPS) -> dict:
+    """The slide check of any score: ``against((verts, faces))`` of the placed chair returns a
+    score of a placed mesh ``(verts, faces) -> float`` against it. Passes when no step of the
+    slid leg jumps more than JUMP_LIMIT times the mean step."""
     parts = chair()
     size = diagonal(parts)
     ref_v, ref_f = assemble(parts, 1)
     frame = frame_of(ref_v)
-    ref = (torch.as_tensor(place(ref_v, frame), dtype=torch.float32), torch.as_tensor(ref_f))
+    score = against((place(ref_v, frame), ref_f))
     offsets = np.linspace(0.0, SLIDE_RANGE, steps)
     scores = []
-    with torch.no_grad():
-        ref_features, ref_views = metric.described(*ref)
-        for t in offsets:
-            v, f = assemble(shifted(parts, "leg_3", (t * size, 0.0, 0.0)), 1)
-            v = torch.as_tensor(place(v, frame), dtype=torch.float32)
-            own, views = metric.described(v, torch.as_tensor(f))
-            score = match_score(own, ref_features, metric.config, None, None, views, ref_views)
-            scores.append(float(score))
+    for t in offsets:
+        v, f = assemble(shifted(parts, "leg_3", (t * size, 0.0, 0.0)), 1)
+        scores.append(score(place(v, frame), f))
     steps_ = np.abs(np.diff(scores))
     ratio = float(steps_.max() / steps_.mean()) if steps_.mean() > 0 else float("inf")
     return {"offsets": offsets.tolist(), "scores": scores, "max_over_mean_step": ratio,
