@@ -181,6 +181,9 @@ SOLID_LEVER = (  # the default (weight 0.5) and its neighbours
 )
 # name -> (a lever above, ``Recombined``'s settings): what a config cannot say
 RECOMBINED = {
+    # the default itself on the runtime path: its slide check there against the torch path's
+    f"recombined with nothing, {SOLID_LEVER.format(w=0.5)}": (SOLID_LEVER.format(w=0.5), {}),
+} | {
     f"solid change from 6 cameras of 128 px, {SOLID_LEVER.format(w=w)}": (
         SOLID_LEVER.format(w=w), {"solid_cameras": (6, 128)}
     )
@@ -321,6 +324,8 @@ def inner_reach_change(
     views show the mesh, and at the config's ``solid_shift`` elsewhere: a hole shows the mesh's
     inside in both, a moved part changes the outline."""
     outer, maps = config.solid_shift, []
+    if not 0 <= inner <= outer:
+        raise ValueError(f"an inner reach of {inner} outside 0 .. solid_shift ({outer})")
     for reach in (inner, outer):
         at = config.replace(solid_shift=reach)
         ranges = (view_range(views_a, at, NUMPY_OPS), view_range(views_b, at, NUMPY_OPS))
