@@ -251,13 +251,13 @@ class Recombined(Method):
     tanh(part / ceiling): however strong a surface change, the descriptors' part of it stays
     below a large solid change), plus the config's solid weight times the solid change of the
     views of ``solid_cameras`` (count, px) where set, else of the lever's own views, its views'
-    changes reduced by a power mean of ``view_power`` where set (inf: the largest) instead of
-    their mean, and taken at a reach of ``inner_reach`` (at most the config's), raised to
+    changes reduced by their power mean of ``view_power`` (1: their mean; inf: the largest),
+    and taken at a reach of ``inner_reach`` (at most the config's), raised to
     ``inner_power``, where set and both views show the mesh (``inner_reach_change``); the least
     over the ring pairings."""
 
     def __init__(self, method: DrkfsOnnx, name: str, threads: int, ceiling: float | None = None,
-                 solid_cameras: tuple[int, int] | None = None, view_power: float | None = None,
+                 solid_cameras: tuple[int, int] | None = None, view_power: float = 1.0,
                  inner_reach: int | None = None, inner_power: float = 1.0):  # fmt: skip
         self.method, self.outputs, self.symmetric = method, (name,), method.symmetric
         self.config, self.ceiling, self.view_power = method.scorer.config, ceiling, view_power
@@ -294,9 +294,7 @@ class Recombined(Method):
                 per_view = inner_reach_change(
                     views_a, views_b, solid_config, self.inner_reach, self.inner_power
                 )
-            if self.view_power is None:
-                solid = float(per_view.mean())
-            elif math.isinf(self.view_power):
+            if math.isinf(self.view_power):
                 solid = float(per_view.max())
             else:
                 solid = float(np.mean(per_view**self.view_power) ** (1.0 / self.view_power))

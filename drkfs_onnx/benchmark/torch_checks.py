@@ -61,16 +61,18 @@ def slide(metric: DRKFS, steps: int = SLIDE_STEPS) -> dict:
     """Score of a chair with one leg slid sideways by 0 .. SLIDE_RANGE of its diagonal against
     the chair (``slide_of`` with the torch metric)."""
 
-    def against(reference: tuple[np.ndarray, np.ndarray]):
-        ref = tuple(torch.as_tensor(x) for x in (reference[0].astype(np.float32), reference[1]))
+    def described(verts: np.ndarray, faces: np.ndarray) -> tuple:
         with torch.no_grad():
-            ref_features, ref_views = metric.described(*ref)
+            return metric.described(
+                torch.as_tensor(verts, dtype=torch.float32), torch.as_tensor(faces)
+            )
+
+    def against(reference: tuple[np.ndarray, np.ndarray]):
+        ref_features, ref_views = described(*reference)
 
         def score(verts: np.ndarray, faces: np.ndarray) -> float:
+            own, views = described(verts, faces)
             with torch.no_grad():
-                own, views = metric.described(
-                    torch.as_tensor(verts, dtype=torch.float32), torch.as_tensor(faces)
-                )
                 return float(
                     match_score(own, ref_features, metric.config, None, None, views, ref_views)
                 )
