@@ -50,7 +50,7 @@ from drkfs_onnx.contract.cameras import rotation_y
 from drkfs_onnx.contract.config import NETS_TRAINED_AT
 from drkfs_onnx.contract.model_files import features_file, models_dir, shipped_entry
 from drkfs_onnx.contract.solid_change import (
-    pixel_change,
+    reach_change,
     solid_change,
     view_range,
     window_extreme,
@@ -60,7 +60,9 @@ from drkfs_onnx.metric import DRKFS
 from drkfs_onnx.runtime.match import descriptor_part
 from drkfs_onnx.runtime.render import NumpyRenderer
 
-LEVERS = {  # name -> the settings the lever moves (from NETS_TRAINED_AT's config)
+# a lever's solid change is at one reach everywhere unless it names a ramp, as before the ramp
+ONE_REACH = {"solid_ramp": 0, "solid_inner_drop": 0, "solid_inner_power": 1.0}
+LEVERS = {  # name -> the settings the lever moves (from NETS_TRAINED_AT's config, ONE_REACH's)
     "default": {},
     "window r1": {"window": 1},
     "softmax t = 0.05": {"temperature": 0.05},
@@ -119,6 +121,9 @@ LEVERS = {  # name -> the settings the lever moves (from NETS_TRAINED_AT's confi
             (1.0, 2, 3),
             (0.5, 3, 3),
             (1.0, 3, 3),
+            (0.6, 3, 3),
+            (0.7, 3, 3),
+            (0.7, 4, 3),
             (0.5, 1, 5),
             (1.0, 1, 5),
             (1.0, 2, 5),
@@ -200,16 +205,34 @@ RECOMBINED = {
     for power, w in ((4.0, 0.5), (math.inf, 0.3))
 } | {  # a hole shows the mesh's inside, where a moved part's outline shows the background
     f"solid change at reach 1 where both views show the mesh, {SOLID_LEVER.format(w=w)}": (
-        SOLID_LEVER.format(w=w), {"inner_reach": 1}
+        SOLID_LEVER.format(w=w), {"inside": (1,)}
     )
     for w in (0.5, 0.7)
 } | {  # and a strong change of grey there counts more than a faint one (a facet's)
     f"solid change at reach 1 and power {power:g} where both views show the mesh, "
     f"{SOLID_LEVER.format(w=w)}": (
-        SOLID_LEVER.format(w=w), {"inner_reach": 1, "inner_power": power}
+        SOLID_LEVER.format(w=w), {"inside": (1,), "inner_power": power}
     )
     for power in (1.5, 2.0)
     for w in (0.5, 0.7)
+} | {  # a pixel's change ramped up over several reaches: a shift crosses no single threshold
+    f"solid change the mean over reaches {'-'.join(map(str, r))}, "
+    f"{SOLID_LEVER.format(w=w).replace('shift 2', f'shift {max(r)}')}": (
+        SOLID_LEVER.format(w=w).replace("shift 2", f"shift {max(r)}"), {"inside": r, "outline": r}
+    )
+    for r, w in (((1, 2, 3), 0.5), ((1, 2, 3), 0.7), ((1, 2), 0.5), ((1, 2), 0.7), ((2, 3), 0.5),
+                 ((1, 2, 3, 4), 0.7))
+} | {  # the outline ramped over reaches 2 and 3, the mesh's inside from a reach of 1
+    f"solid change the mean over reaches {'-'.join(map(str, i))}"
+    + (f" and power {p:g}" if p != 1 else "")
+    + f" where both views show the mesh, over 2-3 elsewhere, "
+    f"{SOLID_LEVER.format(w=w).replace('shift 2', 'shift 3')}": (
+        SOLID_LEVER.format(w=w).replace("shift 2", "shift 3"),
+        {"inside": i, "inner_power": p, "outline": (2, 3)},
+    )
+    for i, p, w in (((1, 2, 3), 1, 0.5), ((1, 2, 3), 1, 0.7), ((1, 2), 1, 0.5), ((1, 2), 1, 0.7),
+                    ((1,), 1.5, 0.7), ((1, 2, 3), 1.5, 0.7), ((1, 2), 1.5, 0.7),
+                    ((1, 2), 1.5, 0.5), ((1, 2), 1.5, 0.6), ((1, 2), 2, 0.7), ((1, 2, 3), 2, 0.7))
 }  # fmt: skip
 WRAPPED = {name: lever for name, (lever, *_) in (TURN_SEARCHES | RECOMBINED).items()}
 
@@ -252,16 +275,20 @@ class Recombined(Method):
     below a large solid change), plus the config's solid weight times the solid change of the
     views of ``solid_cameras`` (count, px) where set, else of the lever's own views, its views'
     changes reduced by their power mean of ``view_power`` (1: their mean; inf: the largest),
-    and taken at a reach of ``inner_reach`` (at most the config's), raised to
-    ``inner_power``, where set and both views show the mesh (``inner_reach_change``); the least
-    over the ring pairings."""
+    and, where ``inside`` is set, each pixel's change the mean of its changes at the reaches
+    ``inside``, raised to ``inner_power``, where both views show the mesh, and at the reaches
+    ``outline`` (the config's shift unless set) elsewhere (``inside_outline_change``); the
+    least over the ring pairings."""
 
     def __init__(self, method: DrkfsOnnx, name: str, threads: int, ceiling: float | None = None,
                  solid_cameras: tuple[int, int] | None = None, view_power: float = 1.0,
-                 inner_reach: int | None = None, inner_power: float = 1.0):  # fmt: skip
+                 inside: tuple[int, ...] | None = None, inner_power: float = 1.0,
+                 outline: tuple[int, ...] | None = None):  # fmt: skip
         self.method, self.outputs, self.symmetric = method, (name,), method.symmetric
         self.config, self.ceiling, self.view_power = method.scorer.config, ceiling, view_power
-        self.inner_reach, self.inner_power = inner_reach, inner_power
+        # the reaches a pixel's change is taken at where both views show the mesh, and elsewhere
+        self.inside, self.inner_power = inside, inner_power
+        self.outline = outline or (self.config.solid_shift,)
         self.solid = None
         if solid_cameras is not None:
             count, size = solid_cameras
@@ -286,13 +313,13 @@ class Recombined(Method):
             # them to the bit
             views_a, views_b = (v[match_rules.ring_views(k, solid_config)]
                                 for v, k in ((a[1], i), (b[1], j)))  # fmt: skip
-            if self.inner_reach is None:
+            if self.inside is None:
                 per_view = solid_change(
                     views_a[:, None], views_b[:, None], solid_config.one_ring(), NUMPY_OPS
                 )
             else:
-                per_view = inner_reach_change(
-                    views_a, views_b, solid_config, self.inner_reach, self.inner_power
+                per_view = inside_outline_change(
+                    views_a, views_b, solid_config, self.inside, self.outline, self.inner_power
                 )
             if math.isinf(self.view_power):
                 solid = float(per_view.max())
@@ -314,29 +341,20 @@ def runtime_slide(method: Method) -> dict:
     return torch_checks.slide_of(against)
 
 
-def inner_reach_change(
-    views_a: np.ndarray, views_b: np.ndarray, config: PipelineConfig, inner: int, power: float
-) -> np.ndarray:
+def inside_outline_change(
+    views_a: np.ndarray, views_b: np.ndarray, config: PipelineConfig,
+    inside: tuple[int, ...], outline: tuple[int, ...], power: float = 1.0,
+) -> np.ndarray:  # fmt: skip
     """(K, H, W) two meshes' views -> (K,) each view's solid change (``contract.solid_change``)
-    with each pixel's change taken at a reach of ``inner`` and raised to ``power`` where both
-    views show the mesh, and at the config's ``solid_shift`` elsewhere: a hole shows the mesh's
-    inside in both, a moved part changes the outline."""
-    outer, maps = config.solid_shift, []
-    if not 0 <= inner <= outer:
-        raise ValueError(f"an inner reach of {inner} outside 0 .. solid_shift ({outer})")
-    for reach in (inner, outer):
-        at = config.replace(solid_shift=reach)
-        ranges = (view_range(views_a, at, NUMPY_OPS), view_range(views_b, at, NUMPY_OPS))
-        change = pixel_change(views_a, views_b, *ranges, reach, NUMPY_OPS)
-        crop = outer - reach  # to the outer reach's window
-        maps.append(change[..., crop : change.shape[-2] - crop, crop : change.shape[-1] - crop])
-    height, width = views_a.shape[-2:]
-    window = np.s_[..., outer : height - outer, outer : width - outer]
-    shown = (views_a[window] != config.background) & (views_b[window] != config.background)
-    inside, outline = maps
-    held = window_extreme(
-        np.where(shown, inside**power, outline), (config.solid_block - 1) // 2, np.minimum
+    with each pixel's change the mean over the reaches ``inside``, raised to ``power``, where
+    both views show the mesh, and over the reaches ``outline`` elsewhere: any two sets of
+    reaches, where the config's are a ramp and the same ramp less a drop."""
+    ranges = [{r: view_range(v, r, NUMPY_OPS) for r in {*inside, *outline}}
+              for v in (views_a, views_b)]  # fmt: skip
+    change = reach_change(
+        views_a, views_b, *ranges, inside, outline, power, config.background, NUMPY_OPS
     )
+    held = window_extreme(change, (config.solid_block - 1) // 2, np.minimum)
     return held.max(-1).max(-1)
 
 
@@ -367,7 +385,7 @@ def main() -> None:
     parser.add_argument("--human", type=Path, help="a Geo-metric clone (see drkfs bench --human)")
     args = parser.parse_args()
     start = time.perf_counter()
-    default = PipelineConfig(nets=args.nets, **NETS_TRAINED_AT)
+    default = PipelineConfig(nets=args.nets, **NETS_TRAINED_AT, **ONE_REACH)
     configs = {name: default.replace(**LEVERS[WRAPPED.get(name, name)]) for name in args.levers}
     bench = sets.tier_set(quick=False)
     sets.real_tiers(bench, [*TRAINING_MESHES, *HELDOUT_MESHES])

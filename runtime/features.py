@@ -81,13 +81,13 @@ class MeshFeatures:
             )
         return tuple(found)
 
-    def view_range(self, config: PipelineConfig) -> tuple[np.ndarray, np.ndarray]:
-        """The views' lowest and highest greys within ``config.solid_shift`` pixels
+    def view_range(self, reach: int) -> tuple[np.ndarray, np.ndarray]:
+        """The views' lowest and highest greys within ``reach`` pixels
         (``solid_change.view_range``), for a one-ring mesh's solid change; made once per mesh
         and reach."""
-        if config.solid_shift not in self._view_ranges:
-            self._view_ranges[config.solid_shift] = view_range(self.views, config, NUMPY_OPS)
-        return self._view_ranges[config.solid_shift]
+        if reach not in self._view_ranges:
+            self._view_ranges[reach] = view_range(self.views, reach, NUMPY_OPS)
+        return self._view_ranges[reach]
 
     @cached_property
     def _view_ranges(self) -> dict[int, tuple[np.ndarray, np.ndarray]]:

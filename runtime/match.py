@@ -11,7 +11,7 @@ import numpy as np
 from drkfs_onnx.contract import match_rules
 from drkfs_onnx.contract.array_ops import NUMPY_OPS
 from drkfs_onnx.contract.config import PipelineConfig
-from drkfs_onnx.contract.solid_change import solid_change
+from drkfs_onnx.contract.solid_change import solid_change, solid_reaches
 
 from .features import MeshFeatures
 from .nearest import exact_copies, nearest_lifted
@@ -154,8 +154,12 @@ def solid_term(a: MeshFeatures, b: MeshFeatures, config: PipelineConfig) -> floa
     if min(bottom - top, right - left) < config.solid_block:
         return 0.0  # every block of the whole views holds an unchanged pixel outside the window
     views = np.s_[..., top - shift : bottom + shift, left - shift : right + shift]
-    ranges = np.s_[..., top - shift : bottom - shift, left - shift : right - shift]
-    range_a = tuple(r[ranges] for r in a.view_range(config))
-    range_b = tuple(r[ranges] for r in b.view_range(config))
-    change = solid_change(a.views[views], b.views[views], config, NUMPY_OPS, range_a, range_b)
+    ranges_a, ranges_b = {}, {}
+    for reach in set().union(*solid_reaches(config)):
+        # the window's views' range at this reach: its pixels from ``reach`` in
+        window = np.s_[..., top - shift : bottom + shift - 2 * reach,
+                       left - shift : right + shift - 2 * reach]  # fmt: skip
+        ranges_a[reach] = tuple(r[window] for r in a.view_range(reach))
+        ranges_b[reach] = tuple(r[window] for r in b.view_range(reach))
+    change = solid_change(a.views[views], b.views[views], config, NUMPY_OPS, ranges_a, ranges_b)
     return float(change)

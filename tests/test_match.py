@@ -14,8 +14,12 @@ from drkfs_onnx.render.torch_ops import TORCH_OPS
 from drkfs_onnx.runtime.features import MeshFeatures
 from drkfs_onnx.runtime.match import descriptor_part, match, solid_term
 
-# one ring, 5 x 5 patches a view, the descriptors' match alone (test_solid_change: the views')
-GRID = PipelineConfig(num_views=3, turn_degrees=0.0, image_size=96, solid_weight=0.0)
+# one ring, 5 x 5 patches a view, the descriptors' match alone (test_solid_change: the views'),
+# a solid change, where a test adds one, at one reach of 2 everywhere
+ONE_REACH = {"solid_shift": 2, "solid_ramp": 0, "solid_inner_drop": 0, "solid_inner_power": 1.0}
+GRID = PipelineConfig(num_views=3, turn_degrees=0.0, image_size=96, solid_weight=0.0, **ONE_REACH)
+# the default's: a ramp over reaches 2 and 3, 1 and 2 inside the mesh, raised to 1.5 there
+RAMP = {name: PipelineConfig().to_dict()[name] for name in ONE_REACH}
 REDUCTIONS = [
     {"reduction": "sum"},
     {"reduction": "mean"},
@@ -139,12 +143,14 @@ def _shaded_views(config: PipelineConfig) -> np.ndarray:
     return views
 
 
+@pytest.mark.parametrize("solid", [ONE_REACH, RAMP], ids=["one reach", "ramp"])
 @pytest.mark.parametrize(("turn", "hole"), [(0.0, 0.3), (2.5, 0.1)])
-def test_a_solid_change_adds_the_same_term_to_torch_and_runtime_scores(turn, hole):
+def test_a_solid_change_adds_the_same_term_to_torch_and_runtime_scores(turn, hole, solid):
     """B holds a hole of 0.3 in its own ring's views and of 0.1 in its turned ring's: with one
     ring the term sees the first, with two the least pairing, A's own ring against B's turned
-    one, the second (its descriptors tie with the others')."""
-    config = GRID.replace(turn_degrees=turn, solid_weight=0.5)
+    one, the second (its descriptors tie with the others'). Inside the mesh the change is
+    raised to the config's power."""
+    config = GRID.replace(turn_degrees=turn, solid_weight=0.5, **solid)
     rings = len(config.rings)
     a, b, empty = _near_tie_sets()
     a, b = np.concatenate([a] * rings), np.concatenate([b] * rings)
@@ -163,19 +169,23 @@ def test_a_solid_change_adds_the_same_term_to_torch_and_runtime_scores(turn, hol
         solid_weight=0.0))  # fmt: skip
     # the solid part: 0.5 x the hole's change in each view, less the shading's slope within the
     # reach; torch's to its float32 rounding of a descriptor part of 54
-    solid, torch_solid = runtime - descriptors, float(torch_score - torch_descriptors)
-    assert solid == pytest.approx(torch_solid, abs=2e-5)
-    assert 0.5 * (hole - 0.02) < solid <= 0.5 * hole + 1e-6
+    part, torch_part = runtime - descriptors, float(torch_score - torch_descriptors)
+    power = config.solid_inner_power
+    assert part == pytest.approx(torch_part, abs=2e-5)
+    assert 0.5 * (hole - 0.02) ** power < part <= 0.5 * hole**power + 1e-6
     with pytest.raises(ValueError, match="features without their views"):
         match(_features(a, empty, config), _features(b, empty, config), config)
 
 
-def test_the_runtimes_window_and_skipped_pairings_give_the_whole_computations_score(monkeypatch):
+@pytest.mark.parametrize("solid", [ONE_REACH, RAMP], ids=["one reach", "ramp"])
+def test_the_runtimes_window_and_skipped_pairings_give_the_whole_computations_score(
+    monkeypatch, solid
+):
     """The runtime computes the solid change only where either mesh shows anything, and skips a
     ring pairing whose descriptors alone score the best total so far: neither moves a bit."""
     import drkfs_onnx.runtime.match as runtime_match
 
-    config = GRID.replace(turn_degrees=2.5, solid_weight=0.5)
+    config = GRID.replace(turn_degrees=2.5, solid_weight=0.5, **solid)
     one = config.one_ring()
     a, b, empty = _near_tie_sets()
     far = b + np.float32(0.3)  # B's turned ring: its descriptors far from A's
@@ -227,8 +237,8 @@ def test_one_described_mesh_serves_every_solid_change_setting():
     views_a = np.broadcast_to(ramp, (config.views_per_mesh, 96, 96)).copy()
     views_b = np.roll(views_a, 2, axis=-1)  # a shift of 2 pixels: seen at reach 1, not at 2
     shared = _features(a, empty, config, views_a), _features(b, empty, config, views_b)
-    for shift in (1, 2, 1):
-        asked = config.replace(solid_shift=shift)
+    for solid in ({"solid_shift": 1}, {"solid_shift": 2}, RAMP, {"solid_shift": 1}):
+        asked = config.replace(**solid)
         fresh = _features(a, empty, config, views_a), _features(b, empty, config, views_b)
         assert match(*shared, asked) == match(*fresh, asked)
     reach_1, reach_2 = (match(*shared, config.replace(solid_shift=s)) for s in (1, 2))

@@ -33,13 +33,17 @@ NETS_TRAINED_AT = {
 # Fields added after configs were first recorded (the manifest, feature graphs, features files,
 # results), with the value every record without them was made with: one ring of cameras, no
 # solid change.
-ADDED_FIELDS = {"turn_degrees": 0.0, "solid_weight": 0.0}
+ADDED_FIELDS = {
+    "turn_degrees": 0.0, "solid_weight": 0.0, "solid_ramp": 0, "solid_inner_drop": 0,
+    "solid_inner_power": 1.0,
+}  # fmt: skip
 # The settings that shape only the match of two meshes' descriptors and views, not the
 # descriptors: a feature graph or features file serves every value of these (a features file
 # written before it kept its views serves no solid change).
 MATCH_FIELDS = (
     "matching", "window", "direction", "reduction", "tail_fraction", "power", "temperature",
-    "solid_weight", "solid_shift", "solid_block",
+    "solid_weight", "solid_shift", "solid_block", "solid_ramp", "solid_inner_drop",
+    "solid_inner_power",
 )  # fmt: skip
 
 
@@ -125,15 +129,24 @@ class PipelineConfig:
     power: float = 8.0
     temperature: float = 0.05
     # A solid change of the views added to each ring pairing's score (``contract.solid_change``):
-    # ``solid_weight`` times the mean over the views of the largest grey change held over a
-    # ``solid_block``-square of pixels, a pixel's change counted beyond the other view's greys
-    # within ``solid_shift`` pixels; 0: none. The descriptors score a small hole or a removed tip
-    # below whole-surface noise; such a change is solid, noise is scattered and a slight turn
-    # moves pixels within the reach. Chosen on the real tiers' training side with the bench's
-    # targets kept: a reach of 1 pixel took a moved bar for a removed one (docs/benchmark.md).
-    solid_weight: float = 0.5
-    solid_shift: int = 2
+    # ``solid_weight`` times the mean over the views of the largest change held over a
+    # ``solid_block``-square of pixels; 0: none. A pixel's change at a reach is how far its grey
+    # lies beyond the other view's greys within that many pixels; its change is the mean over
+    # the reaches ``solid_shift`` and the ``solid_ramp`` below it, each ``solid_inner_drop``
+    # less and the mean raised to ``solid_inner_power`` where both views show the mesh. The
+    # descriptors score a small hole or a removed tip below whole-surface noise; such a change
+    # is solid, noise is scattered and a slight turn moves pixels within the reach. A hole shows
+    # the mesh's inside, where a moved part changes the outline: a reach of 1 everywhere took a
+    # moved bar for a removed one, and a single reach of 1 inside the mesh raised the chair
+    # leg's slide in one step; the ramp (reaches 2-3, 1-2 inside) keeps it smooth. Chosen on the
+    # synthetic tiers and the real tiers' training side with the bench's targets kept
+    # (docs/benchmark.md).
+    solid_weight: float = 0.7
+    solid_shift: int = 3
     solid_block: int = 3
+    solid_ramp: int = 1
+    solid_inner_drop: int = 1
+    solid_inner_power: float = 1.5
 
     def __post_init__(self) -> None:
         if self.num_views < 1:
@@ -174,6 +187,12 @@ class PipelineConfig:
             raise ValueError("solid_block must be odd and at least 1 (a square about a pixel)")
         if 2 * self.solid_shift + self.solid_block > self.image_size:
             raise ValueError("2 * solid_shift + solid_block must fit in image_size")
+        if min(self.solid_ramp, self.solid_inner_drop) < 0:
+            raise ValueError("solid_ramp and solid_inner_drop must be at least 0")
+        if self.solid_ramp + self.solid_inner_drop > self.solid_shift:
+            raise ValueError("solid_ramp + solid_inner_drop must not exceed solid_shift")
+        if self.solid_inner_power <= 0:
+            raise ValueError("solid_inner_power must be positive")
         object.__setattr__(self, "light_direction", tuple(float(v) for v in self.light_direction))
 
     @classmethod

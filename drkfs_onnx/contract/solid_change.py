@@ -4,12 +4,17 @@ the descriptors hardly do.
 
 A viewer notices a region that changes as a whole (a hole, a missing tip) more than many
 scattered changes (noise, faceting) or a shift of a pixel or two (a slight turn, a moved
-outline). Per pixel, the change is how far its grey lies outside the range of the other view's
-greys within ``solid_shift`` pixels, either way (the larger): a shift within that reach changes
-nothing. Per view, the solid change is the largest change held over every pixel of a
-``solid_block``-square (the change map's erosion): scattered changes and thin strips fall out.
-The term is its mean over the views, times ``solid_weight`` (docs/benchmark.md, "A solid
-change of the views").
+outline). Per pixel, the change at a reach is how far its grey lies outside the range of the
+other view's greys within that many pixels, either way (the larger): a shift within the reach
+changes nothing. A pixel's change is the mean of its changes at the reaches ``solid_reaches``
+gives: ``solid_shift`` and the ``solid_ramp`` below it, so that a growing shift raises it step
+by step instead of at one reach; where both views show the mesh, each reach is
+``solid_inner_drop`` less and the mean is raised to ``solid_inner_power`` (a hole shows the
+mesh's inside in both views, where a moved part's outline shows the background in one; a
+strong change of grey there counts more than a faint one, a facet's). Per view, the solid
+change is the largest change held over every pixel of a ``solid_block``-square (the change
+map's erosion): scattered changes and thin strips fall out. The term is its mean over the
+views, times ``solid_weight`` (docs/benchmark.md, "A solid change of the views").
 
 Windows are taken where they fit inside the view ("valid"): the outer ``solid_shift`` +
 (``solid_block`` - 1) / 2 pixels of each side, where the cameras frame no mesh, are left out.
@@ -22,6 +27,8 @@ from typing import Any
 
 from .array_ops import ArrayOps
 from .config import PipelineConfig
+
+Ranges = dict[int, tuple[Any, Any]]  # reach -> a view's (lowest, highest) grey within it
 
 
 def window_extreme(images: Any, reach: int, pick: Callable) -> Any:
@@ -39,12 +46,24 @@ def window_extreme(images: Any, reach: int, pick: Callable) -> Any:
     return found
 
 
-def view_range(views: Any, config: PipelineConfig, ops: ArrayOps) -> tuple[Any, Any]:
-    """(..., K, H, W) views -> their (lowest, highest) grey within ``solid_shift`` pixels, each
-    (..., K, H - 2 shift, W - 2 shift): what the other mesh's pixels are compared with, made
+def solid_reaches(config: PipelineConfig) -> tuple[tuple[int, ...], tuple[int, ...]]:
+    """The reaches a pixel's change is the mean over: (where both views show the mesh,
+    elsewhere)."""
+    outline = tuple(range(config.solid_shift - config.solid_ramp, config.solid_shift + 1))
+    return tuple(r - config.solid_inner_drop for r in outline), outline
+
+
+def view_range(views: Any, reach: int, ops: ArrayOps) -> tuple[Any, Any]:
+    """(..., K, H, W) views -> their (lowest, highest) grey within ``reach`` pixels, each (...,
+    K, H - 2 reach, W - 2 reach): what the other mesh's pixels are compared with."""
+    return window_extreme(views, reach, ops.minimum), window_extreme(views, reach, ops.maximum)
+
+
+def view_ranges(views: Any, config: PipelineConfig, ops: ArrayOps) -> Ranges:
+    """(..., K, H, W) views -> their ``view_range`` at each reach of ``solid_reaches``, made
     once per mesh."""
-    shift = config.solid_shift
-    return window_extreme(views, shift, ops.minimum), window_extreme(views, shift, ops.maximum)
+    inside, outline = solid_reaches(config)
+    return {reach: view_range(views, reach, ops) for reach in sorted({*inside, *outline})}
 
 
 def solid_change(
@@ -52,25 +71,53 @@ def solid_change(
     views_b: Any,
     config: PipelineConfig,
     ops: ArrayOps,
-    range_a: tuple[Any, Any] | None = None,
-    range_b: tuple[Any, Any] | None = None,
+    ranges_a: Ranges | None = None,
+    ranges_b: Ranges | None = None,
 ) -> Any:
     """(..., K, H, W) two meshes' views of the same cameras (or the same window of them) ->
-    (...) the mean over the views of the largest grey change held over a ``solid_block``-square
-    (the module's doc). Each mesh's ``view_range`` may be passed in, made once; it is made here
-    otherwise."""
-    range_a = view_range(views_a, config, ops) if range_a is None else range_a
-    range_b = view_range(views_b, config, ops) if range_b is None else range_b
-    change = pixel_change(views_a, views_b, range_a, range_b, config.solid_shift, ops)
+    (...) the mean over the views of the largest change held over a ``solid_block``-square
+    (the module's doc). Each mesh's ``view_ranges`` may be passed in, made once; they are made
+    here otherwise."""
+    ranges_a = view_ranges(views_a, config, ops) if ranges_a is None else ranges_a
+    ranges_b = view_ranges(views_b, config, ops) if ranges_b is None else ranges_b
+    inside, outline = solid_reaches(config)
+    change = reach_change(
+        views_a, views_b, ranges_a, ranges_b, inside, outline, config.solid_inner_power,
+        config.background, ops,
+    )  # fmt: skip
     held = window_extreme(change, (config.solid_block - 1) // 2, ops.minimum)
     return ops.amax(ops.amax(held, -1), -1).mean(-1)
+
+
+def reach_change(
+    views_a: Any, views_b: Any, ranges_a: Ranges, ranges_b: Ranges, inside: tuple[int, ...],
+    outline: tuple[int, ...], inner_power: float, background: float, ops: ArrayOps,
+) -> Any:  # fmt: skip
+    """(..., H, W) two meshes' views and each one's ranges at every reach asked -> (...,
+    H - 2 m, W - 2 m), m the largest reach: each pixel's mean change over the reaches
+    ``inside``, raised to ``inner_power``, where both views show the mesh, and over the reaches
+    ``outline`` elsewhere."""
+    outer = max(*inside, *outline)
+    height, width = views_a.shape[-2], views_a.shape[-1]
+    maps = {}
+    for reach in {*inside, *outline}:
+        change = pixel_change(views_a, views_b, ranges_a[reach], ranges_b[reach], reach, ops)
+        crop = outer - reach  # to the largest reach's window
+        maps[reach] = change[..., crop : change.shape[-2] - crop, crop : change.shape[-1] - crop]
+    edge = sum(maps[r] for r in outline) / len(outline)
+    if inside == outline and inner_power == 1.0:
+        return edge
+    window = (..., slice(outer, height - outer), slice(outer, width - outer))
+    shown = (views_a[window] != background) & (views_b[window] != background)
+    inner = sum(maps[r] for r in inside) / len(inside)
+    return ops.where(shown, inner**inner_power, edge)
 
 
 def pixel_change(
     views_a: Any, views_b: Any, range_a: tuple[Any, Any], range_b: tuple[Any, Any], shift: int,
     ops: ArrayOps,
 ) -> Any:  # fmt: skip
-    """(..., H, W) two meshes' views and each one's ``view_range`` at reach ``shift`` -> (...,
+    """(..., H, W) two meshes' views and each one's range at reach ``shift`` -> (...,
     H - 2 shift, W - 2 shift): how far each pixel's grey lies outside the other view's range,
     the larger way; 0 inside it."""
     height, width = views_a.shape[-2], views_a.shape[-1]
