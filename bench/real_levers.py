@@ -154,6 +154,20 @@ LEVERS = {  # name -> the settings the lever moves (from NETS_TRAINED_AT's confi
             (6, 144, 0.5, 1, 0.07),
         )
     },  # fmt: skip
+    # the default: the solid change ramped over reaches 2 and 3, 1 and 2 at power 1.5 inside
+    "solid change x0.7 over reaches 2-3, 1-2 at power 1.5 inside the mesh, block 3, rings 0 and "
+    "2.5, 5 cameras, 144 px, softmax t = 0.05": {
+        "num_views": 5,
+        "image_size": 144,
+        "temperature": 0.05,
+        "turn_degrees": 2.5,
+        "solid_weight": 0.7,
+        "solid_shift": 3,
+        "solid_block": 3,
+        "solid_ramp": 1,
+        "solid_inner_drop": 1,
+        "solid_inner_power": 1.5,
+    },
     "5 cameras, 128 px, softmax t = 0.05": {"num_views": 5, "temperature": 0.05},
     "5 cameras, 160 px, softmax t = 0.05": {"num_views": 5, "image_size": 160, "temperature": 0.05},
     "4 cameras, 192 px": {"num_views": 4, "image_size": 192},

@@ -104,13 +104,20 @@ def reach_change(
         change = pixel_change(views_a, views_b, ranges_a[reach], ranges_b[reach], reach, ops)
         crop = outer - reach  # to the largest reach's window
         maps[reach] = change[..., crop : change.shape[-2] - crop, crop : change.shape[-1] - crop]
-    edge = sum(maps[r] for r in outline) / len(outline)
+    edge = _mean([maps[r] for r in outline])
     if inside == outline and inner_power == 1.0:
         return edge
     window = (..., slice(outer, height - outer), slice(outer, width - outer))
     shown = (views_a[window] != background) & (views_b[window] != background)
-    inner = sum(maps[r] for r in inside) / len(inside)
-    return ops.where(shown, inner**inner_power, edge)
+    inner = ops.power(_mean([maps[r] for r in inside]), inner_power)
+    return ops.where(shown, inner, edge)
+
+
+def _mean(maps: list[Any]) -> Any:
+    total = maps[0]
+    for more in maps[1:]:
+        total = total + more
+    return total if len(maps) == 1 else total / len(maps)
 
 
 def pixel_change(

@@ -25,5 +25,5 @@ TORCH_OPS = ArrayOps(
     sign=torch.sign, ceil=torch.ceil, floor=torch.floor, sqrt=torch.sqrt, exp=torch.exp,
     log=torch.log, sigmoid=torch.sigmoid, stack=torch.stack, take=_take,
     scatter_sum=_scatter_sum, scatter_max=_scatter_max, amin=torch.amin, amax=torch.amax,
-    argsort=torch.argsort, cumsum=torch.cumsum,
+    argsort=torch.argsort, cumsum=torch.cumsum, power=torch.pow,
 )  # fmt: skip
