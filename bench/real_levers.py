@@ -1,18 +1,20 @@
-"""Levers for a viewer's tolerance and attention, measured without retraining: a config's nets
-(the default's unless ``--nets``) under other matches, reductions, camera counts, view sizes,
-turned rings of cameras, solid changes of the views and searches over turns of the meshes, on
-the benchmark's synthetic tiers and on both sides of its real-mesh tiers (a lever is chosen on
-the training side and judged on the held-out one), with the bench's targets a default must keep
-(the bars test, retrieval, the slide check; people's judgments with --human). Each lever moves
-the config the nets were trained at (``NETS_TRAINED_AT``: 6 views of 128 px, t = 0.1, one
-ring, no solid change, the default's until the lever "5 cameras, 144 px, softmax t = 0.05"
-became the default, then "rings 0 and 2.5, ...", then "solid change x0.5 shift 2 block 3,
-..."), named "default" in the results. The turn searches (``TURN_SEARCHES``, not run unless
-named) wrap a lever's scorer, and so do the recombinations (``RECOMBINED``, not run unless
-named: the descriptors' part bounded, the solid change from other cameras than the
-descriptors', the views' solid changes in a power mean, or a shorter reach inside the mesh).
-A turn search's slide check is its lever's, as the torch path has none; a recombination's is
-its own, on the runtime path it is scored on (``runtime_slide``).
+"""Levers for a viewer's tolerance and attention, measured without retraining: a config's nets (the
+default's unless ``--nets``) under other matches, reductions, camera counts, view sizes, turned
+rings of cameras, solid changes of the views and searches over turns of the meshes, on the
+benchmark's synthetic tiers and on both sides of its real-mesh tiers (a lever is chosen on the
+training side and judged on the held-out one), with the bench's targets a default must keep (the
+bars test, retrieval, the slide check; people's judgments with --human). Each lever moves the
+config the nets were trained at (``NETS_TRAINED_AT``: 6 views of 128 px, t = 0.1, one ring, no
+solid change, the default's until the lever "5 cameras, 144 px, softmax t = 0.05" became the
+default, then "rings 0 and 2.5, ...", then "solid change x0.5 shift 2 block 3, ...", then "solid
+change x0.7 over reaches 2-3, ..."), named "default" in the results. The turn searches
+(``TURN_SEARCHES``, not run unless named) wrap a lever's scorer, and so do the recombinations
+(``RECOMBINED``, not run unless named: the descriptors' part bounded, the solid change from
+other cameras than the descriptors', the views' solid changes in a power mean, or a pixel's
+change taken over other reaches inside the mesh and at its outline than a config's ramp allows).
+A lever's solid change is at one reach unless it names a ramp (``ONE_REACH``), as every lever
+before the ramp was. A turn search's slide check is its lever's, as the torch path has none; a
+recombination's is its own, on the runtime path it is scored on (``runtime_slide``).
 
     python bench/real_levers.py --out bench/results/real_levers_tolerant.json
     python bench/real_levers.py --nets metric --out bench/results/real_levers.json
@@ -154,20 +156,24 @@ LEVERS = {  # name -> the settings the lever moves (from NETS_TRAINED_AT's confi
             (6, 144, 0.5, 1, 0.07),
         )
     },  # fmt: skip
-    # the default: the solid change ramped over reaches 2 and 3, 1 and 2 at power 1.5 inside
-    "solid change x0.7 over reaches 2-3, 1-2 at power 1.5 inside the mesh, block 3, rings 0 and "
-    "2.5, 5 cameras, 144 px, softmax t = 0.05": {
-        "num_views": 5,
-        "image_size": 144,
-        "temperature": 0.05,
-        "turn_degrees": 2.5,
-        "solid_weight": 0.7,
-        "solid_shift": 3,
-        "solid_block": 3,
-        "solid_ramp": 1,
-        "solid_inner_drop": 1,
-        "solid_inner_power": 1.5,
-    },
+    # the default: the solid change ramped over reaches 2 and 3, 1 and 2 at power 1.5 inside;
+    # and the same ramp with 6 cameras of 128 px, which see the holes the default's hardly do
+    **{
+        f"solid change x{w:g} over reaches 2-3, 1-2 at power 1.5 inside the mesh, block 3, "
+        f"rings 0 and 2.5, {k} cameras, {px} px, softmax t = 0.05": {
+            "num_views": k,
+            "image_size": px,
+            "temperature": 0.05,
+            "turn_degrees": 2.5,
+            "solid_weight": w,
+            "solid_shift": 3,
+            "solid_block": 3,
+            "solid_ramp": 1,
+            "solid_inner_drop": 1,
+            "solid_inner_power": 1.5,
+        }
+        for k, px, w in ((5, 144, 0.7), (6, 128, 0.5), (6, 128, 0.7))
+    },  # fmt: skip
     "5 cameras, 128 px, softmax t = 0.05": {"num_views": 5, "temperature": 0.05},
     "5 cameras, 160 px, softmax t = 0.05": {"num_views": 5, "image_size": 160, "temperature": 0.05},
     "4 cameras, 192 px": {"num_views": 4, "image_size": 192},
