@@ -49,22 +49,17 @@ from drkfs_onnx.benchmark.run import (
 from drkfs_onnx.contract import match_rules
 from drkfs_onnx.contract.array_ops import NUMPY_OPS
 from drkfs_onnx.contract.cameras import rotation_y
-from drkfs_onnx.contract.config import NETS_TRAINED_AT
+from drkfs_onnx.contract.config import NETS_TRAINED_AT, ONE_REACH
 from drkfs_onnx.contract.model_files import features_file, models_dir, shipped_entry
-from drkfs_onnx.contract.solid_change import (
-    reach_change,
-    solid_change,
-    view_range,
-    window_extreme,
-)
+from drkfs_onnx.contract.solid_change import held_change, reach_change, solid_change, view_range
 from drkfs_onnx.export.onnx_files import export_features
 from drkfs_onnx.metric import DRKFS
 from drkfs_onnx.runtime.match import descriptor_part
 from drkfs_onnx.runtime.render import NumpyRenderer
 
-# a lever's solid change is at one reach everywhere unless it names a ramp, as before the ramp
-ONE_REACH = {"solid_ramp": 0, "solid_inner_drop": 0, "solid_inner_power": 1.0}
-LEVERS = {  # name -> the settings the lever moves (from NETS_TRAINED_AT's config, ONE_REACH's)
+# name -> the settings the lever moves (from NETS_TRAINED_AT's config, its solid change at
+# ONE_REACH unless the lever names a ramp, as before the ramp)
+LEVERS = {
     "default": {},
     "window r1": {"window": 1},
     "softmax t = 0.05": {"temperature": 0.05},
@@ -201,44 +196,46 @@ TURN_SEARCHES = {
     f"cameras turned 1, {DEFAULT_LEVER}": (DEFAULT_LEVER, ((1.0, 1.0),)),
     f"two rings +-1, each ring alone, {DEFAULT_LEVER}": (DEFAULT_LEVER, ((-1.0, -1.0), (1.0, 1.0))),
 }  # fmt: skip
-SOLID_LEVER = (  # the default (weight 0.5) and its neighbours
-    "solid change x{w:g} shift 2 block 3, rings 0 and 2.5, 5 cameras, 144 px, softmax t = 0.05"
+SOLID_LEVER = (  # the default before the ramp (weight 0.5, shift 2) and its neighbours
+    "solid change x{w:g} shift {s} block 3, rings 0 and 2.5, 5 cameras, 144 px, softmax t = 0.05"
 )
 # name -> (a lever above, ``Recombined``'s settings): what a config cannot say
 RECOMBINED = {
     # the default itself on the runtime path: its slide check there against the torch path's
-    f"recombined with nothing, {SOLID_LEVER.format(w=0.5)}": (SOLID_LEVER.format(w=0.5), {}),
+    f"recombined with nothing, {SOLID_LEVER.format(w=0.5, s=2)}": (
+        SOLID_LEVER.format(w=0.5, s=2), {}
+    ),
 } | {
-    f"solid change from 6 cameras of 128 px, {SOLID_LEVER.format(w=w)}": (
-        SOLID_LEVER.format(w=w), {"solid_cameras": (6, 128)}
+    f"solid change from 6 cameras of 128 px, {SOLID_LEVER.format(w=w, s=2)}": (
+        SOLID_LEVER.format(w=w, s=2), {"solid_cameras": (6, 128)}
     )
     for w in (0.5, 0.7)
 } | {
-    f"descriptors' part at most {c:g}, {SOLID_LEVER.format(w=0.5)}": (
-        SOLID_LEVER.format(w=0.5), {"ceiling": c}
+    f"descriptors' part at most {c:g}, {SOLID_LEVER.format(w=0.5, s=2)}": (
+        SOLID_LEVER.format(w=0.5, s=2), {"ceiling": c}
     )
     for c in (0.1, 0.05)
 } | {  # a change one camera sees counts more than the mean over the views gives it
-    f"views' solid changes in a power mean p = {power:g}, {SOLID_LEVER.format(w=w)}": (
-        SOLID_LEVER.format(w=w), {"view_power": power}
+    f"views' solid changes in a power mean p = {power:g}, {SOLID_LEVER.format(w=w, s=2)}": (
+        SOLID_LEVER.format(w=w, s=2), {"view_power": power}
     )
     for power, w in ((4.0, 0.5), (math.inf, 0.3))
 } | {  # a hole shows the mesh's inside, where a moved part's outline shows the background
-    f"solid change at reach 1 where both views show the mesh, {SOLID_LEVER.format(w=w)}": (
-        SOLID_LEVER.format(w=w), {"inside": (1,)}
+    f"solid change at reach 1 where both views show the mesh, {SOLID_LEVER.format(w=w, s=2)}": (
+        SOLID_LEVER.format(w=w, s=2), {"inside": (1,)}
     )
     for w in (0.5, 0.7)
 } | {  # and a strong change of grey there counts more than a faint one (a facet's)
     f"solid change at reach 1 and power {power:g} where both views show the mesh, "
-    f"{SOLID_LEVER.format(w=w)}": (
-        SOLID_LEVER.format(w=w), {"inside": (1,), "inner_power": power}
+    f"{SOLID_LEVER.format(w=w, s=2)}": (
+        SOLID_LEVER.format(w=w, s=2), {"inside": (1,), "inner_power": power}
     )
     for power in (1.5, 2.0)
     for w in (0.5, 0.7)
 } | {  # a pixel's change ramped up over several reaches: a shift crosses no single threshold
     f"solid change the mean over reaches {'-'.join(map(str, r))}, "
-    f"{SOLID_LEVER.format(w=w).replace('shift 2', f'shift {max(r)}')}": (
-        SOLID_LEVER.format(w=w).replace("shift 2", f"shift {max(r)}"), {"inside": r, "outline": r}
+    f"{SOLID_LEVER.format(w=w, s=max(r))}": (
+        SOLID_LEVER.format(w=w, s=max(r)), {"inside": r, "outline": r}
     )
     for r, w in (((1, 2, 3), 0.5), ((1, 2, 3), 0.7), ((1, 2), 0.5), ((1, 2), 0.7), ((2, 3), 0.5),
                  ((1, 2, 3, 4), 0.7))
@@ -246,8 +243,8 @@ RECOMBINED = {
     f"solid change the mean over reaches {'-'.join(map(str, i))}"
     + (f" and power {p:g}" if p != 1 else "")
     + f" where both views show the mesh, over 2-3 elsewhere, "
-    f"{SOLID_LEVER.format(w=w).replace('shift 2', 'shift 3')}": (
-        SOLID_LEVER.format(w=w).replace("shift 2", "shift 3"),
+    f"{SOLID_LEVER.format(w=w, s=3)}": (
+        SOLID_LEVER.format(w=w, s=3),
         {"inside": i, "inner_power": p, "outline": (2, 3)},
     )
     for i, p, w in (((1, 2, 3), 1, 0.5), ((1, 2, 3), 1, 0.7), ((1, 2), 1, 0.5), ((1, 2), 1, 0.7),
@@ -374,8 +371,7 @@ def inside_outline_change(
     change = reach_change(
         views_a, views_b, *ranges, inside, outline, power, config.background, NUMPY_OPS
     )
-    held = window_extreme(change, (config.solid_block - 1) // 2, np.minimum)
-    return held.max(-1).max(-1)
+    return held_change(change, config.solid_block, NUMPY_OPS)
 
 
 def feature_graph(config: PipelineConfig, folder: Path) -> Path | None:

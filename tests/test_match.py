@@ -7,7 +7,7 @@ import torch
 
 from drkfs_onnx.contract import match_rules
 from drkfs_onnx.contract.array_ops import NUMPY_OPS
-from drkfs_onnx.contract.config import DIRECTIONS, PipelineConfig
+from drkfs_onnx.contract.config import DIRECTIONS, ONE_REACH, PipelineConfig
 from drkfs_onnx.contract.solid_change import solid_change
 from drkfs_onnx.match import match_score
 from drkfs_onnx.render.torch_ops import TORCH_OPS
@@ -16,10 +16,10 @@ from drkfs_onnx.runtime.match import descriptor_part, match, solid_term
 
 # one ring, 5 x 5 patches a view, the descriptors' match alone (test_solid_change: the views'),
 # a solid change, where a test adds one, at one reach of 2 everywhere
-ONE_REACH = {"solid_shift": 2, "solid_ramp": 0, "solid_inner_drop": 0, "solid_inner_power": 1.0}
-GRID = PipelineConfig(num_views=3, turn_degrees=0.0, image_size=96, solid_weight=0.0, **ONE_REACH)
+AT_2 = {"solid_shift": 2, **ONE_REACH}
+GRID = PipelineConfig(num_views=3, turn_degrees=0.0, image_size=96, solid_weight=0.0, **AT_2)
 # the default's: a ramp over reaches 2 and 3, 1 and 2 inside the mesh, raised to 1.5 there
-RAMP = {name: PipelineConfig().to_dict()[name] for name in ONE_REACH}
+RAMP = {name: PipelineConfig().to_dict()[name] for name in AT_2}
 REDUCTIONS = [
     {"reduction": "sum"},
     {"reduction": "mean"},
@@ -143,7 +143,7 @@ def _shaded_views(config: PipelineConfig) -> np.ndarray:
     return views
 
 
-@pytest.mark.parametrize("solid", [ONE_REACH, RAMP], ids=["one reach", "ramp"])
+@pytest.mark.parametrize("solid", [AT_2, RAMP], ids=["one reach", "ramp"])
 @pytest.mark.parametrize(("turn", "hole"), [(0.0, 0.3), (2.5, 0.1)])
 def test_a_solid_change_adds_the_same_term_to_torch_and_runtime_scores(turn, hole, solid):
     """B holds a hole of 0.3 in its own ring's views and of 0.1 in its turned ring's: with one
@@ -177,7 +177,7 @@ def test_a_solid_change_adds_the_same_term_to_torch_and_runtime_scores(turn, hol
         match(_features(a, empty, config), _features(b, empty, config), config)
 
 
-@pytest.mark.parametrize("solid", [ONE_REACH, RAMP], ids=["one reach", "ramp"])
+@pytest.mark.parametrize("solid", [AT_2, RAMP], ids=["one reach", "ramp"])
 def test_the_runtimes_window_and_skipped_pairings_give_the_whole_computations_score(
     monkeypatch, solid
 ):

@@ -8,10 +8,10 @@ import torch
 
 from drkfs_onnx import PipelineConfig
 from drkfs_onnx.contract.array_ops import NUMPY_OPS
+from drkfs_onnx.contract.config import ONE_REACH
 from drkfs_onnx.contract.solid_change import solid_change, view_ranges, window_extreme
 from drkfs_onnx.render.torch_ops import TORCH_OPS
 
-ONE_REACH = {"solid_ramp": 0, "solid_inner_drop": 0, "solid_inner_power": 1.0}
 CONFIG = PipelineConfig(solid_weight=1.0, solid_shift=2, solid_block=3, **ONE_REACH)
 K, S = 5, 64
 

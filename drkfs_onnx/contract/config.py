@@ -33,10 +33,9 @@ NETS_TRAINED_AT = {
 # Fields added after configs were first recorded (the manifest, feature graphs, features files,
 # results), with the value every record without them was made with: one ring of cameras, no
 # solid change.
-ADDED_FIELDS = {
-    "turn_degrees": 0.0, "solid_weight": 0.0, "solid_ramp": 0, "solid_inner_drop": 0,
-    "solid_inner_power": 1.0,
-}  # fmt: skip
+# The solid change at one reach everywhere, as before its ramp (``contract.solid_change``).
+ONE_REACH = {"solid_ramp": 0, "solid_inner_drop": 0, "solid_inner_power": 1.0}
+ADDED_FIELDS = {"turn_degrees": 0.0, "solid_weight": 0.0, **ONE_REACH}
 # The settings that shape only the match of two meshes' descriptors and views, not the
 # descriptors: a feature graph or features file serves every value of these (a features file
 # written before it kept its views serves no solid change).

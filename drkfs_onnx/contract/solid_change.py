@@ -85,8 +85,14 @@ def solid_change(
         views_a, views_b, ranges_a, ranges_b, inside, outline, config.solid_inner_power,
         config.background, ops,
     )  # fmt: skip
-    held = window_extreme(change, (config.solid_block - 1) // 2, ops.minimum)
-    return ops.amax(ops.amax(held, -1), -1).mean(-1)
+    return held_change(change, config.solid_block, ops).mean(-1)
+
+
+def held_change(change: Any, block: int, ops: ArrayOps) -> Any:
+    """(..., K, H, W) a change map -> (..., K) each view's largest change held over every pixel
+    of a ``block``-square."""
+    held = window_extreme(change, (block - 1) // 2, ops.minimum)
+    return ops.amax(ops.amax(held, -1), -1)
 
 
 def reach_change(
