@@ -10,8 +10,9 @@ default, then "rings 0 and 2.5, ...", then "solid change x0.5 shift 2 block 3, .
 change x0.7 over reaches 2-3, ..."), named "default" in the results. The turn searches
 (``TURN_SEARCHES``, not run unless named) wrap a lever's scorer, and so do the recombinations
 (``RECOMBINED``, not run unless named: the descriptors' part bounded, the solid change from
-other cameras than the descriptors', the views' solid changes in a power mean, or a pixel's
-change taken over other reaches inside the mesh and at its outline than a config's ramp allows).
+other cameras than the descriptors', the views' solid changes in a power mean, a pixel's change
+taken over other reaches inside the mesh and at its outline than a config's ramp allows, or the
+descriptors' distances counted above a floor the whole shown surface sets).
 A lever's solid change is at one reach unless it names a ramp (``ONE_REACH``), as every lever
 before the ramp was. A turn search's slide check is its lever's, as the torch path has none; a
 recombination's is its own, on the runtime path it is scored on (``runtime_slide``).
@@ -54,7 +55,7 @@ from drkfs_onnx.contract.model_files import features_file, models_dir, shipped_e
 from drkfs_onnx.contract.solid_change import held_change, reach_change, solid_change, view_range
 from drkfs_onnx.export.onnx_files import export_features
 from drkfs_onnx.metric import DRKFS
-from drkfs_onnx.runtime.match import descriptor_part
+from drkfs_onnx.runtime.match import best_matches, descriptor_part
 from drkfs_onnx.runtime.render import NumpyRenderer
 
 # name -> the settings the lever moves (from NETS_TRAINED_AT's config, its solid change at
@@ -152,7 +153,9 @@ LEVERS = {
         )
     },  # fmt: skip
     # the default: the solid change ramped over reaches 2 and 3, 1 and 2 at power 1.5 inside;
-    # and the same ramp with 6 cameras of 128 px, which see the holes the default's hardly do
+    # the same ramp with 6 cameras of 128 px, which see the holes the default's hardly do; and
+    # heavier (the held-out side's small holes and tips are the solid change's, not the
+    # descriptors')
     **{
         f"solid change x{w:g} over reaches 2-3, 1-2 at power 1.5 inside the mesh, block 3, "
         f"rings 0 and 2.5, {k} cameras, {px} px, softmax t = 0.05": {
@@ -167,7 +170,16 @@ LEVERS = {
             "solid_inner_drop": 1,
             "solid_inner_power": 1.5,
         }
-        for k, px, w in ((5, 144, 0.7), (6, 128, 0.5), (6, 128, 0.7))
+        for k, px, w in (
+            (5, 144, 0.7),
+            (6, 128, 0.5),
+            (6, 128, 0.7),
+            (5, 144, 0.85),
+            (5, 144, 0.87),
+            (5, 144, 1.0),
+            (5, 144, 1.2),
+            (5, 144, 1.5),
+        )
     },  # fmt: skip
     "5 cameras, 128 px, softmax t = 0.05": {"num_views": 5, "temperature": 0.05},
     "5 cameras, 160 px, softmax t = 0.05": {"num_views": 5, "image_size": 160, "temperature": 0.05},
@@ -198,6 +210,10 @@ TURN_SEARCHES = {
 }  # fmt: skip
 SOLID_LEVER = (  # the default before the ramp (weight 0.5, shift 2) and its neighbours
     "solid change x{w:g} shift {s} block 3, rings 0 and 2.5, 5 cameras, 144 px, softmax t = 0.05"
+)
+DEFAULT_NOW = (  # the default since the ramp
+    "solid change x0.7 over reaches 2-3, 1-2 at power 1.5 inside the mesh, block 3, rings 0 and "
+    "2.5, 5 cameras, 144 px, softmax t = 0.05"
 )
 # name -> (a lever above, ``Recombined``'s settings): what a config cannot say
 RECOMBINED = {
@@ -250,6 +266,11 @@ RECOMBINED = {
     for i, p, w in (((1, 2, 3), 1, 0.5), ((1, 2, 3), 1, 0.7), ((1, 2), 1, 0.5), ((1, 2), 1, 0.7),
                     ((1,), 1.5, 0.7), ((1, 2, 3), 1.5, 0.7), ((1, 2), 1.5, 0.7),
                     ((1, 2), 1.5, 0.5), ((1, 2), 1.5, 0.6), ((1, 2), 2, 0.7), ((1, 2, 3), 2, 0.7))
+} | {  # the descriptors' distances above a floor the whole shown surface sets
+    f"descriptors' distances above {c:g} x their {q:g} quantile, {DEFAULT_NOW}": (
+        DEFAULT_NOW, {"floor": (q, c)}
+    )
+    for q, c in ((0.5, 0.5), (0.5, 1.0), (0.25, 1.0), (0.75, 0.5))
 }  # fmt: skip
 WRAPPED = {name: lever for name, (lever, *_) in (TURN_SEARCHES | RECOMBINED).items()}
 
@@ -295,13 +316,18 @@ class Recombined(Method):
     and, where ``inside`` is set, each pixel's change the mean of its changes at the reaches
     ``inside``, raised to ``inner_power``, where both views show the mesh, and at the reaches
     ``outline`` (the config's shift unless set) elsewhere (``inside_outline_change``); the
-    least over the ring pairings."""
+    least over the ring pairings. With ``floor`` = (q, c) each patch's best-match distance
+    counts only above c times the q-quantile of the distances of the patches either mesh shows
+    (``floored_part``): a change that raises every patch (noise, faceting) counts less against
+    one that raises a few (a hole, a missing tip)."""
 
     def __init__(self, method: DrkfsOnnx, name: str, threads: int, ceiling: float | None = None,
                  solid_cameras: tuple[int, int] | None = None, view_power: float = 1.0,
                  inside: tuple[int, ...] | None = None, inner_power: float = 1.0,
-                 outline: tuple[int, ...] | None = None):  # fmt: skip
+                 outline: tuple[int, ...] | None = None,
+                 floor: tuple[float, float] | None = None):  # fmt: skip
         self.method, self.outputs, self.symmetric = method, (name,), method.symmetric
+        self.floor = floor
         self.config, self.ceiling, self.view_power = method.scorer.config, ceiling, view_power
         # the reaches a pixel's change is taken at where both views show the mesh, and elsewhere
         self.inside, self.inner_power = inside, inner_power
@@ -323,7 +349,10 @@ class Recombined(Method):
         one, scores = self.config.one_ring(), []
         solid_config = self.config if self.solid is None else self.solid.config
         for i, j in match_rules.ring_pairings(self.config):
-            part = descriptor_part(a[0].ring(i), b[0].ring(j), one)
+            if self.floor is None:
+                part = descriptor_part(a[0].ring(i), b[0].ring(j), one)
+            else:
+                part = floored_part(a[0].ring(i), b[0].ring(j), one, *self.floor)
             if self.ceiling is not None:
                 part = self.ceiling * math.tanh(part / self.ceiling)
             # each view's solid change over the whole views: the runtime's windowed mean of
@@ -344,6 +373,21 @@ class Recombined(Method):
                 solid = float(np.mean(per_view**self.view_power) ** (1.0 / self.view_power))
             scores.append(part + self.config.solid_weight * solid)
         return (min(scores),)
+
+
+def floored_part(a, b, config: PipelineConfig, quantile: float, scale: float) -> float:
+    """``descriptor_part`` with each direction's best-match distances taken above ``scale``
+    times their ``quantile`` over the patches either mesh shows (window matching)."""
+    shown = np.zeros(a.patches, bool)
+    shown[a.patch_index] = shown[b.patch_index] = True
+    scores = []
+    for queries, targets in match_rules.directions(a, b, config):
+        distances, weights = best_matches(queries, targets, config)
+        floor = scale * np.quantile(distances[shown], quantile) if shown.any() else 0.0
+        scores.append(
+            float(match_rules.reduce(np.maximum(distances - floor, 0.0), weights, config))
+        )
+    return float(np.mean(scores))
 
 
 def runtime_slide(method: Method) -> dict:

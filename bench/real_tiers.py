@@ -4,6 +4,8 @@ method's tier shares on both sides and the turn and salient-part checks (docs/be
     python bench/real_tiers.py --out bench/results/real_tiers.json [--methods "DR-KFS,LFD"]
     python bench/real_tiers.py --renders bench/results/real_tiers.png   # what the labels rest on
                                                   # (and real_tiers_pixels.json: pixel changes)
+    python bench/real_tiers.py --parts bench/results/real_tiers_parts.json  # the default's two
+                                                  # terms: descriptors' and solid change's
 """
 
 from __future__ import annotations
@@ -68,10 +70,47 @@ def write_renders(bench: sets.BenchSet, path: Path, threads: int) -> None:
     path.with_name(f"{path.stem}_pixels.json").write_text(json.dumps(pixels, indent=1) + "\n")
 
 
+def write_parts(bench: sets.BenchSet, path: Path, threads: int) -> None:
+    """Each variant's default score split into the descriptors' part and the solid change's
+    (``runtime.explain``), and per side each misordered pair of tiers (a structural variant at
+    or below an invisible or surface one of its mesh) with both variants' parts: which term
+    ranks what."""
+    from drkfs_onnx.contract.mesh import Mesh
+    from drkfs_onnx.runtime.explain import explain
+    from drkfs_onnx.runtime.scorer import Scorer
+
+    scorer = Scorer(PipelineConfig(), threads=threads)
+    parts, rows = {}, {}
+    for c in bench.comparisons:
+        shown = explain(scorer, Mesh(*bench.shapes[c.shape], c.shape),
+                        Mesh(*bench.shapes[c.reference], c.reference))  # fmt: skip
+        key = f"{c.base}/{c.label}"
+        parts[key] = {"kind": c.kind, "score": shown.score,
+                      "descriptors": shown.score - shown.solid_change,
+                      "solid_change": shown.solid_change}  # fmt: skip
+        rows.setdefault(c.base, []).append(key)
+    misses = {"training": [], "held_out": []}
+    for base, keys in rows.items():
+        side = "training" if base.removeprefix(sets.REAL_PREFIX) in TRAINING_MESHES else "held_out"
+        for lower in (k for k in keys if parts[k]["kind"] in ("invisible", "surface")):
+            for upper in (k for k in keys if parts[k]["kind"] == "structural"):
+                if parts[upper]["score"] <= parts[lower]["score"]:
+                    misses[side].append({"below": upper, "above": lower})
+    results = {
+        "command": f"python bench/real_tiers.py --parts {path}",
+        "config": PipelineConfig().to_dict(),
+        "variants": parts,
+        "misses": misses,
+    }
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(results, indent=1) + "\n")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, help="the results' JSON")
     parser.add_argument("--renders", type=Path, help="a PNG of every variant's render")
+    parser.add_argument("--parts", type=Path, help="a JSON of the default's two terms")
     parser.add_argument("--methods", default=DEFAULT_METHODS, help="outputs, comma-separated")
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--work", type=Path, default=Path("runs/real_tiers"))
@@ -82,6 +121,8 @@ def main() -> None:
     sets.real_tiers(bench, [*TRAINING_MESHES, *HELDOUT_MESHES])
     if args.renders is not None:
         write_renders(bench, args.renders, args.threads)
+    if args.parts is not None:
+        write_parts(bench, args.parts, args.threads)
     if args.out is None:
         return
     methods = [m for m in build_methods(args.work / "models", args.threads)

@@ -57,6 +57,30 @@ def _rss_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 
 
+def _held_mb(features) -> float:
+    """MB of the arrays a described mesh holds: its rings, and the match forms and view ranges
+    made at its first matches (what a scorer's cache keeps of a reference). A view of an array
+    counts as the array it views."""
+    seen, total, stack = set(), 0, [features]
+    while stack:
+        item = stack.pop()
+        if id(item) in seen:
+            continue
+        seen.add(id(item))
+        if isinstance(item, np.ndarray):
+            if isinstance(item.base, np.ndarray):
+                stack.append(item.base)
+            else:
+                total += item.nbytes
+        elif isinstance(item, dict):
+            stack.extend(item.values())
+        elif isinstance(item, (tuple, list)):
+            stack.extend(item)
+        elif hasattr(item, "__dict__") and not isinstance(item, type):
+            stack.extend(vars(item).values())
+    return total / 2**20
+
+
 def _jittered(mesh):
     from drkfs_onnx import check_mesh
 
@@ -122,9 +146,12 @@ def run_case(path: Path, preset: str, repeats: int) -> dict:
     placed = place(mesh.vertices, reference.frame)
     render_s, _ = _best(lambda: scorer.renderer.render(placed, mesh.faces), repeats)
     prediction = scorer.features(other, reference.frame)
+    described_mb = _held_mb(reference)
     match_s, ort_score = _best(lambda: scorer.match(prediction, reference), 5 * repeats)
     runtime = {"new_mesh_s": new_s, "render_s": render_s, "features_s": new_s - render_s}
     runtime.update(match_s=match_s, peak_rss_mb=_rss_mb())
+    # a reference's memory as described, and once its matches have made their forms
+    runtime.update(described_mb=described_mb, held_after_match_mb=_held_mb(reference))
     if config.matching == "global":
         runtime["nearest_search_s"] = _nearest_search(
             prediction.descriptors, reference.descriptors, 5 * repeats
