@@ -153,15 +153,15 @@ LEVERS = {
         )
     },  # fmt: skip
     # the default: the solid change ramped over reaches 2 and 3, 1 and 2 at power 1.5 inside;
-    # the same ramp with 6 cameras of 128 px, which see the holes the default's hardly do; and
+    # the same ramp with 6 cameras of 128 px, which see the holes the default's hardly do;
     # heavier (the held-out side's small holes and tips are the solid change's, not the
-    # descriptors')
+    # descriptors'); and the default's neighbours in temperature
     **{
         f"solid change x{w:g} over reaches 2-3, 1-2 at power 1.5 inside the mesh, block 3, "
-        f"rings 0 and 2.5, {k} cameras, {px} px, softmax t = 0.05": {
+        f"rings 0 and 2.5, {k} cameras, {px} px, softmax t = {t:g}": {
             "num_views": k,
             "image_size": px,
-            "temperature": 0.05,
+            "temperature": t,
             "turn_degrees": 2.5,
             "solid_weight": w,
             "solid_shift": 3,
@@ -170,15 +170,17 @@ LEVERS = {
             "solid_inner_drop": 1,
             "solid_inner_power": 1.5,
         }
-        for k, px, w in (
-            (5, 144, 0.7),
-            (6, 128, 0.5),
-            (6, 128, 0.7),
-            (5, 144, 0.85),
-            (5, 144, 0.87),
-            (5, 144, 1.0),
-            (5, 144, 1.2),
-            (5, 144, 1.5),
+        for k, px, w, t in (
+            (5, 144, 0.7, 0.05),
+            (6, 128, 0.5, 0.05),
+            (6, 128, 0.7, 0.05),
+            (5, 144, 0.85, 0.05),
+            (5, 144, 0.87, 0.05),
+            (5, 144, 1.0, 0.05),
+            (5, 144, 1.2, 0.05),
+            (5, 144, 1.5, 0.05),
+            (5, 144, 0.7, 0.04),
+            (5, 144, 0.7, 0.06),
         )
     },  # fmt: skip
     "5 cameras, 128 px, softmax t = 0.05": {"num_views": 5, "temperature": 0.05},
