@@ -6,6 +6,8 @@ method's tier shares on both sides and the turn and salient-part checks (docs/be
                                                   # (and real_tiers_pixels.json: pixel changes)
     python bench/real_tiers.py --parts bench/results/real_tiers_parts.json  # the default's two
                                                   # terms: descriptors' and solid change's
+    python bench/real_tiers.py --scan-renders bench/results/scan_tiers.png  # the synthetic
+                                                  # tiers' variants of the same meshes, drawn alike
 """
 
 from __future__ import annotations
@@ -30,7 +32,7 @@ VIEW = 1
 PIXEL_CHANGE = 0.1  # a grey level change a viewer sees at once
 
 
-def write_renders(bench: sets.BenchSet, path: Path, threads: int) -> None:
+def write_renders(bench: sets.BenchSet, path: Path, threads: int, command: str) -> None:
     """One row a mesh: the base and each variant from one camera, cropped to the base, titled
     with the variant and its tier: the renders the labels were chosen by. Beside the PNG, a
     JSON (``<name>_pixels.json``) of each variant's pixel change against its base over all the
@@ -65,7 +67,7 @@ def write_renders(bench: sets.BenchSet, path: Path, threads: int) -> None:
             axes.set_title(base.removeprefix(sets.REAL_PREFIX) if j == 0 else title, fontsize=6)
     figure.tight_layout()
     figure.savefig(path, dpi=110)
-    pixels = {"command": f"python bench/real_tiers.py --renders {path}", "config": RENDER.to_dict(),
+    pixels = {"command": command, "config": RENDER.to_dict(),
               "share_over_threshold": PIXEL_CHANGE, "variants": changes}  # fmt: skip
     path.with_name(f"{path.stem}_pixels.json").write_text(json.dumps(pixels, indent=1) + "\n")
 
@@ -111,6 +113,9 @@ def main() -> None:
     parser.add_argument("--out", type=Path, help="the results' JSON")
     parser.add_argument("--renders", type=Path, help="a PNG of every variant's render")
     parser.add_argument("--parts", type=Path, help="a JSON of the default's two terms")
+    parser.add_argument(
+        "--scan-renders", type=Path, help="a PNG of the synthetic tiers' variants of the meshes"
+    )
     parser.add_argument("--methods", default=DEFAULT_METHODS, help="outputs, comma-separated")
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--work", type=Path, default=Path("runs/real_tiers"))
@@ -120,7 +125,15 @@ def main() -> None:
     bench = sets.BenchSet()
     sets.real_tiers(bench, [*TRAINING_MESHES, *HELDOUT_MESHES])
     if args.renders is not None:
-        write_renders(bench, args.renders, args.threads)
+        write_renders(bench, args.renders, args.threads,
+                      f"python bench/real_tiers.py --renders {args.renders}")  # fmt: skip
+    if args.scan_renders is not None:
+        # the synthetic tiers' scan variants (``synthetic.tiers.scan_tiers``) of the swept
+        # meshes, labelled by their recipe, not by looking
+        scans = sets.tier_set(quick=False)
+        scans.comparisons = [c for c in scans.comparisons if c.base in sets.SWEPT_MESHES]
+        write_renders(scans, args.scan_renders, args.threads,
+                      f"python bench/real_tiers.py --scan-renders {args.scan_renders}")  # fmt: skip
     if args.parts is not None:
         write_parts(bench, args.parts, args.threads)
     if args.out is None:
