@@ -7,6 +7,8 @@
     python bench/real_nets.py --out ... --simplification --series-weight 3   # that term x3
     python bench/real_nets.py --out ... --image-size 192   # trained and judged at 192-px views
     python bench/real_nets.py --out ... --num-views 5 --image-size 144  # at the default's views
+    python bench/real_nets.py --out ... --from-default --work DIR  # the default's nets, judged
+                                                                    # at the default
 
 1. The shipped metric nets (the default's before the tolerant ones) fine-tuned with
    ``training.tolerance.tolerance_ranking`` on synthetic tiers of other seeds than the
@@ -19,6 +21,11 @@
    config of ``CONFIGS`` (the same nets, at the views trained at); with ``--human DIR``, their
    agreement with people on Geo-metric's simplifications (as ``drkfs bench --human``). The
    results committed so far name the metric nets' rows "shipped nets".
+
+With ``--from-default`` the nets fine-tuned are the default's own (the tolerant nets) at its
+views, one ring of them, and both are judged at the default itself (its turned ring and solid
+change); a run of its own needs a ``--work`` folder of its own, since a checkpoint's name does
+not say which nets it started from.
 """
 
 from __future__ import annotations
@@ -117,6 +124,11 @@ def main() -> None:
         default=DEFAULT.num_views,
         help="the cameras, for the training data and the judging (NETS_TRAINED_AT's if unset)",
     )
+    parser.add_argument(
+        "--from-default",
+        action="store_true",
+        help="fine-tune the default's nets at its views and judge both at the default",
+    )
     parser.add_argument("--save-nets", type=Path)
     parser.add_argument("--human", type=Path, help="a Geo-metric clone (see drkfs bench --human)")
     parser.add_argument("--quick", action="store_true", help="two bases, the quick benchmark")
@@ -125,8 +137,12 @@ def main() -> None:
     start = time.perf_counter()
     work = args.work / ("quick" if args.quick else "full")
     work.mkdir(parents=True, exist_ok=True)
-    views = {"image_size": args.image_size, "num_views": args.num_views}
-    start_config = DEFAULT.replace(**views)
+    if args.from_default:  # the default's nets at its views, one ring (the ranking's)
+        start_config = PipelineConfig().one_ring()
+        views = {"image_size": start_config.image_size, "num_views": start_config.num_views}
+    else:
+        views = {"image_size": args.image_size, "num_views": args.num_views}
+        start_config = DEFAULT.replace(**views)
     metric_nets = DRKFS.pretrained(start_config).eval()
     data = tolerance.tier_views(work, start_config, args.quick, args.salient)
     series = (
@@ -153,9 +169,11 @@ def main() -> None:
     sets.bars(bench)
     jod = human.add_human(bench, args.human) if args.human else None
     metrics = {}
-    for suffix, named in CONFIGS.items():
-        config = named.replace(**views)
-        for nets, metric in (("metric nets", metric_nets), ("tolerant nets", tuned)):
+    judged_at = {", the default": PipelineConfig()} if args.from_default else CONFIGS
+    before = "default's nets" if args.from_default else "metric nets"
+    for suffix, named in judged_at.items():
+        config = named if args.from_default else named.replace(**views)
+        for nets, metric in ((before, metric_nets), ("tolerant nets", tuned)):
             metrics[nets + suffix] = with_nets(config, metric.detector, metric.descriptor).eval()
     results = {
         "command": f"python bench/real_nets.py --out {args.out} --steps {args.steps} "
@@ -165,6 +183,7 @@ def main() -> None:
         + (f" --series-weight {args.series_weight:g}" if args.series_weight != 1.0 else "")
         + (f" --image-size {args.image_size}" if args.image_size != DEFAULT.image_size else "")
         + (f" --num-views {args.num_views}" if args.num_views != DEFAULT.num_views else "")
+        + (" --from-default" if args.from_default else "")
         + (" --quick" if args.quick else "")
         + (" --human DIR" if args.human else ""),
         "data": {
