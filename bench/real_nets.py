@@ -170,10 +170,11 @@ def main() -> None:
     jod = human.add_human(bench, args.human) if args.human else None
     metrics = {}
     judged_at = {", the default": PipelineConfig()} if args.from_default else CONFIGS
-    before = "default's nets" if args.from_default else "metric nets"
+    names = {True: ("default's nets", "fine-tuned nets"), False: ("metric nets", "tolerant nets")}
+    before, after = names[args.from_default]
     for suffix, named in judged_at.items():
         config = named if args.from_default else named.replace(**views)
-        for nets, metric in ((before, metric_nets), ("tolerant nets", tuned)):
+        for nets, metric in ((before, metric_nets), (after, tuned)):
             metrics[nets + suffix] = with_nets(config, metric.detector, metric.descriptor).eval()
     results = {
         "command": f"python bench/real_nets.py --out {args.out} --steps {args.steps} "
