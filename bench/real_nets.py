@@ -9,13 +9,15 @@
     python bench/real_nets.py --out ... --num-views 5 --image-size 144  # at the default's views
     python bench/real_nets.py --out ... --from-default --work DIR  # the default's nets, judged
                                                                     # at the default
+    python bench/real_nets.py --out ... --slides   # also a part slid evenly (the slide check)
 
 1. The shipped metric nets (the default's before the tolerant ones) fine-tuned with
    ``training.tolerance.tolerance_ranking`` on synthetic tiers of other seeds than the
    benchmark's (work folder ``--work``, resumable);
    with ``--simplification``, also ranking simplifications of smoothed synthetic shapes; with
    ``--salient``, each base also has the real tiers' two small structural changes
-   (``tolerance.small_regions_removed``).
+   (``tolerance.small_regions_removed``); with ``--slides``, also slide series of a part, asked
+   to score up evenly (``tolerance.uneven_rise``).
 2. Both judged as ``bench/real_levers.py`` judges a lever: the benchmark's synthetic tiers,
    both sides of the real tiers and their checks, the bars test and the slide check, at each
    config of ``CONFIGS`` (the same nets, at the views trained at); with ``--human DIR``, their
@@ -125,6 +127,11 @@ def main() -> None:
         help="the cameras, for the training data and the judging (NETS_TRAINED_AT's if unset)",
     )
     parser.add_argument(
+        "--slides",
+        action="store_true",
+        help="also ask a part slid sideways step by step to score up evenly",
+    )
+    parser.add_argument(
         "--from-default",
         action="store_true",
         help="fine-tune the default's nets at its views and judge both at the default",
@@ -148,6 +155,7 @@ def main() -> None:
     series = (
         tolerance.simplified_views(work, start_config, args.quick) if args.simplification else None
     )
+    slides = tolerance.slide_views(work, start_config, args.quick) if args.slides else None
     began = time.perf_counter()
     tuned = tolerance.fine_tune(
         metric_nets,
@@ -159,6 +167,7 @@ def main() -> None:
         series,
         args.salient,
         args.series_weight,
+        slides,
     )
     train_seconds = time.perf_counter() - began
     if args.save_nets is not None:
@@ -184,6 +193,7 @@ def main() -> None:
         + (f" --series-weight {args.series_weight:g}" if args.series_weight != 1.0 else "")
         + (f" --image-size {args.image_size}" if args.image_size != DEFAULT.image_size else "")
         + (f" --num-views {args.num_views}" if args.num_views != DEFAULT.num_views else "")
+        + (" --slides" if args.slides else "")
         + (" --from-default" if args.from_default else "")
         + (" --quick" if args.quick else "")
         + (" --human DIR" if args.human else ""),
@@ -193,6 +203,8 @@ def main() -> None:
             "seed": tolerance.TRAIN_SEED,
             "simplification_series": None if series is None else len(series),
             "simplification_seed": None if series is None else tolerance.SIMPLIFY_SEED,
+            "slide_series": None if slides is None else len(slides),
+            "slide_seed": None if slides is None else tolerance.SLIDE_SEED,
         },
         "train_seconds": train_seconds,
         "rows": judged(bench, metrics, jod),

@@ -98,6 +98,7 @@ def test_no_fine_tuning_resumes_the_checkpoint_of_other_data_or_views(tmp_path):
         tolerance.checkpoint_path(tmp_path, 400, 2e-4, 0.05, True, image_size=144),
         tolerance.checkpoint_path(tmp_path, 400, 2e-4, 0.05, True, image_size=144, num_views=5),
         tolerance.checkpoint_path(tmp_path, 400, 2e-4, 0.05, False),
+        tolerance.checkpoint_path(tmp_path, 400, 2e-4, 0.05, True, slides=True),
     ]
     assert len({shipped, *others}) == 1 + len(others)
 
@@ -132,6 +133,52 @@ def test_a_simplification_series_coarsens_to_its_face_counts_or_is_refused(monke
     # a simplification that stalls (returns its input) gives no series
     monkeypatch.setattr(tolerance, "simplified", lambda verts, faces, keep: (verts, faces))
     assert tolerance.simplification_series(parts) is None
+
+
+def test_a_slide_series_moves_one_part_by_even_steps_to_the_slide_range():
+    parts = random_shape("chair", np.random.default_rng(tolerance.SLIDE_SEED))
+    series = tolerance.slide_series(parts, np.random.default_rng(0))
+    base = assemble(parts, 1)
+    assert len(series) == 1 + tolerance.SLIDE_STEPS
+    assert np.array_equal(series[0][0], base[0]) and np.array_equal(series[0][1], base[1])
+    moved = [v - base[0] for v, _ in series[1:]]
+    slid = np.abs(moved[-1]).sum(1) > 0  # the one part's vertices
+    assert 0 < slid.sum() < len(base[0])
+    size = float(np.linalg.norm(np.ptp(base[0], axis=0)))
+    steps = [m[slid, 0].mean() for m in moved]
+    assert steps == pytest.approx(
+        [tolerance.SLIDE_RANGE * size * (k + 1) / tolerance.SLIDE_STEPS for k in range(5)]
+    )
+    assert all(np.abs(m[slid][:, 1:]).max() == 0 for m in moved)  # sideways only
+
+
+def test_an_even_rise_costs_nothing_and_a_jump_costs_its_excess():
+    even = torch.linspace(0.2, 1.0, 5)
+    assert float(tolerance.uneven_rise(even)) == 0.0
+    # a last step twice the others', within SLIDE_EVEN times the even step: still nothing
+    assert float(tolerance.uneven_rise(torch.tensor([0.15, 0.3, 0.45, 0.6, 0.9]))) == 0.0
+    # three times the others': the excess over SLIDE_EVEN even steps, of the rise
+    excess = 0.45 / 1.05 - tolerance.SLIDE_EVEN / 5
+    uneven = tolerance.uneven_rise(torch.tensor([0.15, 0.3, 0.45, 0.6, 1.05]))
+    assert float(uneven) == pytest.approx(excess, rel=1e-4)
+    # all the rise in the last step: the step is the whole rise, SLIDE_EVEN / 5 of it allowed
+    jump = tolerance.uneven_rise(torch.tensor([0.0, 0.0, 0.0, 0.0, 1.0]))
+    assert float(jump) == pytest.approx(1 - tolerance.SLIDE_EVEN / 5, rel=1e-5)
+
+
+def test_the_slide_term_asks_a_slid_part_to_rise_evenly(chair_views):
+    metric = DRKFS.pretrained(CONFIG).eval()
+    base = chair_views.images[0, 0]  # (K, S, S)
+    noise = torch.rand(base.shape, generator=torch.Generator().manual_seed(0)) - 0.5
+
+    def term(levels: list[float]) -> float:
+        slides = torch.stack([base, *(base + a * noise for a in levels)])[None]
+        with torch.no_grad():
+            alone = tolerance.tolerance_ranking(chair_views, 0)(metric, 0)
+            both = tolerance.tolerance_ranking(chair_views, 0, slides=slides)(metric, 0)
+        return float(both - alone)
+
+    assert term([0.1, 0.2, 0.3, 0.4, 0.5]) < term([0.0, 0.0, 0.0, 0.0, 0.5])
 
 
 def test_the_simplification_term_asks_a_coarser_simplification_to_score_higher(chair_views):

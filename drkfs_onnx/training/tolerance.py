@@ -14,7 +14,9 @@ texture). With ``simplification`` data, each step also ranks a smoothed syntheti
 quadric simplifications coarser above finer (people judge simplified scans so: Geo-metric's
 judgments stay a check, never training data). With ``salient`` data, each base also has a
 removed tip and a cut hole as structural changes (``small_regions_removed``): measured, and not
-shipped, since they cost people's agreement (docs/training.md).
+shipped, since they cost people's agreement (docs/training.md). With ``slides`` data, each step
+also asks a part slid sideways step by step to score up evenly, no step much larger than the
+others (the benchmark's slide check asks it of a chair's leg).
 """
 
 from __future__ import annotations
@@ -37,7 +39,7 @@ from ..nets.weights import load_checked
 from ..render.renderer import Renderer
 from ..synthetic.shapes import FAMILIES, Part, assemble, random_shape
 from ..synthetic.tiers import FINE_SUBDIVISIONS, TIERS, part_tiers, simplified, smoothed, turned
-from ..synthetic.variants import Variant, salient_tip, without, without_region
+from ..synthetic.variants import Variant, salient_tip, shifted, without, without_region
 from .data import views_in_frame
 from .metric_losses import LossFn, ranking_loss
 from .run import git_commit, plan_key, train_steps
@@ -63,6 +65,11 @@ SALIENT_RADIUS = 0.06
 SIMPLIFY_SEED = 9
 SIMPLIFIED_FACES = (4000, 2000, 1000)
 SIMPLIFY_MARGIN = float(np.log(1.25))
+# the slide series: bases of their own seed, one part slid sideways by SLIDE_STEPS even steps
+# up to SLIDE_RANGE of the diagonal (the slide check's range); a step may be at most
+# SLIDE_EVEN times the even step's share of the whole rise (the check's limit is 3x the mean)
+SLIDE_SEED = 10
+SLIDE_STEPS, SLIDE_RANGE, SLIDE_EVEN = 5, 0.05, 2.0
 # the shipped tolerant nets (``ship_tolerant``): the metric nets fine-tuned with the simplification
 # series, at this softmax temperature, chosen by ``bench/real_nets.py`` (docs/benchmark.md)
 TUNE_STEPS, TUNE_LR, TUNE_TEMPERATURE = 400, 2e-4, 0.05
@@ -189,6 +196,40 @@ def render_simplified_views(
     return torch.stack(images)
 
 
+def slide_series(parts: list[Part], rng: np.random.Generator) -> list[tuple]:
+    """The shape and one of its parts (drawn) slid sideways (x) by SLIDE_STEPS even steps up to
+    SLIDE_RANGE of its diagonal, as (verts, faces), unslid first."""
+    name = parts[int(rng.integers(len(parts)))].name
+    size = float(np.linalg.norm(np.ptp(assemble(parts, 1)[0], axis=0)))
+    offsets = np.linspace(0.0, SLIDE_RANGE * size, SLIDE_STEPS + 1)
+    return [assemble(shifted(parts, name, (float(t), 0.0, 0.0)), 1) for t in offsets]
+
+
+@torch.no_grad()
+def render_slide_views(
+    config: PipelineConfig, families: list[str], shapes_per_family: int, seed: int
+) -> torch.Tensor:
+    """``shapes_per_family`` slide series of each family (drawn from ``seed``) -> (N, 1 +
+    SLIDE_STEPS, K, S, S) their views, each in its unslid shape's frame."""
+    rng = np.random.default_rng(seed)
+    renderer = Renderer(config)
+    images = []
+    for family in families:
+        for _ in range(shapes_per_family):
+            series = slide_series(random_shape(family, rng), rng)
+            images.append(views_in_frame(renderer, series, frame_of(series[0][0])))
+    return torch.stack(images)
+
+
+def uneven_rise(scores: torch.Tensor) -> torch.Tensor:
+    """(L,) scores of a part slid by L even steps (against the unslid shape, which scores 0)
+    -> how far the largest step exceeds SLIDE_EVEN times an even step of the whole rise, as a
+    share of that rise (0 for a rise that is even enough)."""
+    rise = scores[-1].abs() + 1e-6
+    steps = torch.diff(scores, prepend=scores.new_zeros(1)).abs()
+    return F.relu(steps.max() / rise - SLIDE_EVEN / len(scores))
+
+
 def warped(
     views: torch.Tensor, offsets: torch.Tensor, background: float, spins=None, zooms=None
 ) -> torch.Tensor:
@@ -213,6 +254,7 @@ def tolerance_ranking(
     seed: int,
     simplification: torch.Tensor | None = None,
     series_weight: float = 1.0,
+    slides: torch.Tensor | None = None,
 ) -> LossFn:
     """Each step one base: PER_TIER variants of each tier and its views under a small warp
     (``warped``; invisible) scored against the base with ``descriptor_score`` at the metric's
@@ -221,7 +263,9 @@ def tolerance_ranking(
     ((N, 1 + L, K, S, S), ``render_simplified_views``), also one series: each simplification scored
     against the smoothed shape and against the finest simplification (as people judge them
     against a reference), each coarser one ranked above the finer by SIMPLIFY_MARGIN, that
-    term weighted by ``series_weight``."""
+    term weighted by ``series_weight``. With ``slides`` ((N, 1 + SLIDE_STEPS, K, S, S),
+    ``render_slide_views``), also one slide series: each slid shape scored against the unslid
+    one, their rise asked to be even (``uneven_rise``)."""
     invisible, surface, structural = (data.columns(t) for t in TIERS)
 
     def loss_fn(metric: DRKFS, step: int) -> torch.Tensor:
@@ -262,16 +306,20 @@ def tolerance_ranking(
             + ranking_loss(d_invisible, d_structural, MARGIN)
             + ranking_loss(d_texture_moved, d_texture, MARGIN)
         )
-        if simplification is None:
-            return loss
-        series = [describe(v) for v in simplification[int(rng.integers(len(simplification)))]]
-        coarser = []
-        for finest in (0, 1):  # against the smoothed shape, then its finest simplification
-            d = torch.stack([descriptor_score(s, series[finest], config)
-                             for s in series[finest + 1:]])  # fmt: skip
-            coarser += [ranking_loss(d[i : i + 1], d[i + 1 : i + 2], SIMPLIFY_MARGIN)
-                        for i in range(len(d) - 1)]  # fmt: skip
-        return loss + series_weight * torch.stack(coarser).mean()
+        if simplification is not None:
+            series = [describe(v) for v in simplification[int(rng.integers(len(simplification)))]]
+            coarser = []
+            for finest in (0, 1):  # against the smoothed shape, then its finest simplification
+                d = torch.stack([descriptor_score(s, series[finest], config)
+                                 for s in series[finest + 1:]])  # fmt: skip
+                coarser += [ranking_loss(d[i : i + 1], d[i + 1 : i + 2], SIMPLIFY_MARGIN)
+                            for i in range(len(d) - 1)]  # fmt: skip
+            loss = loss + series_weight * torch.stack(coarser).mean()
+        if slides is not None:
+            slid = slides[int(rng.integers(len(slides)))]
+            unslid = describe(slid[0])
+            loss = loss + uneven_rise(scores([*slid[1:]], unslid))
+        return loss
 
     return loss_fn
 
@@ -304,6 +352,17 @@ def simplified_views(work: Path, config: PipelineConfig, quick: bool) -> torch.T
     return views
 
 
+def slide_views(work: Path, config: PipelineConfig, quick: bool) -> torch.Tensor:
+    """The slide series' views at ``config``, rendered once per work folder (quick: two
+    families, one series each)."""
+    path = work / f"slide_views_{plan_key(config)}.pt"
+    if path.exists():
+        return torch.load(path, weights_only=True)
+    views = render_slide_views(config, *_bases(quick), SLIDE_SEED)
+    torch.save(views, path)
+    return views
+
+
 def fine_tune(
     start: DRKFS,
     data: TierViews,
@@ -314,21 +373,23 @@ def fine_tune(
     simplification: torch.Tensor | None = None,
     salient: bool = False,
     series_weight: float = 1.0,
+    slides: torch.Tensor | None = None,
 ) -> DRKFS:
     """``start``'s nets at its config with softmax ``temperature``, after ``steps`` of
-    ``tolerance_ranking`` on ``data`` (and ``simplification``) at that config, resumable from
-    their checkpoint in ``work`` (``checkpoint_path``; ``salient``: ``data`` hold
-    ``small_regions_removed``'s variants; ``series_weight``: ``tolerance_ranking``'s)."""
+    ``tolerance_ranking`` on ``data`` (and ``simplification``, ``slides``) at that config,
+    resumable from their checkpoint in ``work`` (``checkpoint_path``; ``salient``: ``data``
+    hold ``small_regions_removed``'s variants; ``series_weight``: ``tolerance_ranking``'s)."""
     config = start.config.replace(temperature=temperature)
     metric = with_nets(config, start.detector, start.descriptor)
     metric.detector.requires_grad_(True)
     metric.descriptor.requires_grad_(True)
-    loss_fn = tolerance_ranking(data, TRAIN_SEED, simplification, series_weight)
+    loss_fn = tolerance_ranking(data, TRAIN_SEED, simplification, series_weight, slides)
     series = simplification is not None
     views = {"image_size": config.image_size, "num_views": config.num_views}
     checkpoint = checkpoint_path(
-        work, steps, lr, temperature, series, salient, series_weight, **views
-    )
+        work, steps, lr, temperature, series, salient, series_weight, **views,
+        slides=slides is not None,
+    )  # fmt: skip
     train_steps(metric, loss_fn, steps, lr, checkpoint, 20)
     return metric.requires_grad_(False)
 
@@ -343,12 +404,14 @@ def checkpoint_path(
     series_weight: float = 1.0,
     image_size: int = NETS_TRAINED_AT["image_size"],
     num_views: int = NETS_TRAINED_AT["num_views"],
+    slides: bool = False,
 ) -> Path:
     """The fine-tuning's checkpoint in its work folder (one per setting and data; views of
     another size or count than ``NETS_TRAINED_AT``'s are named, so that no run resumes
     another's)."""
     name = f"tolerant_{steps}_{lr:g}_t{temperature:g}"
     name += ("_simplification" if series else "") + ("_salient" if salient else "")
+    name += "_slides" if slides else ""
     name += f"_w{series_weight:g}" if series_weight != 1.0 else ""
     name += f"_{image_size}px" if image_size != NETS_TRAINED_AT["image_size"] else ""
     name += f"_{num_views}views" if num_views != NETS_TRAINED_AT["num_views"] else ""
