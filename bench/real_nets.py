@@ -10,6 +10,7 @@
     python bench/real_nets.py --out ... --from-default --work DIR  # the default's nets, judged
                                                                     # at the default
     python bench/real_nets.py --out ... --slides   # also a part slid evenly (the slide check)
+    python bench/real_nets.py --out ... --slides-below-removed   # and below the part removed
 
 1. The shipped metric nets (the default's before the tolerant ones) fine-tuned with
    ``training.tolerance.tolerance_ranking`` on synthetic tiers of other seeds than the
@@ -132,6 +133,11 @@ def main() -> None:
         help="also ask a part slid sideways step by step to score up evenly",
     )
     parser.add_argument(
+        "--slides-below-removed",
+        action="store_true",
+        help="the slide series also ranked below the slid part removed (implies --slides)",
+    )
+    parser.add_argument(
         "--from-default",
         action="store_true",
         help="fine-tune the default's nets at its views and judge both at the default",
@@ -155,7 +161,11 @@ def main() -> None:
     series = (
         tolerance.simplified_views(work, start_config, args.quick) if args.simplification else None
     )
-    slides = tolerance.slide_views(work, start_config, args.quick) if args.slides else None
+    slides = (
+        tolerance.slide_views(work, start_config, args.quick, args.slides_below_removed)
+        if args.slides or args.slides_below_removed
+        else None
+    )
     began = time.perf_counter()
     tuned = tolerance.fine_tune(
         metric_nets,
@@ -194,6 +204,7 @@ def main() -> None:
         + (f" --image-size {args.image_size}" if args.image_size != DEFAULT.image_size else "")
         + (f" --num-views {args.num_views}" if args.num_views != DEFAULT.num_views else "")
         + (" --slides" if args.slides else "")
+        + (" --slides-below-removed" if args.slides_below_removed else "")
         + (" --from-default" if args.from_default else "")
         + (" --quick" if args.quick else "")
         + (" --human DIR" if args.human else ""),

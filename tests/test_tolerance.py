@@ -98,7 +98,8 @@ def test_no_fine_tuning_resumes_the_checkpoint_of_other_data_or_views(tmp_path):
         tolerance.checkpoint_path(tmp_path, 400, 2e-4, 0.05, True, image_size=144),
         tolerance.checkpoint_path(tmp_path, 400, 2e-4, 0.05, True, image_size=144, num_views=5),
         tolerance.checkpoint_path(tmp_path, 400, 2e-4, 0.05, False),
-        tolerance.checkpoint_path(tmp_path, 400, 2e-4, 0.05, True, slides=True),
+        tolerance.checkpoint_path(tmp_path, 400, 2e-4, 0.05, True, slides=1),
+        tolerance.checkpoint_path(tmp_path, 400, 2e-4, 0.05, True, slides=2),
     ]
     assert len({shipped, *others}) == 1 + len(others)
 
@@ -150,6 +151,10 @@ def test_a_slide_series_moves_one_part_by_even_steps_to_the_slide_range():
         [tolerance.SLIDE_RANGE * size * (k + 1) / tolerance.SLIDE_STEPS for k in range(5)]
     )
     assert all(np.abs(m[slid][:, 1:]).max() == 0 for m in moved)  # sideways only
+    # with the part removed last: the same slides, then the shape without the slid part
+    with_removed = tolerance.slide_series(parts, np.random.default_rng(0), removed=True)
+    assert len(with_removed) == 2 + tolerance.SLIDE_STEPS
+    assert len(with_removed[-1][0]) == len(base[0]) - slid.sum()
 
 
 def test_an_even_rise_costs_nothing_and_a_jump_costs_its_excess():
@@ -179,6 +184,9 @@ def test_the_slide_term_asks_a_slid_part_to_rise_evenly(chair_views):
         return float(both - alone)
 
     assert term([0.1, 0.2, 0.3, 0.4, 0.5]) < term([0.0, 0.0, 0.0, 0.0, 0.5])
+    # with the part removed last, a removal scoring far above the furthest slide costs less
+    # than one scoring as little
+    assert term([0.1, 0.2, 0.3, 0.4, 0.5, 2.0]) < term([0.1, 0.2, 0.3, 0.4, 0.5, 0.5])
 
 
 def test_the_simplification_term_asks_a_coarser_simplification_to_score_higher(chair_views):

@@ -197,27 +197,31 @@ def render_simplified_views(
     return torch.stack(images)
 
 
-def slide_series(parts: list[Part], rng: np.random.Generator) -> list[tuple]:
+def slide_series(parts: list[Part], rng: np.random.Generator, removed: bool = False) -> list[tuple]:
     """The shape and one of its parts (drawn) slid sideways (x) by SLIDE_STEPS even steps up to
-    SLIDE_RANGE of its diagonal, as (verts, faces), unslid first."""
+    SLIDE_RANGE of its diagonal, as (verts, faces), unslid first; with ``removed``, last the
+    shape without that part."""
     name = parts[int(rng.integers(len(parts)))].name
     size = float(np.linalg.norm(np.ptp(assemble(parts, 1)[0], axis=0)))
     offsets = np.linspace(0.0, SLIDE_RANGE * size, SLIDE_STEPS + 1)
-    return [assemble(shifted(parts, name, (float(t), 0.0, 0.0)), 1) for t in offsets]
+    series = [assemble(shifted(parts, name, (float(t), 0.0, 0.0)), 1) for t in offsets]
+    return series + ([assemble(without(parts, name), 1)] if removed else [])
 
 
 @torch.no_grad()
 def render_slide_views(
-    config: PipelineConfig, families: list[str], shapes_per_family: int, seed: int
-) -> torch.Tensor:
-    """``shapes_per_family`` slide series of each family (drawn from ``seed``) -> (N, 1 +
-    SLIDE_STEPS, K, S, S) their views, each in its unslid shape's frame."""
+    config: PipelineConfig, families: list[str], shapes_per_family: int, seed: int,
+    removed: bool = False,
+) -> torch.Tensor:  # fmt: skip
+    """``shapes_per_family`` slide series of each family (drawn from ``seed``; ``removed``:
+    ``slide_series``') -> (N, 1 + SLIDE_STEPS (+ 1), K, S, S) their views, each in its unslid
+    shape's frame."""
     rng = np.random.default_rng(seed)
     renderer = Renderer(config)
     images = []
     for family in families:
         for _ in range(shapes_per_family):
-            series = slide_series(random_shape(family, rng), rng)
+            series = slide_series(random_shape(family, rng), rng, removed)
             images.append(views_in_frame(renderer, series, frame_of(series[0][0])))
     return torch.stack(images)
 
@@ -266,7 +270,9 @@ def tolerance_ranking(
     against a reference), each coarser one ranked above the finer by SIMPLIFY_MARGIN, that
     term weighted by ``series_weight``. With ``slides`` ((N, 1 + SLIDE_STEPS, K, S, S),
     ``render_slide_views``), also one slide series: each slid shape scored against the unslid
-    one, their rise asked to be even (``uneven_rise``)."""
+    one, their rise asked to be even (``uneven_rise``); where the series also hold the part
+    removed (N, 2 + SLIDE_STEPS, ...), the furthest slide ranked below the removal by MARGIN,
+    as the bars test asks of a chair's bars."""
     invisible, surface, structural = (data.columns(t) for t in TIERS)
 
     def loss_fn(metric: DRKFS, step: int) -> torch.Tensor:
@@ -319,7 +325,10 @@ def tolerance_ranking(
         if slides is not None:
             slid = slides[int(rng.integers(len(slides)))]
             unslid = describe(slid[0])
-            loss = loss + uneven_rise(scores([*slid[1:]], unslid))
+            rise = scores([*slid[1 : SLIDE_STEPS + 1]], unslid)
+            loss = loss + uneven_rise(rise)
+            if len(slid) > SLIDE_STEPS + 1:  # the part removed
+                loss = loss + ranking_loss(rise[-1:], scores([slid[-1]], unslid), MARGIN)
         return loss
 
     return loss_fn
@@ -353,13 +362,15 @@ def simplified_views(work: Path, config: PipelineConfig, quick: bool) -> torch.T
     return views
 
 
-def slide_views(work: Path, config: PipelineConfig, quick: bool) -> torch.Tensor:
-    """The slide series' views at ``config``, rendered once per work folder (quick: two
-    families, one series each)."""
-    path = work / f"slide_views_{plan_key(config)}.pt"
+def slide_views(
+    work: Path, config: PipelineConfig, quick: bool, removed: bool = False
+) -> torch.Tensor:
+    """The slide series' views at ``config`` (``removed``: with the part removed), rendered
+    once per work folder (quick: two families, one series each)."""
+    path = work / f"slide_views_{plan_key(config)}{'_removed' if removed else ''}.pt"
     if path.exists():
         return torch.load(path, weights_only=True)
-    views = render_slide_views(config, *_bases(quick), SLIDE_SEED)
+    views = render_slide_views(config, *_bases(quick), SLIDE_SEED, removed)
     torch.save(views, path)
     return views
 
@@ -389,7 +400,8 @@ def fine_tune(
     views = {"image_size": config.image_size, "num_views": config.num_views}
     checkpoint = checkpoint_path(
         work, steps, lr, temperature, series, salient, series_weight, **views,
-        slides=slides is not None,
+        # the slide terms: 0 none, 1 the even rise, 2 and the removal above it
+        slides=0 if slides is None else slides.shape[1] - SLIDE_STEPS,
     )  # fmt: skip
     train_steps(metric, loss_fn, steps, lr, checkpoint, 20)
     return metric.requires_grad_(False)
@@ -405,14 +417,15 @@ def checkpoint_path(
     series_weight: float = 1.0,
     image_size: int = NETS_TRAINED_AT["image_size"],
     num_views: int = NETS_TRAINED_AT["num_views"],
-    slides: bool = False,
+    slides: int = 0,
 ) -> Path:
     """The fine-tuning's checkpoint in its work folder (one per setting and data; views of
     another size or count than ``NETS_TRAINED_AT``'s are named, so that no run resumes
-    another's)."""
+    another's; ``slides``: 0 without slide series, 1 with their even rise, 2 with the part
+    removed above them too)."""
     name = f"tolerant_{steps}_{lr:g}_t{temperature:g}"
     name += ("_simplification" if series else "") + ("_salient" if salient else "")
-    name += "_slides" if slides else ""
+    name += ("", "_slides", "_slides_below_removed")[slides]
     name += f"_w{series_weight:g}" if series_weight != 1.0 else ""
     name += f"_{image_size}px" if image_size != NETS_TRAINED_AT["image_size"] else ""
     name += f"_{num_views}views" if num_views != NETS_TRAINED_AT["num_views"] else ""
