@@ -16,8 +16,9 @@ judgments stay a check, never training data). With ``salient`` data, each base a
 removed tip and a cut hole as structural changes (``small_regions_removed``): measured, and not
 shipped, since they cost people's agreement (docs/training.md). With ``slides`` data, each step
 also asks a part slid sideways step by step to score up evenly, no step much larger than the
-others (the benchmark's slide check asks it of a chair's leg): measured, and not shipped, since
-it lets the slide's whole rise grow and fails the bars test (docs/training.md).
+others (the benchmark's slide check asks it of a chair's leg), and with the part removed too,
+the furthest slide below its removal: both measured, and not shipped, since they let the slide's
+whole rise grow and fail the bars test (docs/training.md).
 """
 
 from __future__ import annotations
