@@ -58,6 +58,10 @@ from drkfs_onnx.metric import DRKFS
 from drkfs_onnx.runtime.match import best_matches, descriptor_part
 from drkfs_onnx.runtime.render import NumpyRenderer
 
+RAMP_LEVER = (  # the default since the ramp and its neighbours
+    "solid change x{w:g} over reaches 2-3, 1-2 at power 1.5 inside the mesh, block 3, rings 0 "
+    "and 2.5, {k} cameras, {px} px, softmax t = {t:g}"
+)
 # name -> the settings the lever moves (from NETS_TRAINED_AT's config, its solid change at
 # ONE_REACH unless the lever names a ramp, as before the ramp)
 LEVERS = {
@@ -157,8 +161,7 @@ LEVERS = {
     # heavier (the held-out side's small holes and tips are the solid change's, not the
     # descriptors'); and the default's neighbours in temperature
     **{
-        f"solid change x{w:g} over reaches 2-3, 1-2 at power 1.5 inside the mesh, block 3, "
-        f"rings 0 and 2.5, {k} cameras, {px} px, softmax t = {t:g}": {
+        RAMP_LEVER.format(w=w, k=k, px=px, t=t): {
             "num_views": k,
             "image_size": px,
             "temperature": t,
@@ -213,10 +216,7 @@ TURN_SEARCHES = {
 SOLID_LEVER = (  # the default before the ramp (weight 0.5, shift 2) and its neighbours
     "solid change x{w:g} shift {s} block 3, rings 0 and 2.5, 5 cameras, 144 px, softmax t = 0.05"
 )
-DEFAULT_NOW = (  # the default since the ramp
-    "solid change x0.7 over reaches 2-3, 1-2 at power 1.5 inside the mesh, block 3, rings 0 and "
-    "2.5, 5 cameras, 144 px, softmax t = 0.05"
-)
+DEFAULT_NOW = RAMP_LEVER.format(w=0.7, k=5, px=144, t=0.05)  # the default since the ramp
 # name -> (a lever above, ``Recombined``'s settings): what a config cannot say
 RECOMBINED = {
     # the default itself on the runtime path: its slide check there against the torch path's

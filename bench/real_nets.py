@@ -192,7 +192,7 @@ def main() -> None:
     names = {True: ("default's nets", "fine-tuned nets"), False: ("metric nets", "tolerant nets")}
     before, after = names[args.from_default]
     for suffix, named in judged_at.items():
-        config = named if args.from_default else named.replace(**views)
+        config = named.replace(**views)  # with --from-default, the default's own views
         for nets, metric in ((before, metric_nets), (after, tuned)):
             metrics[nets + suffix] = with_nets(config, metric.detector, metric.descriptor).eval()
     results = {
