@@ -11,8 +11,10 @@ change x0.7 over reaches 2-3, ..."), named "default" in the results. The turn se
 (``TURN_SEARCHES``, not run unless named) wrap a lever's scorer, and so do the recombinations
 (``RECOMBINED``, not run unless named: the descriptors' part bounded, the solid change from
 other cameras than the descriptors', the views' solid changes in a power mean, a pixel's change
-taken over other reaches inside the mesh and at its outline than a config's ramp allows, or the
-descriptors' distances counted above a floor the whole shown surface sets).
+taken over other reaches inside the mesh and at its outline than a config's ramp allows, the
+descriptors' distances counted above a floor the whole shown surface sets, or the outline's
+change netted, mesh lost against mesh gained, so that a moved part counts less than a removed
+one).
 A lever's solid change is at one reach unless it names a ramp (``ONE_REACH``), as every lever
 before the ramp was. A turn search's slide check is its lever's, as the torch path has none; a
 recombination's is its own, on the runtime path it is scored on (``runtime_slide``).
@@ -52,7 +54,14 @@ from drkfs_onnx.contract.array_ops import NUMPY_OPS
 from drkfs_onnx.contract.cameras import rotation_y
 from drkfs_onnx.contract.config import NETS_TRAINED_AT, ONE_REACH
 from drkfs_onnx.contract.model_files import features_file, models_dir, shipped_entry
-from drkfs_onnx.contract.solid_change import held_change, reach_change, solid_change, view_range
+from drkfs_onnx.contract.solid_change import (
+    held_change,
+    reach_change,
+    solid_change,
+    solid_reaches,
+    view_range,
+    window_extreme,
+)
 from drkfs_onnx.export.onnx_files import export_features
 from drkfs_onnx.metric import DRKFS
 from drkfs_onnx.runtime.match import best_matches, descriptor_part
@@ -273,6 +282,31 @@ RECOMBINED = {
         DEFAULT_NOW, {"floor": (q, c)}
     )
     for q, c in ((0.5, 0.5), (0.5, 1.0), (0.25, 1.0), (0.75, 0.5))
+} | {  # a moved part's outline change netted, lost against gained, at the default's ramp
+    f"moves netted, {RAMP_LEVER.format(w=w, k=5, px=144, t=0.05)}": (
+        RAMP_LEVER.format(w=w, k=5, px=144, t=0.05), {"netted": True}
+    )
+    for w in (0.7, 1.0, 1.5)
+} | {  # and with the outline's reaches shortened, which a netted move no longer needs
+    f"moves netted, outline over reaches {'-'.join(map(str, o))}, "
+    f"{RAMP_LEVER.format(w=w, k=5, px=144, t=0.05)}": (
+        RAMP_LEVER.format(w=w, k=5, px=144, t=0.05),
+        {"netted": True, "inside": (1, 2), "inner_power": 1.5, "outline": o},
+    )
+    for o, w in (((1, 2), 0.7), ((1, 2), 1.0))
+} | {  # the netted outline change added to the default's: a removal gains, a move hardly
+    f"moves netted x{b:g} added, {DEFAULT_NOW}": (DEFAULT_NOW, {"moved": b})
+    for b in (0.3, 0.7, 1.5)
+} | {  # netted by area: two different shapes' lost and gained areas net out as a move's do
+    f"moves netted by area x{b:g} added, {DEFAULT_NOW}": (
+        DEFAULT_NOW, {"moved": b, "by_area": True}
+    )
+    for b in (0.7, 1.5)
+} | {  # and counted only where the outline's change is local: different shapes' is not
+    f"moves netted x{b:g} added below {c:g} of the shape, {DEFAULT_NOW}": (
+        DEFAULT_NOW, {"moved": b, "local": c}
+    )
+    for b, c in ((0.7, 0.1), (0.7, 0.2), (1.5, 0.1))
 }  # fmt: skip
 WRAPPED = {name: lever for name, (lever, *_) in (TURN_SEARCHES | RECOMBINED).items()}
 
@@ -321,15 +355,26 @@ class Recombined(Method):
     least over the ring pairings. With ``floor`` = (q, c) each patch's best-match distance
     counts only above c times the q-quantile of the distances of the patches either mesh shows
     (``floored_part``): a change that raises every patch (noise, faceting) counts less against
-    one that raises a few (a hole, a missing tip)."""
+    one that raises a few (a hole, a missing tip). With ``netted`` a view's change at the
+    outline is netted, mesh lost against mesh gained (``moves_change``): a part moved, lost at
+    its old place and gained at its new one, counts less than one removed; with ``moved`` > 0
+    that netted outline change is added, at that weight, to the config's solid change instead
+    of replacing it; ``by_area`` nets by the areas changed (the larger side's peak times the
+    areas' difference over the larger area) instead of the peaks' difference; with ``local``
+    the netted change counts less as the changed outline grows, none past ``local`` of the
+    shape's grey-weighted area (two different shapes change much of it, a removed part
+    little)."""
 
     def __init__(self, method: DrkfsOnnx, name: str, threads: int, ceiling: float | None = None,
                  solid_cameras: tuple[int, int] | None = None, view_power: float = 1.0,
                  inside: tuple[int, ...] | None = None, inner_power: float = 1.0,
                  outline: tuple[int, ...] | None = None,
-                 floor: tuple[float, float] | None = None):  # fmt: skip
+                 floor: tuple[float, float] | None = None, netted: bool = False,
+                 moved: float = 0.0, by_area: bool = False,
+                 local: float | None = None):  # fmt: skip
         self.method, self.outputs, self.symmetric = method, (name,), method.symmetric
-        self.floor = floor
+        self.floor, self.netted, self.moved, self.by_area = floor, netted, moved, by_area
+        self.local = local
         self.config, self.ceiling, self.view_power = method.scorer.config, ceiling, view_power
         # the reaches a pixel's change is taken at where both views show the mesh, and elsewhere
         self.inside, self.inner_power = inside, inner_power
@@ -361,7 +406,31 @@ class Recombined(Method):
             # them to the bit
             views_a, views_b = (v[match_rules.ring_views(k, solid_config)]
                                 for v, k in ((a[1], i), (b[1], j)))  # fmt: skip
-            if self.inside is None:
+            moved = 0.0
+            if self.netted or self.moved:
+                inside, outline = solid_reaches(solid_config)
+                inner, lost, gained = moves_change(
+                    views_a, views_b, solid_config, self.inside or inside,
+                    self.outline if self.inside else outline,
+                    self.inner_power if self.inside else solid_config.solid_inner_power,
+                )  # fmt: skip
+                peaks = [held.max(axis=(-2, -1)) for held in (inner, lost, gained)]
+                if self.by_area:  # each side's peak less the share the other side's area nets
+                    area_lost, area_gained = lost.sum(axis=(-2, -1)), gained.sum(axis=(-2, -1))
+                    larger = np.maximum(np.maximum(area_lost, area_gained), 1e-12)
+                    net = np.maximum(peaks[1], peaks[2]) * np.abs(area_lost - area_gained) / larger
+                else:
+                    net = np.abs(peaks[1] - peaks[2])
+                if self.local is not None:  # only a change local to the shape counts
+                    m = (views_a.shape[-1] - lost.shape[-1]) // 2  # the held maps' margin
+                    both = np.maximum(views_a, views_b)[..., m:-m, m:-m]
+                    shape = both.sum(axis=(-2, -1))
+                    changed = (lost + gained).sum(axis=(-2, -1)) / np.maximum(shape, 1e-12)
+                    net = net * np.clip(1.0 - changed / self.local, 0.0, 1.0)
+                moved = self.moved * float(net.mean())
+            if self.netted:
+                per_view = np.maximum(peaks[0], net)
+            elif self.inside is None:
                 per_view = solid_change(
                     views_a[:, None], views_b[:, None], solid_config.one_ring(), NUMPY_OPS
                 )
@@ -373,7 +442,7 @@ class Recombined(Method):
                 solid = float(per_view.max())
             else:
                 solid = float(np.mean(per_view**self.view_power) ** (1.0 / self.view_power))
-            scores.append(part + self.config.solid_weight * solid)
+            scores.append(part + self.config.solid_weight * solid + moved)
         return (min(scores),)
 
 
@@ -412,12 +481,52 @@ def inside_outline_change(
     with each pixel's change the mean over the reaches ``inside``, raised to ``power``, where
     both views show the mesh, and over the reaches ``outline`` elsewhere: any two sets of
     reaches, where the config's are a ramp and the same ramp less a drop."""
+    change = _pixel_changes(views_a, views_b, config, inside, outline, power)
+    return held_change(change, config.solid_block, NUMPY_OPS)
+
+
+def moves_change(
+    views_a: np.ndarray, views_b: np.ndarray, config: PipelineConfig,
+    inside: tuple[int, ...], outline: tuple[int, ...], power: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
+    """(K, H, W) two meshes' views -> three (K, h, w): each view's pixel changes (as
+    ``inside_outline_change`` takes them) held over the block (eroded) apart where both views
+    show the mesh, where only A does (mesh lost) and where only B does (mesh gained). A moved
+    part is lost at one place and gained at another, so lost and gained nearly cancel; a
+    removed one's do not."""
+    change = _pixel_changes(views_a, views_b, config, inside, outline, power)
+    outer = max(*inside, *outline)
+    window = (..., slice(outer, views_a.shape[-2] - outer), slice(outer, views_a.shape[-1] - outer))
+    shown_a, shown_b = views_a[window] != config.background, views_b[window] != config.background
+    return tuple(
+        window_extreme(change * where, (config.solid_block - 1) // 2, NUMPY_OPS.minimum)
+        for where in (shown_a & shown_b, shown_a & ~shown_b, ~shown_a & shown_b)
+    )
+
+
+def _pixel_changes(
+    views_a: np.ndarray, views_b: np.ndarray, config: PipelineConfig,
+    inside: tuple[int, ...], outline: tuple[int, ...], power: float,
+) -> np.ndarray:  # fmt: skip
     ranges = [{r: view_range(v, r, NUMPY_OPS) for r in {*inside, *outline}}
               for v in (views_a, views_b)]  # fmt: skip
-    change = reach_change(
+    return reach_change(
         views_a, views_b, *ranges, inside, outline, power, config.background, NUMPY_OPS
     )
-    return held_change(change, config.solid_block, NUMPY_OPS)
+
+
+def retrieval_misses(bench: sets.BenchSet, values: dict[tuple[str, str], float | None]) -> dict:
+    """Each retrieval query whose nearest shape is of another family -> that shape and its
+    score, and the nearest of its own family and its score."""
+    misses = {}
+    for query, family in bench.retrieval.items():
+        known = {r: v for (a, r), v in values.items() if a == query and v is not None}
+        ranked = sorted(known, key=known.get)
+        if ranked and bench.retrieval[ranked[0]] != family:
+            own = next((r for r in ranked if bench.retrieval[r] == family), None)
+            misses[query] = {"nearest": [ranked[0], known[ranked[0]]],
+                             "own_family": None if own is None else [own, known[own]]}  # fmt: skip
+    return misses
 
 
 def feature_graph(config: PipelineConfig, folder: Path) -> Path | None:
@@ -478,6 +587,7 @@ def main() -> None:
             "real_misses": tier_accuracy(bench, values, "real")["misses"],
             "bars": bars_summary(bench, values),
             "retrieval": retrieval_summary(bench, scores.retrieval[name]),
+            "retrieval_misses": retrieval_misses(bench, scores.retrieval[name]),
             # the torch path has no turn search: the slide check of one is its lever's
             "slide": slides.get(name) or torch_checks.slide(DRKFS.pretrained(configs[name])),
             "human": None if jod is None else human.human_agreement(bench, values, jod),

@@ -1,0 +1,51 @@
+"""bench/real_levers.py's netted outline change: a part moved is lost at one place and gained at
+another, so the two nearly cancel; a part removed is only lost."""
+
+import importlib.util
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from drkfs_onnx import PipelineConfig
+from drkfs_onnx.contract.solid_change import solid_reaches
+
+SCRIPT = Path(__file__).resolve().parents[1] / "bench" / "real_levers.py"
+
+
+@pytest.fixture(scope="module")
+def real_levers():
+    spec = importlib.util.spec_from_file_location("real_levers", SCRIPT)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def _views(*bars: tuple[int, int]) -> np.ndarray:
+    """(1, 48, 48): a grey body and 6-px bars at the (row, column) corners given."""
+    view = np.zeros((1, 48, 48))
+    view[0, 30:44, 8:40] = 0.5
+    for row, col in bars:
+        view[0, row : row + 6, col : col + 6] = 0.8
+    return view
+
+
+def _peaks(real_levers, views_a, views_b):
+    config = PipelineConfig(image_size=48)
+    inside, outline = solid_reaches(config)
+    held = real_levers.moves_change(views_a, views_b, config, inside, outline, 1.5)
+    return [float(h.max()) for h in held]  # inner, lost, gained
+
+
+def test_a_removed_part_is_lost_and_not_gained(real_levers):
+    inner, lost, gained = _peaks(real_levers, _views((10, 10)), _views())
+    assert lost == pytest.approx(0.8) and gained == 0.0 and inner == 0.0
+
+
+def test_a_moved_part_is_lost_and_gained_alike(real_levers):
+    inner, lost, gained = _peaks(real_levers, _views((10, 10)), _views((10, 30)))
+    assert lost == pytest.approx(0.8) and gained == pytest.approx(0.8) and inner == 0.0
+
+
+def test_a_shift_within_the_reach_changes_nothing(real_levers):
+    assert _peaks(real_levers, _views((10, 10)), _views((10, 12))) == [0.0, 0.0, 0.0]
