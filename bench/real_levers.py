@@ -307,6 +307,9 @@ RECOMBINED = {
         DEFAULT_NOW, {"moved": b, "local": c}
     )
     for b, c in ((0.7, 0.1), (0.7, 0.2), (1.5, 0.1))
+} | {  # and counted only between near shapes, as the descriptors' part says
+    f"moves netted x{b:g} added, near {n:g}, {DEFAULT_NOW}": (DEFAULT_NOW, {"moved": b, "near": n})
+    for b, n in ((0.7, 1.0), (0.7, 2.0), (1.0, 1.0))
 }  # fmt: skip
 WRAPPED = {name: lever for name, (lever, *_) in (TURN_SEARCHES | RECOMBINED).items()}
 
@@ -363,7 +366,9 @@ class Recombined(Method):
     areas' difference over the larger area) instead of the peaks' difference; with ``local``
     the netted change counts less as the changed outline grows, none past ``local`` of the
     shape's grey-weighted area (two different shapes change much of it, a removed part
-    little)."""
+    little); with ``near`` it is weighed by exp(-part / near), the pairing's descriptor part:
+    full between near shapes, where a change's kind orders the tiers, little between different
+    shapes, whose order the descriptors decide (retrieval)."""
 
     def __init__(self, method: DrkfsOnnx, name: str, threads: int, ceiling: float | None = None,
                  solid_cameras: tuple[int, int] | None = None, view_power: float = 1.0,
@@ -371,10 +376,10 @@ class Recombined(Method):
                  outline: tuple[int, ...] | None = None,
                  floor: tuple[float, float] | None = None, netted: bool = False,
                  moved: float = 0.0, by_area: bool = False,
-                 local: float | None = None):  # fmt: skip
+                 local: float | None = None, near: float | None = None):  # fmt: skip
         self.method, self.outputs, self.symmetric = method, (name,), method.symmetric
         self.floor, self.netted, self.moved, self.by_area = floor, netted, moved, by_area
-        self.local = local
+        self.local, self.near = local, near
         self.config, self.ceiling, self.view_power = method.scorer.config, ceiling, view_power
         # the reaches a pixel's change is taken at where both views show the mesh, and elsewhere
         self.inside, self.inner_power = inside, inner_power
@@ -428,6 +433,8 @@ class Recombined(Method):
                     changed = (lost + gained).sum(axis=(-2, -1)) / np.maximum(shape, 1e-12)
                     net = net * np.clip(1.0 - changed / self.local, 0.0, 1.0)
                 moved = self.moved * float(net.mean())
+                if self.near is not None:  # between far shapes the descriptors decide
+                    moved *= math.exp(-part / self.near)
             if self.netted:
                 per_view = np.maximum(peaks[0], net)
             elif self.inside is None:
