@@ -191,6 +191,8 @@ LEVERS = {
             (5, 144, 1.0, 0.05),
             (5, 144, 1.2, 0.05),
             (5, 144, 1.5, 0.05),
+            (5, 144, 3.0, 0.05),
+            (5, 144, 4.0, 0.05),
             (5, 144, 0.7, 0.04),
             (5, 144, 0.7, 0.06),
         )
@@ -286,7 +288,7 @@ RECOMBINED = {
     f"moves netted, {RAMP_LEVER.format(w=w, k=5, px=144, t=0.05)}": (
         RAMP_LEVER.format(w=w, k=5, px=144, t=0.05), {"netted": True}
     )
-    for w in (0.7, 1.0, 1.5)
+    for w in (0.7, 1.0, 1.5, 3.0, 4.0)
 } | {  # and with the outline's reaches shortened, which a netted move no longer needs
     f"moves netted, outline over reaches {'-'.join(map(str, o))}, "
     f"{RAMP_LEVER.format(w=w, k=5, px=144, t=0.05)}": (
