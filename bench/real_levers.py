@@ -193,6 +193,7 @@ LEVERS = {
             (5, 144, 1.5, 0.05),
             (5, 144, 3.0, 0.05),
             (5, 144, 4.0, 0.05),
+            (6, 128, 4.0, 0.05),
             (5, 144, 0.7, 0.04),
             (5, 144, 0.7, 0.06),
         )
@@ -289,6 +290,10 @@ RECOMBINED = {
         RAMP_LEVER.format(w=w, k=5, px=144, t=0.05), {"netted": True}
     )
     for w in (0.7, 1.0, 1.5, 3.0, 4.0)
+} | {  # and from the six cameras of 128 px that see the held-out side's holes
+    f"moves netted, {RAMP_LEVER.format(w=4.0, k=6, px=128, t=0.05)}": (
+        RAMP_LEVER.format(w=4.0, k=6, px=128, t=0.05), {"netted": True}
+    ),
 } | {  # and with the outline's reaches shortened, which a netted move no longer needs
     f"moves netted, outline over reaches {'-'.join(map(str, o))}, "
     f"{RAMP_LEVER.format(w=w, k=5, px=144, t=0.05)}": (
