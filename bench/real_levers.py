@@ -294,6 +294,19 @@ RECOMBINED = {
     f"moves netted, {RAMP_LEVER.format(w=4.0, k=6, px=128, t=0.05)}": (
         RAMP_LEVER.format(w=4.0, k=6, px=128, t=0.05), {"netted": True}
     ),
+} | {  # the same, the solid term bounded: between different shapes it is then one offset
+    f"moves netted, solid term at most {c:g}, {RAMP_LEVER.format(w=4.0, k=k, px=px, t=0.05)}": (
+        RAMP_LEVER.format(w=4.0, k=k, px=px, t=0.05), {"netted": True, "solid_ceiling": c}
+    )
+    for k, px, c in ((6, 128, 0.3), (6, 128, 0.5), (5, 144, 0.5))
+} | {  # the default's solid term bounded, alone and with the netted outline change added
+    f"solid term at most {c:g}, {DEFAULT_NOW}": (DEFAULT_NOW, {"solid_ceiling": c})
+    for c in (0.5,)
+} | {
+    f"moves netted x{b:g} added, solid term at most {c:g}, {DEFAULT_NOW}": (
+        DEFAULT_NOW, {"moved": b, "solid_ceiling": c}
+    )
+    for b, c in ((0.7, 0.5), (0.7, 0.7), (0.7, 0.75), (0.7, 1.0))
 } | {  # and with the outline's reaches shortened, which a netted move no longer needs
     f"moves netted, outline over reaches {'-'.join(map(str, o))}, "
     f"{RAMP_LEVER.format(w=w, k=5, px=144, t=0.05)}": (
@@ -375,7 +388,9 @@ class Recombined(Method):
     shape's grey-weighted area (two different shapes change much of it, a removed part
     little); with ``near`` it is weighed by exp(-part / near), the pairing's descriptor part:
     full between near shapes, where a change's kind orders the tiers, little between different
-    shapes, whose order the descriptors decide (retrieval)."""
+    shapes, whose order the descriptors decide (retrieval). With ``solid_ceiling`` the whole
+    solid term is at most about it (c tanh(term / c)): once a region changes as a whole a viewer
+    has seen it, and how different two shapes are beyond that the descriptors say."""
 
     def __init__(self, method: DrkfsOnnx, name: str, threads: int, ceiling: float | None = None,
                  solid_cameras: tuple[int, int] | None = None, view_power: float = 1.0,
@@ -383,10 +398,11 @@ class Recombined(Method):
                  outline: tuple[int, ...] | None = None,
                  floor: tuple[float, float] | None = None, netted: bool = False,
                  moved: float = 0.0, by_area: bool = False,
-                 local: float | None = None, near: float | None = None):  # fmt: skip
+                 local: float | None = None, near: float | None = None,
+                 solid_ceiling: float | None = None):  # fmt: skip
         self.method, self.outputs, self.symmetric = method, (name,), method.symmetric
         self.floor, self.netted, self.moved, self.by_area = floor, netted, moved, by_area
-        self.local, self.near = local, near
+        self.local, self.near, self.solid_ceiling = local, near, solid_ceiling
         self.config, self.ceiling, self.view_power = method.scorer.config, ceiling, view_power
         # the reaches a pixel's change is taken at where both views show the mesh, and elsewhere
         self.inside, self.inner_power = inside, inner_power
@@ -456,7 +472,10 @@ class Recombined(Method):
                 solid = float(per_view.max())
             else:
                 solid = float(np.mean(per_view**self.view_power) ** (1.0 / self.view_power))
-            scores.append(part + self.config.solid_weight * solid + moved)
+            term = self.config.solid_weight * solid + moved
+            if self.solid_ceiling is not None:  # a whole region changed: noticed, then no more
+                term = self.solid_ceiling * math.tanh(term / self.solid_ceiling)
+            scores.append(part + term)
         return (min(scores),)
 
 
