@@ -45,6 +45,7 @@ from drkfs_onnx.benchmark.real_tiers import HELDOUT_MESHES, TRAINING_MESHES
 from drkfs_onnx.benchmark.run import (
     bars_summary,
     lever_summary,
+    ranked_retrieval,
     retrieval_summary,
     score_everything,
     tier_accuracy,
@@ -57,7 +58,6 @@ from drkfs_onnx.contract.model_files import features_file, models_dir, shipped_e
 from drkfs_onnx.contract.solid_change import (
     held_change,
     reach_change,
-    solid_change,
     solid_reaches,
     view_range,
     window_extreme,
@@ -374,7 +374,7 @@ class Recombined(Method):
     changes reduced by their power mean of ``view_power`` (1: their mean; inf: the largest),
     and, where ``inside`` is set, each pixel's change the mean of its changes at the reaches
     ``inside``, raised to ``inner_power``, where both views show the mesh, and at the reaches
-    ``outline`` (the config's shift unless set) elsewhere (``inside_outline_change``); the
+    ``outline`` (the config's shift unless set) elsewhere (``pixel_changes``); the
     least over the ring pairings. With ``floor`` = (q, c) each patch's best-match distance
     counts only above c times the q-quantile of the distances of the patches either mesh shows
     (``floored_part``): a change that raises every patch (noise, faceting) counts less against
@@ -404,14 +404,18 @@ class Recombined(Method):
         self.floor, self.netted, self.moved, self.by_area = floor, netted, moved, by_area
         self.local, self.near, self.solid_ceiling = local, near, solid_ceiling
         self.config, self.ceiling, self.view_power = method.scorer.config, ceiling, view_power
-        # the reaches a pixel's change is taken at where both views show the mesh, and elsewhere
-        self.inside, self.inner_power = inside, inner_power
-        self.outline = outline or (self.config.solid_shift,)
         self.solid = None
+        solid_config = self.config
         if solid_cameras is not None:
             count, size = solid_cameras
             solid_config = self.config.replace(num_views=count, image_size=size)
             self.solid = NumpyRenderer(solid_config, threads=threads)
+        # the reaches a pixel's change is taken at where both views show the mesh, and
+        # elsewhere, and the power of the first: the solid config's own unless ``inside`` is set
+        self.reaches = (
+            (*solid_reaches(solid_config), solid_config.solid_inner_power) if inside is None
+            else (inside, outline or (self.config.solid_shift,), inner_power)
+        )  # fmt: skip
 
     def prepare(self, placed):
         features, seconds = self.method.prepare(placed)
@@ -430,18 +434,15 @@ class Recombined(Method):
                 part = floored_part(a[0].ring(i), b[0].ring(j), one, *self.floor)
             if self.ceiling is not None:
                 part = self.ceiling * math.tanh(part / self.ceiling)
-            # each view's solid change over the whole views: the runtime's windowed mean of
-            # them to the bit
+            # each view's solid change over the whole views: at the config's reaches, the
+            # runtime's windowed mean of them to the bit
             views_a, views_b = (v[match_rules.ring_views(k, solid_config)]
                                 for v, k in ((a[1], i), (b[1], j)))  # fmt: skip
+            change = pixel_changes(views_a, views_b, solid_config, *self.reaches)
+            per_view = held_change(change, solid_config.solid_block, NUMPY_OPS)
             moved = 0.0
             if self.netted or self.moved:
-                inside, outline = solid_reaches(solid_config)
-                inner, lost, gained = moves_change(
-                    views_a, views_b, solid_config, self.inside or inside,
-                    self.outline if self.inside else outline,
-                    self.inner_power if self.inside else solid_config.solid_inner_power,
-                )  # fmt: skip
+                inner, lost, gained = moves_change(views_a, views_b, change, solid_config)
                 peaks = [held.max(axis=(-2, -1)) for held in (inner, lost, gained)]
                 if self.by_area:  # each side's peak less the share the other side's area nets
                     area_lost, area_gained = lost.sum(axis=(-2, -1)), gained.sum(axis=(-2, -1))
@@ -458,16 +459,8 @@ class Recombined(Method):
                 moved = self.moved * float(net.mean())
                 if self.near is not None:  # between far shapes the descriptors decide
                     moved *= math.exp(-part / self.near)
-            if self.netted:
-                per_view = np.maximum(peaks[0], net)
-            elif self.inside is None:
-                per_view = solid_change(
-                    views_a[:, None], views_b[:, None], solid_config.one_ring(), NUMPY_OPS
-                )
-            else:
-                per_view = inside_outline_change(
-                    views_a, views_b, solid_config, self.inside, self.outline, self.inner_power
-                )
+                if self.netted:
+                    per_view = np.maximum(peaks[0], net)
             if math.isinf(self.view_power):
                 solid = float(per_view.max())
             else:
@@ -506,29 +499,30 @@ def runtime_slide(method: Method) -> dict:
     return torch_checks.slide_of(against)
 
 
-def inside_outline_change(
+def pixel_changes(
     views_a: np.ndarray, views_b: np.ndarray, config: PipelineConfig,
     inside: tuple[int, ...], outline: tuple[int, ...], power: float = 1.0,
 ) -> np.ndarray:  # fmt: skip
-    """(K, H, W) two meshes' views -> (K,) each view's solid change (``contract.solid_change``)
-    with each pixel's change the mean over the reaches ``inside``, raised to ``power``, where
-    both views show the mesh, and over the reaches ``outline`` elsewhere: any two sets of
-    reaches, where the config's are a ramp and the same ramp less a drop."""
-    change = _pixel_changes(views_a, views_b, config, inside, outline, power)
-    return held_change(change, config.solid_block, NUMPY_OPS)
+    """(K, H, W) two meshes' views -> (K, h, w) each pixel's change (``contract.solid_change``)
+    as the mean over the reaches ``inside``, raised to ``power``, where both views show the
+    mesh, and over the reaches ``outline`` elsewhere: any two sets of reaches, where the
+    config's are a ramp and the same ramp less a drop. ``held_change`` of it is each view's
+    solid change."""
+    ranges = [{r: view_range(v, r, NUMPY_OPS) for r in {*inside, *outline}}
+              for v in (views_a, views_b)]  # fmt: skip
+    return reach_change(
+        views_a, views_b, *ranges, inside, outline, power, config.background, NUMPY_OPS
+    )
 
 
 def moves_change(
-    views_a: np.ndarray, views_b: np.ndarray, config: PipelineConfig,
-    inside: tuple[int, ...], outline: tuple[int, ...], power: float,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
-    """(K, H, W) two meshes' views -> three (K, h, w): each view's pixel changes (as
-    ``inside_outline_change`` takes them) held over the block (eroded) apart where both views
-    show the mesh, where only A does (mesh lost) and where only B does (mesh gained). A moved
-    part is lost at one place and gained at another, so lost and gained nearly cancel; a
-    removed one's do not."""
-    change = _pixel_changes(views_a, views_b, config, inside, outline, power)
-    outer = max(*inside, *outline)
+    views_a: np.ndarray, views_b: np.ndarray, change: np.ndarray, config: PipelineConfig
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(K, H, W) two meshes' views and their ``pixel_changes`` (K, h, w) -> three (K, h', w'):
+    the changes held over the block (eroded) apart where both views show the mesh, where only A
+    does (mesh lost) and where only B does (mesh gained). A moved part is lost at one place and
+    gained at another, so lost and gained nearly cancel; a removed one's do not."""
+    outer = (views_a.shape[-1] - change.shape[-1]) // 2  # the changes' margin: the largest reach
     window = (..., slice(outer, views_a.shape[-2] - outer), slice(outer, views_a.shape[-1] - outer))
     shown_a, shown_b = views_a[window] != config.background, views_b[window] != config.background
     return tuple(
@@ -537,28 +531,15 @@ def moves_change(
     )
 
 
-def _pixel_changes(
-    views_a: np.ndarray, views_b: np.ndarray, config: PipelineConfig,
-    inside: tuple[int, ...], outline: tuple[int, ...], power: float,
-) -> np.ndarray:  # fmt: skip
-    ranges = [{r: view_range(v, r, NUMPY_OPS) for r in {*inside, *outline}}
-              for v in (views_a, views_b)]  # fmt: skip
-    return reach_change(
-        views_a, views_b, *ranges, inside, outline, power, config.background, NUMPY_OPS
-    )
-
-
 def retrieval_misses(bench: sets.BenchSet, values: dict[tuple[str, str], float | None]) -> dict:
     """Each retrieval query whose nearest shape is of another family -> that shape and its
     score, and the nearest of its own family and its score."""
     misses = {}
-    for query, family in bench.retrieval.items():
-        known = {r: v for (a, r), v in values.items() if a == query and v is not None}
-        ranked = sorted(known, key=known.get)
-        if ranked and bench.retrieval[ranked[0]] != family:
-            own = next((r for r in ranked if bench.retrieval[r] == family), None)
-            misses[query] = {"nearest": [ranked[0], known[ranked[0]]],
-                             "own_family": None if own is None else [own, known[own]]}  # fmt: skip
+    for query, found in ranked_retrieval(bench, values).items():
+        family = bench.retrieval[query]
+        if bench.retrieval[found[0][0]] != family:
+            own = next((list(f) for f in found if bench.retrieval[f[0]] == family), None)
+            misses[query] = {"nearest": list(found[0]), "own_family": own}
     return misses
 
 

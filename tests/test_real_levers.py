@@ -33,7 +33,8 @@ def _views(*bars: tuple[int, int]) -> np.ndarray:
 def _peaks(real_levers, views_a, views_b):
     config = PipelineConfig(image_size=48)
     inside, outline = solid_reaches(config)
-    held = real_levers.moves_change(views_a, views_b, config, inside, outline, 1.5)
+    change = real_levers.pixel_changes(views_a, views_b, config, inside, outline, 1.5)
+    held = real_levers.moves_change(views_a, views_b, change, config)
     return [float(h.max()) for h in held]  # inner, lost, gained
 
 

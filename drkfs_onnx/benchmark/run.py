@@ -263,14 +263,22 @@ def bars_summary(bench: sets.BenchSet, values: dict[int, float | None]) -> dict:
     return {**edits, "deletion_over_max_shift": edits["deleted"] / max(edits["up"], edits["down"])}
 
 
-def retrieval_summary(bench: sets.BenchSet, values: dict[tuple[str, str], float | None]) -> dict:
-    hits = total = 0
+def ranked_retrieval(
+    bench: sets.BenchSet, values: dict[tuple[str, str], float | None]
+) -> dict[str, list[tuple[str, float]]]:
+    """Each retrieval query with a score -> the other shapes and their scores, nearest first."""
+    ranked = {}
     for q in bench.retrieval:
-        known = {r: v for (a, r), v in values.items() if a == q and v is not None}
+        known = [(r, v) for (a, r), v in values.items() if a == q and v is not None]
         if known:
-            nearest = min(known, key=known.get)
-            hits += bench.retrieval[nearest] == bench.retrieval[q]
-            total += 1
+            ranked[q] = sorted(known, key=lambda found: found[1])
+    return ranked
+
+
+def retrieval_summary(bench: sets.BenchSet, values: dict[tuple[str, str], float | None]) -> dict:
+    ranked = ranked_retrieval(bench, values)
+    hits = sum(bench.retrieval[found[0][0]] == bench.retrieval[q] for q, found in ranked.items())
+    total = len(ranked)
     return {"nearest_neighbour_accuracy": hits / total if total else None, "queries": total}
 
 
