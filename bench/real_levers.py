@@ -14,7 +14,7 @@ other cameras than the descriptors', the views' solid changes in a power mean, a
 taken over other reaches inside the mesh and at its outline than a config's ramp allows, the
 descriptors' distances counted above a floor the whole shown surface sets, or the outline's
 change netted, mesh lost against mesh gained, so that a moved part counts less than a removed
-one).
+one, or the own-ring pairing's solid change taken over both rings' views).
 A lever's solid change is at one reach unless it names a ramp (``ONE_REACH``), as every lever
 before the ramp was. A turn search's slide check is its lever's, as the torch path has none; a
 recombination's is its own, on the runtime path it is scored on (``runtime_slide``).
@@ -330,6 +330,27 @@ RECOMBINED = {
 } | {  # and counted only between near shapes, as the descriptors' part says
     f"moves netted x{b:g} added, near {n:g}, {DEFAULT_NOW}": (DEFAULT_NOW, {"moved": b, "near": n})
     for b, n in ((0.7, 1.0), (0.7, 2.0), (1.0, 1.0))
+} | {  # the own-ring pairing's solid change over both rings' views: the turned ring's cameras,
+    # 2.5 degrees off, see a sliver the own ring's miss (the mean of the ten views, or each
+    # camera's larger of its two rings)
+    f"solid change from both rings ({how}), {RAMP_LEVER.format(w=w, k=5, px=144, t=0.05)}": (
+        RAMP_LEVER.format(w=w, k=5, px=144, t=0.05), {"both_rings": how}
+    )
+    for how, w in (("mean", 0.7), ("max", 0.7), ("mean", 1.0), ("max", 1.0), ("mean", 1.5),
+                   ("max", 1.5), ("max", 1.2))
+} | {  # and with the outline's change netted, heavier, as the held-out side's holes ask
+    "solid change from both rings (max), moves netted"
+    + (f", solid term at most {c:g}" if c else "")
+    + f", {RAMP_LEVER.format(w=w, k=5, px=144, t=0.05)}": (
+        RAMP_LEVER.format(w=w, k=5, px=144, t=0.05),
+        {"both_rings": "max", "netted": True, "solid_ceiling": c},
+    )
+    for w, c in ((4.0, 0.5), (4.0, 1.0), (4.0, None), (3.0, None))
+} | {  # and the netted change added to the default's, alone and bounded
+    f"solid change from both rings (max), moves netted x{b:g} added"
+    + (f", solid term at most {c:g}" if c else "")
+    + f", {DEFAULT_NOW}": (DEFAULT_NOW, {"both_rings": "max", "moved": b, "solid_ceiling": c})
+    for b, c in ((0.7, 0.75), (0.7, None))
 }  # fmt: skip
 WRAPPED = {name: lever for name, (lever, *_) in (TURN_SEARCHES | RECOMBINED).items()}
 
@@ -390,7 +411,11 @@ class Recombined(Method):
     full between near shapes, where a change's kind orders the tiers, little between different
     shapes, whose order the descriptors decide (retrieval). With ``solid_ceiling`` the whole
     solid term is at most about it (c tanh(term / c)): once a region changes as a whole a viewer
-    has seen it, and how different two shapes are beyond that the descriptors say."""
+    has seen it, and how different two shapes are beyond that the descriptors say. With
+    ``both_rings`` the own-ring pairing's solid change is over both rings' views, each ring's
+    against the same ring's: the turned ring's cameras, a few degrees off, see a sliver the own
+    ring's miss ('mean': the mean over all their views; 'max': each camera's larger change of
+    its two rings, then the views' mean)."""
 
     def __init__(self, method: DrkfsOnnx, name: str, threads: int, ceiling: float | None = None,
                  solid_cameras: tuple[int, int] | None = None, view_power: float = 1.0,
@@ -399,10 +424,12 @@ class Recombined(Method):
                  floor: tuple[float, float] | None = None, netted: bool = False,
                  moved: float = 0.0, by_area: bool = False,
                  local: float | None = None, near: float | None = None,
-                 solid_ceiling: float | None = None):  # fmt: skip
+                 solid_ceiling: float | None = None,
+                 both_rings: str | None = None):  # fmt: skip
         self.method, self.outputs, self.symmetric = method, (name,), method.symmetric
         self.floor, self.netted, self.moved, self.by_area = floor, netted, moved, by_area
         self.local, self.near, self.solid_ceiling = local, near, solid_ceiling
+        self.both_rings = both_rings
         self.config, self.ceiling, self.view_power = method.scorer.config, ceiling, view_power
         self.solid = None
         solid_config = self.config
@@ -434,33 +461,14 @@ class Recombined(Method):
                 part = floored_part(a[0].ring(i), b[0].ring(j), one, *self.floor)
             if self.ceiling is not None:
                 part = self.ceiling * math.tanh(part / self.ceiling)
-            # each view's solid change over the whole views: at the config's reaches, the
-            # runtime's windowed mean of them to the bit
-            views_a, views_b = (v[match_rules.ring_views(k, solid_config)]
-                                for v, k in ((a[1], i), (b[1], j)))  # fmt: skip
-            change = pixel_changes(views_a, views_b, solid_config, *self.reaches)
-            per_view = held_change(change, solid_config.solid_block, NUMPY_OPS)
-            moved = 0.0
-            if self.netted or self.moved:
-                inner, lost, gained = moves_change(views_a, views_b, change, solid_config)
-                peaks = [held.max(axis=(-2, -1)) for held in (inner, lost, gained)]
-                if self.by_area:  # each side's peak less the share the other side's area nets
-                    area_lost, area_gained = lost.sum(axis=(-2, -1)), gained.sum(axis=(-2, -1))
-                    larger = np.maximum(np.maximum(area_lost, area_gained), 1e-12)
-                    net = np.maximum(peaks[1], peaks[2]) * np.abs(area_lost - area_gained) / larger
-                else:
-                    net = np.abs(peaks[1] - peaks[2])
-                if self.local is not None:  # only a change local to the shape counts
-                    m = (views_a.shape[-1] - lost.shape[-1]) // 2  # the held maps' margin
-                    both = np.maximum(views_a, views_b)[..., m:-m, m:-m]
-                    shape = both.sum(axis=(-2, -1))
-                    changed = (lost + gained).sum(axis=(-2, -1)) / np.maximum(shape, 1e-12)
-                    net = net * np.clip(1.0 - changed / self.local, 0.0, 1.0)
-                moved = self.moved * float(net.mean())
-                if self.near is not None:  # between far shapes the descriptors decide
-                    moved *= math.exp(-part / self.near)
-                if self.netted:
-                    per_view = np.maximum(peaks[0], net)
+            # the views compared for the solid change: the pairing's rings, and with
+            # ``both_rings`` in the own-ring pairing the turned ring's against each other too
+            rings = [(i, j)] + ([(1, 1)] if self.both_rings and (i, j) == (0, 0) else [])
+            changes = [self._view_changes(a[1], b[1], k, m, solid_config, part)
+                       for k, m in rings]  # fmt: skip
+            per_view = np.stack([c[0] for c in changes])
+            per_view = per_view.max(0) if self.both_rings == "max" else per_view.reshape(-1)
+            moved = float(np.mean([c[1] for c in changes]))
             if math.isinf(self.view_power):
                 solid = float(per_view.max())
             else:
@@ -470,6 +478,41 @@ class Recombined(Method):
                 term = self.solid_ceiling * math.tanh(term / self.solid_ceiling)
             scores.append(part + term)
         return (min(scores),)
+
+    def _view_changes(
+        self, views_a: np.ndarray, views_b: np.ndarray, i: int, j: int,
+        solid_config: PipelineConfig, part: float,
+    ) -> tuple[np.ndarray, float]:  # fmt: skip
+        """A's ring ``i`` against B's ring ``j`` (``part`` their descriptor part): each view's
+        solid change (K,), and the netted outline change added at ``moved`` (0 unless set)."""
+        # each view's solid change over the whole views: at the config's reaches, the
+        # runtime's windowed mean of them to the bit
+        views_a = views_a[match_rules.ring_views(i, solid_config)]
+        views_b = views_b[match_rules.ring_views(j, solid_config)]
+        change = pixel_changes(views_a, views_b, solid_config, *self.reaches)
+        per_view = held_change(change, solid_config.solid_block, NUMPY_OPS)
+        moved = 0.0
+        if self.netted or self.moved:
+            inner, lost, gained = moves_change(views_a, views_b, change, solid_config)
+            peaks = [held.max(axis=(-2, -1)) for held in (inner, lost, gained)]
+            if self.by_area:  # each side's peak less the share the other side's area nets
+                area_lost, area_gained = lost.sum(axis=(-2, -1)), gained.sum(axis=(-2, -1))
+                larger = np.maximum(np.maximum(area_lost, area_gained), 1e-12)
+                net = np.maximum(peaks[1], peaks[2]) * np.abs(area_lost - area_gained) / larger
+            else:
+                net = np.abs(peaks[1] - peaks[2])
+            if self.local is not None:  # only a change local to the shape counts
+                m = (views_a.shape[-1] - lost.shape[-1]) // 2  # the held maps' margin
+                both = np.maximum(views_a, views_b)[..., m:-m, m:-m]
+                shape = both.sum(axis=(-2, -1))
+                changed = (lost + gained).sum(axis=(-2, -1)) / np.maximum(shape, 1e-12)
+                net = net * np.clip(1.0 - changed / self.local, 0.0, 1.0)
+            moved = self.moved * float(net.mean())
+            if self.near is not None:  # between far shapes the descriptors decide
+                moved *= math.exp(-part / self.near)
+            if self.netted:
+                per_view = np.maximum(peaks[0], net)
+        return per_view, moved
 
 
 def floored_part(a, b, config: PipelineConfig, quantile: float, scale: float) -> float:

@@ -1,8 +1,10 @@
-"""bench/real_levers.py's netted outline change: a part moved is lost at one place and gained at
-another, so the two nearly cancel; a part removed is only lost."""
+"""bench/real_levers.py's recombinations: the netted outline change (a part moved is lost at one
+place and gained at another, so the two nearly cancel; a part removed is only lost), and the
+own-ring pairing's solid change taken over both rings' views."""
 
 import importlib.util
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -50,3 +52,30 @@ def test_a_moved_part_is_lost_and_gained_alike(real_levers):
 
 def test_a_shift_within_the_reach_changes_nothing(real_levers):
     assert _peaks(real_levers, _views((10, 10)), _views((10, 12))) == [0.0, 0.0, 0.0]
+
+
+class _Rings:
+    """Features whose ring ``i`` is ``i``: the stub descriptor part below reads the pairing."""
+
+    def ring(self, i: int) -> int:
+        return i
+
+
+def _recombined_score(real_levers, monkeypatch, both_rings: str | None) -> float:
+    """A, whose turned ring alone shows a bar, against B, which shows none: each ring pairing's
+    descriptor part 0 for own ring against own ring and 1 across (a turn the mesh does not
+    have), the solid change at weight 1."""
+    config = PipelineConfig(image_size=48, num_views=1, turn_degrees=2.5, solid_weight=1.0)
+    monkeypatch.setattr(real_levers, "descriptor_part", lambda a, b, _: float(a != b))
+    method = SimpleNamespace(scorer=SimpleNamespace(config=config), symmetric=True)
+    lever = real_levers.Recombined(method, "lever", 1, both_rings=both_rings)
+    a = (_Rings(), np.concatenate([_views(), _views((10, 10))]))
+    b = (_Rings(), np.concatenate([_views(), _views()]))
+    return lever.compare(a, b)[0]
+
+
+def test_a_change_only_the_turned_ring_shows_counts_with_both_rings(real_levers, monkeypatch):
+    assert _recombined_score(real_levers, monkeypatch, None) == 0.0
+    # each camera's larger change of its two rings: the bar's 0.8; the views' mean: half of it
+    assert _recombined_score(real_levers, monkeypatch, "max") == pytest.approx(0.8)
+    assert _recombined_score(real_levers, monkeypatch, "mean") == pytest.approx(0.4)
