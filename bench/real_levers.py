@@ -351,6 +351,18 @@ RECOMBINED = {
     + (f", solid term at most {c:g}" if c else "")
     + f", {DEFAULT_NOW}": (DEFAULT_NOW, {"both_rings": "max", "moved": b, "solid_ceiling": c})
     for b, c in ((0.7, 0.75), (0.7, None))
+} | {  # and the own-ring pairing's descriptor part the mean of both rings' own
+    f"descriptors' and solid change from both rings ({how}"
+    + (f", ring 1's part x{s:g}" if s != 0.5 else "")
+    + f"), {RAMP_LEVER.format(w=w, k=5, px=144, t=0.05)}": (
+        RAMP_LEVER.format(w=w, k=5, px=144, t=0.05), {"both_rings": how, "both_parts": s}
+    )
+    for how, w, s in (("max", 0.7, 0.5), ("max", 1.0, 0.5), ("max", 1.2, 0.5), ("mean", 1.0, 0.5),
+                      ("max", 1.0, 0.25), ("max", 1.2, 0.25), ("max", 1.2, 0.35),
+                      ("max", 1.5, 0.25), ("max", 1.2, 0.1), ("max", 1.2, 0.15), ("max", 1.2, 0.2),
+                      ("max", 1.0, 0.15))
+} | {
+    f"descriptors from both rings, {DEFAULT_NOW}": (DEFAULT_NOW, {"both_parts": 0.5}),
 }  # fmt: skip
 WRAPPED = {name: lever for name, (lever, *_) in (TURN_SEARCHES | RECOMBINED).items()}
 
@@ -415,7 +427,8 @@ class Recombined(Method):
     ``both_rings`` the own-ring pairing's solid change is over both rings' views, each ring's
     against the same ring's: the turned ring's cameras, a few degrees off, see a sliver the own
     ring's miss ('mean': the mean over all their views; 'max': each camera's larger change of
-    its two rings, then the views' mean)."""
+    its two rings, then the views' mean); with ``both_parts`` = s its descriptor part is
+    (1 - s) times ring 0's own part plus s times ring 1's (0.5: their mean)."""
 
     def __init__(self, method: DrkfsOnnx, name: str, threads: int, ceiling: float | None = None,
                  solid_cameras: tuple[int, int] | None = None, view_power: float = 1.0,
@@ -425,11 +438,11 @@ class Recombined(Method):
                  moved: float = 0.0, by_area: bool = False,
                  local: float | None = None, near: float | None = None,
                  solid_ceiling: float | None = None,
-                 both_rings: str | None = None):  # fmt: skip
+                 both_rings: str | None = None, both_parts: float = 0.0):  # fmt: skip
         self.method, self.outputs, self.symmetric = method, (name,), method.symmetric
         self.floor, self.netted, self.moved, self.by_area = floor, netted, moved, by_area
         self.local, self.near, self.solid_ceiling = local, near, solid_ceiling
-        self.both_rings = both_rings
+        self.both_rings, self.both_parts = both_rings, both_parts
         self.config, self.ceiling, self.view_power = method.scorer.config, ceiling, view_power
         self.solid = None
         solid_config = self.config
@@ -457,6 +470,9 @@ class Recombined(Method):
         for i, j in match_rules.ring_pairings(self.config):
             if self.floor is None:
                 part = descriptor_part(a[0].ring(i), b[0].ring(j), one)
+                if self.both_parts and (i, j) == (0, 0):  # the turned ring's part too
+                    turned = descriptor_part(a[0].ring(1), b[0].ring(1), one)
+                    part = (1.0 - self.both_parts) * part + self.both_parts * turned
             else:
                 part = floored_part(a[0].ring(i), b[0].ring(j), one, *self.floor)
             if self.ceiling is not None:

@@ -61,14 +61,15 @@ class _Rings:
         return i
 
 
-def _recombined_score(real_levers, monkeypatch, both_rings: str | None) -> float:
+def _recombined_score(real_levers, monkeypatch, both_rings: str | None, both_parts=0.0) -> float:
     """A, whose turned ring alone shows a bar, against B, which shows none: each ring pairing's
-    descriptor part 0 for own ring against own ring and 1 across (a turn the mesh does not
-    have), the solid change at weight 1."""
+    descriptor part 1 across rings (a turn the mesh does not have), 0 for ring 0 against ring
+    0 and 0.2 for ring 1 against ring 1; the solid change at weight 1."""
     config = PipelineConfig(image_size=48, num_views=1, turn_degrees=2.5, solid_weight=1.0)
-    monkeypatch.setattr(real_levers, "descriptor_part", lambda a, b, _: float(a != b))
+    parts = {(0, 0): 0.0, (1, 1): 0.2, (0, 1): 1.0, (1, 0): 1.0}
+    monkeypatch.setattr(real_levers, "descriptor_part", lambda a, b, _: parts[a, b])
     method = SimpleNamespace(scorer=SimpleNamespace(config=config), symmetric=True)
-    lever = real_levers.Recombined(method, "lever", 1, both_rings=both_rings)
+    lever = real_levers.Recombined(method, "lever", 1, both_rings=both_rings, both_parts=both_parts)
     a = (_Rings(), np.concatenate([_views(), _views((10, 10))]))
     b = (_Rings(), np.concatenate([_views(), _views()]))
     return lever.compare(a, b)[0]
@@ -79,3 +80,9 @@ def test_a_change_only_the_turned_ring_shows_counts_with_both_rings(real_levers,
     # each camera's larger change of its two rings: the bar's 0.8; the views' mean: half of it
     assert _recombined_score(real_levers, monkeypatch, "max") == pytest.approx(0.8)
     assert _recombined_score(real_levers, monkeypatch, "mean") == pytest.approx(0.4)
+
+
+def test_both_parts_weighs_the_turned_rings_own_descriptor_part(real_levers, monkeypatch):
+    assert _recombined_score(real_levers, monkeypatch, None, 0.5) == pytest.approx(0.1)
+    assert _recombined_score(real_levers, monkeypatch, None, 0.25) == pytest.approx(0.05)
+    assert _recombined_score(real_levers, monkeypatch, "max", 0.25) == pytest.approx(0.85)
