@@ -53,7 +53,7 @@ from drkfs_onnx.benchmark.run import (
 from drkfs_onnx.contract import match_rules
 from drkfs_onnx.contract.array_ops import NUMPY_OPS
 from drkfs_onnx.contract.cameras import rotation_y
-from drkfs_onnx.contract.config import NETS_TRAINED_AT, ONE_REACH
+from drkfs_onnx.contract.config import NETS_TRAINED_AT, ONE_REACH, OWN_RING_ONLY
 from drkfs_onnx.contract.model_files import features_file, models_dir, shipped_entry
 from drkfs_onnx.contract.solid_change import (
     held_change,
@@ -629,7 +629,7 @@ def main() -> None:
     parser.add_argument("--human", type=Path, help="a Geo-metric clone (see drkfs bench --human)")
     args = parser.parse_args()
     start = time.perf_counter()
-    default = PipelineConfig(nets=args.nets, **NETS_TRAINED_AT, **ONE_REACH)
+    default = PipelineConfig(nets=args.nets, **NETS_TRAINED_AT, **ONE_REACH, **OWN_RING_ONLY)
     configs = {name: default.replace(**LEVERS[WRAPPED.get(name, name)]) for name in args.levers}
     bench = sets.tier_set(quick=False)
     sets.real_tiers(bench, [*TRAINING_MESHES, *HELDOUT_MESHES])

@@ -8,7 +8,8 @@ On the benchmark's tier set (``sets.tiers``) and, with ``--human``, Geo-metric's
 simplification pairs (``human.add_human``; DIR as for ``drkfs bench --human``), the default's
 feature graph describes every mesh once and finds each pair's best-match distances once
 (``runtime.match.best_matches``, every direction the default searches). Each reduction of
-REDUCTIONS then turns the same distances into a score (``match_rules.reduce``), scored by the
+REDUCTIONS then turns the same distances into a score (``match_rules.reduce``), the views' solid
+term added as the default does (``runtime.match.pairing_solid``), scored by the
 benchmark's own measures: the three tier accuracies (``run.tier_accuracy``) and the Spearman per
 viewing setting (``human.human_agreement``). The default's own row reproduces the benchmark's.
 """
@@ -28,7 +29,7 @@ from drkfs_onnx.benchmark.run import TIER_PAIRS, tier_accuracy
 from drkfs_onnx.contract import match_rules
 from drkfs_onnx.contract.config import PipelineConfig
 from drkfs_onnx.contract.mesh import frame_of, place
-from drkfs_onnx.runtime.match import best_matches
+from drkfs_onnx.runtime.match import best_matches, pairing_solid
 
 DEFAULT = PipelineConfig()
 REDUCTIONS = {  # name -> the default with another reduction of the same distances
@@ -53,10 +54,14 @@ def main() -> None:
     bench = sets.tier_set(args.quick)
     jod = human.add_human(bench, args.human) if args.human else None
     method = DrkfsOnnx("DR-KFS", DEFAULT, None, args.threads)
-    # comparison index -> per pairing of rings (match_rules.ring_pairings), [(distances,
-    # weights)] per direction; a reduction's score is the least over the pairings
-    distances = {}
+    # comparison index -> (A's ring, B's ring) -> [(distances, weights)] per direction, for each
+    # pairing of rings (match_rules.ring_pairings) and the turned ring's own comparison, which
+    # the own-ring pairing's part takes a share of (match_rules.pairing_part); a reduction's
+    # score is the least over the pairings
+    distances, solids = {}, {}  # and each pairing's solid term, which no reduction changes
     one = DEFAULT.one_ring()
+    compared = dict.fromkeys([*match_rules.ring_pairings(DEFAULT), *([(1, 1)] * (
+        len(DEFAULT.rings) == 2))])  # fmt: skip
     for reference in dict.fromkeys(c.reference for c in bench.comparisons):
         verts, faces = bench.shapes[reference]
         frame = frame_of(verts)
@@ -65,15 +70,19 @@ def main() -> None:
             if c.reference == reference:
                 shape_verts, shape_faces = bench.shapes[c.shape]
                 shape, _ = method.prepare(Placed(c.shape, place(shape_verts, frame), shape_faces))
-                distances[i] = [
-                    [
+                distances[i] = {
+                    (a, b): [
                         best_matches(queries, targets, one)
                         for queries, targets in match_rules.directions(
                             shape.ring(a), described.ring(b), one
                         )
                     ]
+                    for a, b in compared
+                }
+                solids[i] = {
+                    (a, b): pairing_solid(shape, described, a, b, DEFAULT)
                     for a, b in match_rules.ring_pairings(DEFAULT)
-                ]
+                }
     results = {
         "command": f"python bench/reductions.py --out {args.out}"
         + (" --human DIR" if args.human else "")
@@ -83,13 +92,7 @@ def main() -> None:
         "rows": {},
     }
     for name, config in REDUCTIONS.items():
-        values = {
-            i: min(
-                float(np.mean([match_rules.reduce(d, w, config) for d, w in pairs]))
-                for pairs in pairings
-            )
-            for i, pairings in distances.items()
-        }
+        values = {i: _score(pairings, solids[i], config) for i, pairings in distances.items()}
         accuracy = tier_accuracy(bench, values)
         row = {
             "tiers": {pair: accuracy[pair] for pair in TIER_PAIRS},
@@ -101,6 +104,19 @@ def main() -> None:
     results["seconds"] = time.perf_counter() - start
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(results, indent=1) + "\n")
+
+
+def _score(pairings: dict, solids: dict, config: PipelineConfig) -> float:
+    """One comparison's score under ``config`` from its distances and solid terms per pairing of
+    rings: the least over the pairings of the descriptors' part plus the solid term."""
+
+    def part(a: int, b: int) -> float:
+        return float(np.mean([match_rules.reduce(d, w, config) for d, w in pairings[a, b]]))
+
+    return min(
+        match_rules.pairing_part(a, b, part, config) + solids[a, b]
+        for a, b in match_rules.ring_pairings(config)
+    )
 
 
 if __name__ == "__main__":

@@ -7,7 +7,7 @@ import torch
 
 from .contract import match_rules
 from .contract.config import PipelineConfig
-from .contract.solid_change import solid_change
+from .contract.solid_change import view_solid_changes
 from .render.torch_ops import TORCH_OPS
 
 CHUNK_ROWS = 2048
@@ -112,26 +112,48 @@ def match_score(
     (B, K, S, S) views of A and B (``contract.solid_change``), which it then needs. With a
     turned ring of cameras (``config.rings``), (K * T * P, D) sets and (K * T, S, S) views, and
     the least score over ``match_rules.ring_pairings``."""
-    if len(config.rings) > 1:
-        one, rows = config.one_ring(), match_rules.ring_rows
-        scores = [
-            match_score(
-                desc_a[..., rows(i, config), :], desc_b[..., rows(j, config), :], one,
-                temperature, table, ring_views(views_a, i, config),
-                ring_views(views_b, j, config),
-            )
-            for i, j in match_rules.ring_pairings(config)
-        ]  # fmt: skip
-        return torch.stack(scores).amin(0)
-    score = _descriptor_score(desc_a, desc_b, config, temperature, table)
-    if not config.solid_weight:
-        return score
+    return pairing_scores(desc_a, desc_b, config, temperature, table, views_a, views_b).amin(0)
+
+
+def pairing_scores(
+    desc_a: torch.Tensor,
+    desc_b: torch.Tensor,
+    config: PipelineConfig,
+    temperature: float | None = None,
+    table: torch.Tensor | None = None,
+    views_a: torch.Tensor | None = None,
+    views_b: torch.Tensor | None = None,
+) -> torch.Tensor:
+    """``match_score``'s sets and views -> (P, ...) the score of each pairing of
+    ``match_rules.ring_pairings`` (one with a single ring of cameras), its parts as
+    ``match_rules.pairing_part`` and ``pairing_solid`` make them."""
+    one, rows = config.one_ring(), match_rules.ring_rows
+
+    def part(i: int, j: int) -> torch.Tensor:
+        a, b = desc_a[..., rows(i, config), :], desc_b[..., rows(j, config), :]
+        return _descriptor_score(a, b, one, temperature, table)
+
+    def solid(i: int, j: int) -> torch.Tensor:
+        a, b = ring_views(views_a, i, config), ring_views(views_b, j, config)
+        return view_solid_changes(a, b, one, TORCH_OPS)
+
+    if config.solid_weight:
+        _check_views(views_a, views_b, config)
+    scores = []
+    for i, j in match_rules.ring_pairings(config):
+        score = match_rules.pairing_part(i, j, part, config)
+        if config.solid_weight:
+            score = score + match_rules.pairing_solid(i, j, solid, config, TORCH_OPS)
+        scores.append(score)
+    return torch.stack(scores)
+
+
+def _check_views(views_a: torch.Tensor | None, views_b: torch.Tensor | None, config) -> None:
     if views_a is None or views_b is None:
         raise ValueError(
             f"a config with a solid change (solid_weight {config.solid_weight:g}) compares the "
             "two meshes' views: pass views_a and views_b"
         )
-    return score + config.solid_weight * solid_change(views_a, views_b, config, TORCH_OPS)
 
 
 def descriptor_score(

@@ -13,7 +13,7 @@ from torch import nn
 from .contract import match_rules
 from .contract.config import PipelineConfig
 from .contract.mesh import Mesh, check_normalization, normalize_pair, place_by, reference_frame
-from .match import best_match_distances, match_score, ring_views, window_index
+from .match import best_match_distances, match_score, pairing_scores, window_index
 from .nets.detector import PoIDetector
 from .nets.hardnet import HardNet
 from .nets.patches import nonempty_patches_on_device, select_patches
@@ -325,15 +325,10 @@ class DRKFS(nn.Module):
             (features[..., rows(i, config), :], target.features[..., rows(j, config), :])
             for i, j in match_rules.ring_pairings(config)
         ]
-        seen_views = [
-            (ring_views(views, i, config), ring_views(target.views, j, config))
-            for i, j in match_rules.ring_pairings(config)
-        ]
         with torch.no_grad():  # (*lead,) the pairing whose score counts
-            least = torch.stack(
-                [match_score(a, b, one, None, self._table, *seen)
-                 for (a, b), seen in zip(pairs, seen_views, strict=True)]
-            ).argmin(0)  # fmt: skip
+            least = pairing_scores(
+                features, target.features, config, None, self._table, views, target.views
+            ).argmin(0)
         found = {}
         for k, side in enumerate(match_rules.query_sides(one)):
             per_pairing = torch.stack(

@@ -14,7 +14,7 @@ from drkfs_onnx.contract import match_rules
 from drkfs_onnx.contract.config import PipelineConfig
 from drkfs_onnx.contract.mesh import Mesh
 
-from .match import check_features, match, patch_distances, solid_term
+from .match import check_features, pairing_part, pairing_solid, patch_distances
 from .scorer import Scorer
 
 SIDES = ("a", "b")
@@ -28,7 +28,9 @@ class Explanation:
     (``match_rules.query_sides``); solid_change: the part of the score the views' solid change
     adds (``contract.solid_change``; 0 without one), so the patches' shares sum to 1 less its
     share; rings: side -> the ring of cameras (``config.rings``) these views and patches come
-    from, those of the comparison whose score counts."""
+    from, those of the comparison whose score counts (where that is own ring against own ring,
+    the turned ring's own comparison has a part in the score too, ``match_rules.pairing_part``
+    and ``pairing_solid``, and these patches stand for it)."""
 
     score: float
     config: PipelineConfig
@@ -75,7 +77,8 @@ def explain(scorer: Scorer, mesh_a: Mesh | str | Path, mesh_b: Mesh | str | Path
     config, one = scorer.config, scorer.config.one_ring()
     # each pairing of rings' score; the least is the score, and its rings are explained
     scores = {
-        (i, j): match(features["a"].ring(i), features["b"].ring(j), one)
+        (i, j): pairing_part(features["a"], features["b"], i, j, config)
+        + pairing_solid(features["a"], features["b"], i, j, config)
         for i, j in match_rules.ring_pairings(config)
     }
     rings = min(scores, key=scores.get)
@@ -94,9 +97,7 @@ def explain(scorer: Scorer, mesh_a: Mesh | str | Path, mesh_b: Mesh | str | Path
         for side, ring_index in zip(SIDES, rings, strict=True)
     }
     total = sum(score for _, _, score in found.values())  # each direction's part of the mean
-    solid = (
-        config.solid_weight * solid_term(ring["a"], ring["b"], one) if config.solid_weight else 0.0
-    )
+    solid = pairing_solid(features["a"], features["b"], *rings, config)
     patches_part = 1.0 - solid / scores[rings] if scores[rings] else 1.0
     return Explanation(
         score=scores[rings],

@@ -11,7 +11,7 @@ import numpy as np
 from drkfs_onnx.contract import match_rules
 from drkfs_onnx.contract.array_ops import NUMPY_OPS
 from drkfs_onnx.contract.config import PipelineConfig
-from drkfs_onnx.contract.solid_change import solid_change, solid_reaches
+from drkfs_onnx.contract.solid_change import solid_reaches, view_solid_changes
 
 from .features import MeshFeatures
 from .nearest import exact_copies, nearest_lifted
@@ -111,21 +111,28 @@ def match(a: MeshFeatures, b: MeshFeatures, config: PipelineConfig) -> float:
     """DR-KFS of A against B from their features: each direction the config searches, its
     best-match distances reduced (``match_rules.reduce``), averaged over the directions, plus
     the views' solid change times ``solid_weight`` (``contract.solid_change``); with a turned
-    ring of cameras, the least such score over ``match_rules.ring_pairings``."""
+    ring of cameras, the least such score over ``match_rules.ring_pairings``, each pairing's
+    parts as ``match_rules.pairing_part`` and ``pairing_solid`` make them."""
     for features in (a, b):
         check_features(features, config, a.model, a.normalization)
-    one = config.one_ring()
-    pairs = [(a.ring(i), b.ring(j)) for i, j in match_rules.ring_pairings(config)]
     parts = sorted(
-        ((descriptor_part(x, y, one), k) for k, (x, y) in enumerate(pairs)), key=lambda p: p[0]
+        (pairing_part(a, b, i, j, config), (i, j)) for i, j in match_rules.ring_pairings(config)
     )
     best = math.inf
-    for part, k in parts:
+    for part, (i, j) in parts:
         if part >= best:  # the solid change only adds: this pairing cannot score less
             break
-        solid = config.solid_weight * solid_term(*pairs[k], one) if config.solid_weight else 0.0
-        best = min(best, part + solid)
+        best = min(best, part + pairing_solid(a, b, i, j, config))
     return best
+
+
+def pairing_part(a: MeshFeatures, b: MeshFeatures, i: int, j: int, config: PipelineConfig):
+    """The descriptors' part of A's ring ``i`` against B's ring ``j`` (``match_rules.
+    pairing_part``) of two meshes' features."""
+    one = config.one_ring()
+    return match_rules.pairing_part(
+        i, j, lambda k, m: descriptor_part(a.ring(k), b.ring(m), one), config
+    )
 
 
 def descriptor_part(a: MeshFeatures, b: MeshFeatures, config: PipelineConfig) -> float:
@@ -138,21 +145,36 @@ def descriptor_part(a: MeshFeatures, b: MeshFeatures, config: PipelineConfig) ->
     return float(np.mean(scores))
 
 
-def solid_term(a: MeshFeatures, b: MeshFeatures, config: PipelineConfig) -> float:
-    """The views' solid change of two one-ring meshes (``contract.solid_change``), computed in
-    the window of the views where either mesh shows anything, grown by the reach: a pixel
-    further than ``solid_shift`` from everything shown is background in both views and in the
-    other's range, so it changes by nothing, and the term is the whole views' to the bit."""
+def pairing_solid(a: MeshFeatures, b: MeshFeatures, i: int, j: int, config: PipelineConfig):
+    """``solid_weight`` times the views' solid change of A's ring ``i`` against B's ring ``j``
+    (``match_rules.pairing_solid``); 0 without a solid change."""
+    if not config.solid_weight:
+        return 0.0
+    one = config.one_ring()
+    return float(
+        match_rules.pairing_solid(
+            i, j, lambda k, m: solid_views(a.ring(k), b.ring(m), one), config, NUMPY_OPS
+        )
+    )
+
+
+def solid_views(a: MeshFeatures, b: MeshFeatures, config: PipelineConfig) -> np.ndarray:
+    """(K,) each view's solid change of two one-ring meshes (``contract.solid_change.
+    view_solid_changes``), computed in the window of the views where either mesh shows
+    anything, grown by the reach: a pixel further than ``solid_shift`` from everything shown is
+    background in both views and in the other's range, so it changes by nothing, and each
+    view's change is the whole views' to the bit."""
     shift, size = config.solid_shift, config.image_size
+    nothing = np.zeros(config.num_views)
     box = []  # per axis: the inner pixels (whose range is taken) of the window, [start, stop)
     for seen_a, seen_b in zip(a.seen_lines, b.seen_lines, strict=True):
         seen = np.flatnonzero(seen_a | seen_b)
         if len(seen) == 0:
-            return 0.0
+            return nothing
         box.append((max(seen[0] - shift, shift), min(seen[-1] + 1 + shift, size - shift)))
     (top, bottom), (left, right) = box
     if min(bottom - top, right - left) < config.solid_block:
-        return 0.0  # every block of the whole views holds an unchanged pixel outside the window
+        return nothing  # every block of the whole views holds an unchanged pixel outside it
     views = np.s_[..., top - shift : bottom + shift, left - shift : right + shift]
     ranges_a, ranges_b = {}, {}
     for reach in set().union(*solid_reaches(config)):
@@ -161,5 +183,4 @@ def solid_term(a: MeshFeatures, b: MeshFeatures, config: PipelineConfig) -> floa
                        left - shift : right + shift - 2 * reach]  # fmt: skip
         ranges_a[reach] = tuple(r[window] for r in a.view_range(reach))
         ranges_b[reach] = tuple(r[window] for r in b.view_range(reach))
-    change = solid_change(a.views[views], b.views[views], config, NUMPY_OPS, ranges_a, ranges_b)
-    return float(change)
+    return view_solid_changes(a.views[views], b.views[views], config, NUMPY_OPS, ranges_a, ranges_b)

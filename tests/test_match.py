@@ -8,11 +8,11 @@ import torch
 from drkfs_onnx.contract import match_rules
 from drkfs_onnx.contract.array_ops import NUMPY_OPS
 from drkfs_onnx.contract.config import DIRECTIONS, ONE_REACH, PipelineConfig
-from drkfs_onnx.contract.solid_change import solid_change
+from drkfs_onnx.contract.solid_change import view_solid_changes
 from drkfs_onnx.match import match_score
 from drkfs_onnx.render.torch_ops import TORCH_OPS
 from drkfs_onnx.runtime.features import MeshFeatures
-from drkfs_onnx.runtime.match import descriptor_part, match, solid_term
+from drkfs_onnx.runtime.match import descriptor_part, match, solid_views
 
 # one ring, 5 x 5 patches a view, the descriptors' match alone (test_solid_change: the views'),
 # a solid change, where a test adds one, at one reach of 2 everywhere
@@ -196,21 +196,56 @@ def test_the_runtimes_window_and_skipped_pairings_give_the_whole_computations_sc
     views_b[4, 60:66, 60:66] = 0.0  # and a hole in the own ring
     fa, fb = _features(a, empty, config, views_a), _features(b, empty, config, views_b)
     pairings = match_rules.ring_pairings(config)
-    for i, j in pairings:
-        whole = solid_change(fa.ring(i).views, fb.ring(j).views, one, NUMPY_OPS)
-        assert solid_term(fa.ring(i), fb.ring(j), one) == float(whole) > 0
+
+    def whole(i: int, j: int) -> np.ndarray:  # each view's solid change over the whole views
+        return view_solid_changes(fa.ring(i).views, fb.ring(j).views, one, NUMPY_OPS)
+
+    for i, j in [*pairings, (1, 1)]:
+        assert np.array_equal(solid_views(fa.ring(i), fb.ring(j), one), whole(i, j))
+        assert whole(i, j).max() > 0
     every_pairing = min(
-        descriptor_part(fa.ring(i), fb.ring(j), one)
-        + 0.5 * float(solid_change(fa.ring(i).views, fb.ring(j).views, one, NUMPY_OPS))
+        match_rules.pairing_part(
+            i, j, lambda k, m: descriptor_part(fa.ring(k), fb.ring(m), one), config
+        )
+        + float(match_rules.pairing_solid(i, j, whole, config, NUMPY_OPS))
         for i, j in pairings
     )
     calls = []
-    counted = runtime_match.solid_term
+    counted = runtime_match.solid_views
     monkeypatch.setattr(
-        runtime_match, "solid_term", lambda *args: calls.append(1) or counted(*args)
+        runtime_match, "solid_views", lambda *args: calls.append(1) or counted(*args)
     )
     assert match(fa, fb, config) == every_pairing
-    assert len(calls) < len(pairings)  # a pairing far on its descriptors was never computed
+    # a pairing far on its descriptors was never computed: the own-ring pairing's two rings
+    # and at most one turned pairing
+    assert len(calls) < len(pairings) + 1
+
+
+def test_the_own_ring_pairing_sees_a_change_only_the_turned_rings_cameras_show():
+    """A change only the turned ring's cameras show (a sliver at an edge the own ring misses)
+    counts in the own-ring pairing where ``solid_both_rings``, each camera's larger change of
+    its two rings, the same in torch and the runtime; with the own ring alone it does not. The
+    rings' descriptors differ, so the turned pairings score far above the own one."""
+    config = GRID.replace(turn_degrees=2.5, solid_weight=0.5, **RAMP)
+    a, _, empty = _near_tie_sets()
+    other = np.random.default_rng(3).normal(size=a.shape).astype(np.float32)
+    sets = np.concatenate([a, other])
+    views_a = _shaded_views(config)
+    views_b = views_a.copy()
+    views_b[config.num_views :, 40:50, 40:50] += 0.3  # the turned ring's views only
+    scores = {}
+    for both in (False, True):
+        asked = config.replace(solid_both_rings=both)
+        fa, fb = _features(sets, empty, asked, views_a), _features(sets, empty, asked, views_b)
+        scores[both] = match(fa, fb, asked)
+        torch_score = match_score(
+            torch.from_numpy(sets), torch.from_numpy(sets), asked, None, None,
+            torch.from_numpy(views_a), torch.from_numpy(views_b),
+        )  # fmt: skip
+        assert scores[both] == pytest.approx(float(torch_score), abs=2e-5)
+    power = config.solid_inner_power
+    assert scores[False] == 0.0
+    assert 0.5 * 0.28**power < scores[True] <= 0.5 * 0.3**power + 1e-6
 
 
 def test_a_window_narrower_than_a_block_changes_nothing():
@@ -224,8 +259,9 @@ def test_a_window_narrower_than_a_block_changes_nothing():
         views_b[:, rows, 10:80] = 0.9
         a, _, empty = _near_tie_sets()
         fa, fb = _features(a, empty, config, views_a), _features(a, empty, config, views_b)
-        whole = float(solid_change(views_a, views_b, config, NUMPY_OPS))
-        assert solid_term(fa, fb, config) == whole == 0.0
+        whole = view_solid_changes(views_a, views_b, config, NUMPY_OPS)
+        assert np.array_equal(solid_views(fa, fb, config), whole)
+        assert not whole.any()
 
 
 def test_one_described_mesh_serves_every_solid_change_setting():
@@ -295,7 +331,9 @@ def test_a_turned_ring_counts_the_least_of_own_against_own_and_own_against_turne
 
     one_ring = match(_features(a, empty, GRID), _features(b, empty, GRID), GRID.replace(
         matching=matching))  # fmt: skip
-    assert score([a, other], [b, other]) == pytest.approx(one_ring, rel=1e-6)  # own vs own
+    # own vs own: the turned ring's own comparison (other against other, 0) has its share
+    share = rings.turned_part_share
+    assert score([a, other], [b, other]) == pytest.approx((1 - share) * one_ring, rel=1e-6)
     assert score([a, other], [other, a]) == 0.0  # A's own ring is B's turned ring
     assert score([other, b], [b, other]) == 0.0  # and the other way round
     # both turned is no turn between them: that pairing is not searched

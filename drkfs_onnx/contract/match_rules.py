@@ -1,7 +1,7 @@
 """The match contract, written once for torch and numpy: which patches a query may match
 (``window_table``), which directions are searched (``directions``), which rings of cameras are
-compared (``ring_pairings``), and how the best-match squared distances become one score
-(``reduce``).
+compared (``ring_pairings``) and how each pairing's parts make its score (``pairing_part``,
+``pairing_solid``), and how the best-match squared distances become one score (``reduce``).
 
 Torch-free: ``reduce`` runs on numpy arrays, or on torch tensors with ``ops=TORCH_OPS``
 (``array_ops``' convention). A row stands for ``weight`` patches: the torch path gives
@@ -11,8 +11,9 @@ count; ``reduce`` is the same number either way.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from functools import lru_cache
-from typing import TypeVar
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -60,6 +61,34 @@ def ring_pairings(config: PipelineConfig) -> tuple[tuple[int, int], ...]:
     own ring, and with a turned ring each mesh's own ring against the other's turned one (a
     turn either way). Both turned is a turn of 0 again, and is left out."""
     return ((0, 0), (0, 1), (1, 0)) if len(config.rings) == 2 else ((0, 0),)
+
+
+def _own_rings(i: int, j: int, config: PipelineConfig) -> bool:
+    """Whether A's ring ``i`` against B's ring ``j`` is own ring against own ring with a turned
+    ring beside it: the pairing whose turned twin, ring 1 against ring 1, sees the same."""
+    return (i, j) == (0, 0) and len(config.rings) == 2
+
+
+def pairing_part(i: int, j: int, part: Callable[[int, int], Any], config: PipelineConfig) -> Any:
+    """The descriptors' part of A's ring ``i`` against B's ring ``j``, ``part(i, j)`` of one
+    ring's sets; in the own-ring pairing ``turned_part_share`` of it is the turned ring's own
+    comparison's: the same cameras 2.5° on, a second look at the same surface."""
+    share = config.turned_part_share if _own_rings(i, j, config) else 0.0
+    own = part(i, j)
+    return (1.0 - share) * own + share * part(1, 1) if share else own
+
+
+def pairing_solid(
+    i: int, j: int, solid: Callable[[int, int], Any], config: PipelineConfig, ops: ArrayOps
+) -> Any:
+    """``solid_weight`` times the views' solid change of A's ring ``i`` against B's ring ``j``,
+    from ``solid(i, j)``, the (..., K) ``solid_change.view_solid_changes`` of one ring's views:
+    their mean; in the own-ring pairing with ``solid_both_rings``, the mean of each camera's
+    larger change of its two rings (the turned ring sees a sliver the own ring misses)."""
+    views = solid(i, j)
+    if config.solid_both_rings and _own_rings(i, j, config):
+        views = ops.maximum(views, solid(1, 1))
+    return config.solid_weight * views.mean(-1)
 
 
 def ring_rows(ring: int, config: PipelineConfig) -> slice:

@@ -14,7 +14,9 @@ mesh's inside in both views, where a moved part's outline shows the background i
 strong change of grey there counts more than a faint one, a facet's). Per view, the solid
 change is the largest change held over every pixel of a ``solid_block``-square (the change
 map's erosion): scattered changes and thin strips fall out. The term is its mean over the
-views, times ``solid_weight`` (docs/benchmark.md, "A solid change of the views").
+views, times ``solid_weight`` (docs/benchmark.md, "A solid change of the views"); in the own-ring
+pairing of two rings of cameras, each camera's larger change of its two rings where
+``solid_both_rings`` (``match_rules.pairing_solid``).
 
 Windows are taken where they fit inside the view ("valid"): the outer ``solid_shift`` +
 (``solid_block`` - 1) / 2 pixels of each side, where the cameras frame no mesh, are left out.
@@ -75,9 +77,21 @@ def solid_change(
     ranges_b: Ranges | None = None,
 ) -> Any:
     """(..., K, H, W) two meshes' views of the same cameras (or the same window of them) ->
-    (...) the mean over the views of the largest change held over a ``solid_block``-square
-    (the module's doc). Each mesh's ``view_ranges`` may be passed in, made once; they are made
-    here otherwise."""
+    (...) the mean over the views of ``view_solid_changes``."""
+    return view_solid_changes(views_a, views_b, config, ops, ranges_a, ranges_b).mean(-1)
+
+
+def view_solid_changes(
+    views_a: Any,
+    views_b: Any,
+    config: PipelineConfig,
+    ops: ArrayOps,
+    ranges_a: Ranges | None = None,
+    ranges_b: Ranges | None = None,
+) -> Any:
+    """(..., K, H, W) two meshes' views of the same cameras (or the same window of them) ->
+    (..., K) each view's largest change held over a ``solid_block``-square (the module's doc).
+    Each mesh's ``view_ranges`` may be passed in, made once; they are made here otherwise."""
     ranges_a = view_ranges(views_a, config, ops) if ranges_a is None else ranges_a
     ranges_b = view_ranges(views_b, config, ops) if ranges_b is None else ranges_b
     inside, outline = solid_reaches(config)
@@ -85,7 +99,7 @@ def solid_change(
         views_a, views_b, ranges_a, ranges_b, inside, outline, config.solid_inner_power,
         config.background, ops,
     )  # fmt: skip
-    return held_change(change, config.solid_block, ops).mean(-1)
+    return held_change(change, config.solid_block, ops)
 
 
 def held_change(change: Any, block: int, ops: ArrayOps) -> Any:
