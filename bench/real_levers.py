@@ -3,21 +3,22 @@ default's unless ``--nets``) under other matches, reductions, camera counts, vie
 rings of cameras, solid changes of the views and searches over turns of the meshes, on the
 benchmark's synthetic tiers and on both sides of its real-mesh tiers (a lever is chosen on the
 training side and judged on the held-out one), with the bench's targets a default must keep (the
-bars test, retrieval, the slide check; people's judgments with --human). Each lever moves the
-config the nets were trained at (``NETS_TRAINED_AT``: 6 views of 128 px, t = 0.1, one ring, no
-solid change, the default's until the lever "5 cameras, 144 px, softmax t = 0.05" became the
-default, then "rings 0 and 2.5, ...", then "solid change x0.5 shift 2 block 3, ...", then "solid
-change x0.7 over reaches 2-3, ..."), named "default" in the results. The turn searches
+bars test, retrieval, the slide check; people's judgments with --human). Each lever moves the config
+the nets were trained at (``NETS_TRAINED_AT``: 6 views of 128 px, t = 0.1, one ring, no solid
+change, the default's until the lever "5 cameras, 144 px, softmax t = 0.05" became the default, then
+"rings 0 and 2.5, ...", then "solid change x0.5 shift 2 block 3, ...", then "solid change x0.7 over
+reaches 2-3, ...", then ``NOW_LEVER``), named "default" in the results. The turn searches
 (``TURN_SEARCHES``, not run unless named) wrap a lever's scorer, and so do the recombinations
-(``RECOMBINED``, not run unless named: the descriptors' part bounded, the solid change from
-other cameras than the descriptors', the views' solid changes in a power mean, a pixel's change
-taken over other reaches inside the mesh and at its outline than a config's ramp allows, the
-descriptors' distances counted above a floor the whole shown surface sets, or the outline's
-change netted, mesh lost against mesh gained, so that a moved part counts less than a removed
-one, or the own-ring pairing's solid change taken over both rings' views).
-A lever's solid change is at one reach unless it names a ramp (``ONE_REACH``), as every lever
-before the ramp was. A turn search's slide check is its lever's, as the torch path has none; a
-recombination's is its own, on the runtime path it is scored on (``runtime_slide``).
+(``RECOMBINED``, not run unless named: the descriptors' part bounded, the solid change from other
+cameras than the descriptors', the views' solid changes in a power mean, a pixel's change taken over
+other reaches inside the mesh and at its outline than a config's ramp allows, the descriptors'
+distances counted above a floor the whole shown surface sets, or the outline's change netted, mesh
+lost against mesh gained, so that a moved part counts less than a removed one, or the own-ring
+pairing's solid change taken over both rings' views). A lever's solid change is at one reach unless
+it names a ramp (``ONE_REACH``), as every lever before the ramp was, and its own-ring pairing from
+its own ring alone unless it names both (``OWN_RING_ONLY``), as every lever before ``NOW_LEVER``. A
+turn search's slide check is its lever's, as the torch path has none; a recombination's is its own,
+on the runtime path it is scored on (``runtime_slide``).
 
     python bench/real_levers.py --out bench/results/real_levers_tolerant.json
     python bench/real_levers.py --nets metric --out bench/results/real_levers.json
@@ -67,6 +68,10 @@ from drkfs_onnx.metric import DRKFS
 from drkfs_onnx.runtime.match import best_matches, descriptor_part
 from drkfs_onnx.runtime.render import NumpyRenderer
 
+NOW_LEVER = (
+    "own ring from both rings (max, ring 1's part x0.2), solid change x1.2 over reaches 2-3, 1-2 "
+    "at power 1.5 inside the mesh, block 3, rings 0 and 2.5, 5 cameras, 144 px, softmax t = 0.05"
+)
 RAMP_LEVER = (  # the default since the ramp and its neighbours
     "solid change x{w:g} over reaches 2-3, 1-2 at power 1.5 inside the mesh, block 3, rings 0 "
     "and 2.5, {k} cameras, {px} px, softmax t = {t:g}"
@@ -198,6 +203,23 @@ LEVERS = {
             (5, 144, 0.7, 0.06),
         )
     },  # fmt: skip
+    # the default since the own-ring pairing took the turned ring's views too
+    # (``match_rules.pairing_part``, ``pairing_solid``): what the recombination "descriptors'
+    # and solid change from both rings (max, ring 1's part x0.2), ... x1.2 ..." measured
+    NOW_LEVER: {
+        "num_views": 5,
+        "image_size": 144,
+        "temperature": 0.05,
+        "turn_degrees": 2.5,
+        "solid_weight": 1.2,
+        "solid_shift": 3,
+        "solid_block": 3,
+        "solid_ramp": 1,
+        "solid_inner_drop": 1,
+        "solid_inner_power": 1.5,
+        "turned_part_share": 0.2,
+        "solid_both_rings": True,
+    },
     "5 cameras, 128 px, softmax t = 0.05": {"num_views": 5, "temperature": 0.05},
     "5 cameras, 160 px, softmax t = 0.05": {"num_views": 5, "image_size": 160, "temperature": 0.05},
     "4 cameras, 192 px": {"num_views": 4, "image_size": 192},
@@ -228,7 +250,7 @@ TURN_SEARCHES = {
 SOLID_LEVER = (  # the default before the ramp (weight 0.5, shift 2) and its neighbours
     "solid change x{w:g} shift {s} block 3, rings 0 and 2.5, 5 cameras, 144 px, softmax t = 0.05"
 )
-DEFAULT_NOW = RAMP_LEVER.format(w=0.7, k=5, px=144, t=0.05)  # the default since the ramp
+DEFAULT_NOW = RAMP_LEVER.format(w=0.7, k=5, px=144, t=0.05)  # the default from the ramp on
 # name -> (a lever above, ``Recombined``'s settings): what a config cannot say
 RECOMBINED = {
     # the default itself on the runtime path: its slide check there against the torch path's
@@ -469,10 +491,10 @@ class Recombined(Method):
         solid_config = self.config if self.solid is None else self.solid.config
         for i, j in match_rules.ring_pairings(self.config):
             if self.floor is None:
-                part = descriptor_part(a[0].ring(i), b[0].ring(j), one)
-                if self.both_parts and (i, j) == (0, 0):  # the turned ring's part too
-                    turned = descriptor_part(a[0].ring(1), b[0].ring(1), one)
-                    part = (1.0 - self.both_parts) * part + self.both_parts * turned
+                part = match_rules.pairing_part(
+                    i, j, lambda k, m: descriptor_part(a[0].ring(k), b[0].ring(m), one),
+                    self.config.replace(turned_part_share=self.both_parts),
+                )  # fmt: skip
             else:
                 part = floored_part(a[0].ring(i), b[0].ring(j), one, *self.floor)
             if self.ceiling is not None:

@@ -60,8 +60,8 @@ class PipelineConfig:
     (``bench/real_levers.py``: a finer view for about the same pixels a mesh, chosen on the same
     sides and kept only where the bars test, retrieval and the slide check held), and a second
     ring of the cameras turned by 2.5° let the score forgive a turn a viewer does not see, and a
-    solid change of the views made it see a small hole or a removed tip (the same study and
-    rule).
+    solid change of the views made it see a small hole or a removed tip, from both rings'
+    views where the two meshes are compared unturned (the same study and rule).
     ``PipelineConfig.paper()`` is the paper's recipe, ``structure()`` the same nets with the
     previous default's match, ``loss()`` the form a training loss takes.
 
@@ -141,7 +141,7 @@ class PipelineConfig:
     # moved bar for a removed one, and a single reach of 1 inside the mesh raised the chair
     # leg's slide in one step; the ramp (reaches 2-3, 1-2 inside) keeps it smooth. Chosen on the
     # synthetic tiers and the real tiers' training side with the bench's targets kept
-    # (docs/benchmark.md).
+    # (docs/benchmark.md); the weight 1.2 with the own-ring pairing below, 0.7 before it.
     solid_weight: float = 1.2
     solid_shift: int = 3
     solid_block: int = 3
@@ -154,7 +154,7 @@ class PipelineConfig:
     # the turned ring's own comparison, and with ``solid_both_rings`` each view's solid change
     # is the larger of its camera's two rings'. Chosen with the weight above on the synthetic
     # tiers and the real tiers' training side with the bench's targets kept; a larger share
-    # lost people's far/normal (docs/benchmark.md, "The turned ring's views").
+    # lost people's far/normal (docs/benchmark.md, "The turned ring's own comparison").
     turned_part_share: float = 0.2
     solid_both_rings: bool = True
 
