@@ -314,7 +314,9 @@ class DRKFS(nn.Module):
         the reference ('b', searching A), for the sides the config's direction searches
         (``match_rules.query_sides``); n patches per image side; a batch -> (B, K, n, n). With
         a turned ring of cameras, the patches of the rings whose comparison counts (the least
-        score of ``match_rules.ring_pairings``). Differentiable like ``score_to``; log them (or
+        score of ``match_rules.ring_pairings``; where that is own ring against own ring, the
+        turned ring's own comparison has a part in it too, ``match_rules.pairing_part``, which
+        these patches stand for). Differentiable like ``score_to``; log them (or
         ``drkfs-score explain``'s picture) to see where a prediction is wrong."""
         config, one, rows = self.config, self.config.one_ring(), match_rules.ring_rows
         grid = (config.num_views, config.patches_per_side, config.patches_per_side)

@@ -76,10 +76,13 @@ def explain(scorer: Scorer, mesh_a: Mesh | str | Path, mesh_b: Mesh | str | Path
     }
     config, one = scorer.config, scorer.config.one_ring()
     # each pairing of rings' score; the least is the score, and its rings are explained
-    scores = {
-        (i, j): pairing_part(features["a"], features["b"], i, j, config)
-        + pairing_solid(features["a"], features["b"], i, j, config)
+    solids = {
+        (i, j): pairing_solid(features["a"], features["b"], i, j, config)
         for i, j in match_rules.ring_pairings(config)
+    }
+    scores = {
+        (i, j): pairing_part(features["a"], features["b"], i, j, config) + solid
+        for (i, j), solid in solids.items()
     }
     rings = min(scores, key=scores.get)
     ring = {side: features[side].ring(r) for side, r in zip(SIDES, rings, strict=True)}
@@ -97,7 +100,7 @@ def explain(scorer: Scorer, mesh_a: Mesh | str | Path, mesh_b: Mesh | str | Path
         for side, ring_index in zip(SIDES, rings, strict=True)
     }
     total = sum(score for _, _, score in found.values())  # each direction's part of the mean
-    solid = pairing_solid(features["a"], features["b"], *rings, config)
+    solid = solids[rings]
     patches_part = 1.0 - solid / scores[rings] if scores[rings] else 1.0
     return Explanation(
         score=scores[rings],

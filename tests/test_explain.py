@@ -12,7 +12,7 @@ from drkfs_onnx.contract import match_rules
 from drkfs_onnx.metric import DRKFS
 from drkfs_onnx.render.torch_ops import TORCH_OPS
 from drkfs_onnx.runtime.explain import explain
-from drkfs_onnx.runtime.match import match
+from drkfs_onnx.runtime.match import pairing_part, pairing_solid
 from drkfs_onnx.runtime.scorer import Scorer
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
@@ -55,10 +55,10 @@ def test_the_explained_rings_are_the_comparison_whose_score_counts(no_leg):
     scorer = Scorer(threads=2)
     b = scorer.features(EXAMPLES / "chair.obj")
     a = scorer.features(EXAMPLES / "chair_no_leg.obj", b.frame)
-    one = scorer.config.one_ring()
+    config = scorer.config
     scores = {
-        (i, j): match(a.ring(i), b.ring(j), one)
-        for i, j in match_rules.ring_pairings(scorer.config)
+        (i, j): pairing_part(a, b, i, j, config) + pairing_solid(a, b, i, j, config)
+        for i, j in match_rules.ring_pairings(config)
     }
     assert len(scores) == 3 and no_leg.score == min(scores.values())
     assert scores[no_leg.rings["a"], no_leg.rings["b"]] == no_leg.score

@@ -9,7 +9,7 @@ import torch
 from drkfs_onnx import PipelineConfig
 from drkfs_onnx.contract.array_ops import NUMPY_OPS
 from drkfs_onnx.contract.config import ONE_REACH
-from drkfs_onnx.contract.solid_change import solid_change, view_ranges, window_extreme
+from drkfs_onnx.contract.solid_change import view_ranges, view_solid_changes, window_extreme
 from drkfs_onnx.render.torch_ops import TORCH_OPS
 
 CONFIG = PipelineConfig(solid_weight=1.0, solid_shift=2, solid_block=3, **ONE_REACH)
@@ -24,6 +24,11 @@ def _views(seed: int = 0) -> np.ndarray:
     views += 0.02 * rng.standard_normal(views.shape)
     views[:, :8], views[:, -8:], views[:, :, :8], views[:, :, -8:] = 0.0, 0.0, 0.0, 0.0
     return views.astype(np.float32)
+
+
+def solid_change(a, b, config, ops, *ranges):
+    """The one-ring term before its weight: the views' solid changes' mean over the views."""
+    return view_solid_changes(a, b, config, ops, *ranges).mean(-1)
 
 
 def _score(a: np.ndarray, b: np.ndarray, config: PipelineConfig = CONFIG) -> float:

@@ -50,8 +50,8 @@ SolidWeight = Annotated[
     float | None,
     typer.Option(
         min=0.0,
-        help="Override the weight of the views' solid change (the default's 0.7; 0: the "
-        "descriptors' match alone, as scores before the solid change).",
+        help="Override the weight of the views' solid change (the default's 1.2; 0: the "
+        "descriptors' match alone).",
     ),
 ]
 Symmetric = Annotated[

@@ -68,19 +68,6 @@ def view_ranges(views: Any, config: PipelineConfig, ops: ArrayOps) -> Ranges:
     return {reach: view_range(views, reach, ops) for reach in sorted({*inside, *outline})}
 
 
-def solid_change(
-    views_a: Any,
-    views_b: Any,
-    config: PipelineConfig,
-    ops: ArrayOps,
-    ranges_a: Ranges | None = None,
-    ranges_b: Ranges | None = None,
-) -> Any:
-    """(..., K, H, W) two meshes' views of the same cameras (or the same window of them) ->
-    (...) the mean over the views of ``view_solid_changes``."""
-    return view_solid_changes(views_a, views_b, config, ops, ranges_a, ranges_b).mean(-1)
-
-
 def view_solid_changes(
     views_a: Any,
     views_b: Any,
