@@ -220,6 +220,27 @@ LEVERS = {
         "turned_part_share": 0.2,
         "solid_both_rings": True,
     },
+    # the default's match from 6 cameras of 128 px, which saw the bunny's hole (0.023) before
+    # the own-ring pairing read both rings
+    **{
+        NOW_LEVER.replace("5 cameras, 144 px", f"{k} cameras, {px} px").replace(
+            "x1.2", f"x{w:g}"
+        ): {
+            "num_views": k,
+            "image_size": px,
+            "temperature": 0.05,
+            "turn_degrees": 2.5,
+            "solid_weight": w,
+            "solid_shift": 3,
+            "solid_block": 3,
+            "solid_ramp": 1,
+            "solid_inner_drop": 1,
+            "solid_inner_power": 1.5,
+            "turned_part_share": 0.2,
+            "solid_both_rings": True,
+        }
+        for k, px, w in ((6, 128, 1.2), (6, 128, 0.7))
+    },  # fmt: skip
     "5 cameras, 128 px, softmax t = 0.05": {"num_views": 5, "temperature": 0.05},
     "5 cameras, 160 px, softmax t = 0.05": {"num_views": 5, "image_size": 160, "temperature": 0.05},
     "4 cameras, 192 px": {"num_views": 4, "image_size": 192},
