@@ -72,6 +72,20 @@ NOW_LEVER = (
     "own ring from both rings (max, ring 1's part x0.2), solid change x1.2 over reaches 2-3, 1-2 "
     "at power 1.5 inside the mesh, block 3, rings 0 and 2.5, 5 cameras, 144 px, softmax t = 0.05"
 )
+NOW_SETTINGS = {  # NOW_LEVER's: what it moves from NETS_TRAINED_AT
+    "num_views": 5,
+    "image_size": 144,
+    "temperature": 0.05,
+    "turn_degrees": 2.5,
+    "solid_weight": 1.2,
+    "solid_shift": 3,
+    "solid_block": 3,
+    "solid_ramp": 1,
+    "solid_inner_drop": 1,
+    "solid_inner_power": 1.5,
+    "turned_part_share": 0.2,
+    "solid_both_rings": True,
+}
 RAMP_LEVER = (  # the default since the ramp and its neighbours
     "solid change x{w:g} over reaches 2-3, 1-2 at power 1.5 inside the mesh, block 3, rings 0 "
     "and 2.5, {k} cameras, {px} px, softmax t = {t:g}"
@@ -206,41 +220,15 @@ LEVERS = {
     # the default since the own-ring pairing took the turned ring's views too
     # (``match_rules.pairing_part``, ``pairing_solid``): what the recombination "descriptors'
     # and solid change from both rings (max, ring 1's part x0.2), ... x1.2 ..." measured
-    NOW_LEVER: {
-        "num_views": 5,
-        "image_size": 144,
-        "temperature": 0.05,
-        "turn_degrees": 2.5,
-        "solid_weight": 1.2,
-        "solid_shift": 3,
-        "solid_block": 3,
-        "solid_ramp": 1,
-        "solid_inner_drop": 1,
-        "solid_inner_power": 1.5,
-        "turned_part_share": 0.2,
-        "solid_both_rings": True,
-    },
+    NOW_LEVER: NOW_SETTINGS,
     # the default's match from 6 cameras of 128 px, which saw the bunny's hole (0.023) before
     # the own-ring pairing read both rings
     **{
         NOW_LEVER.replace("5 cameras, 144 px", f"{k} cameras, {px} px").replace(
             "x1.2", f"x{w:g}"
-        ): {
-            "num_views": k,
-            "image_size": px,
-            "temperature": 0.05,
-            "turn_degrees": 2.5,
-            "solid_weight": w,
-            "solid_shift": 3,
-            "solid_block": 3,
-            "solid_ramp": 1,
-            "solid_inner_drop": 1,
-            "solid_inner_power": 1.5,
-            "turned_part_share": 0.2,
-            "solid_both_rings": True,
-        }
+        ): {**NOW_SETTINGS, "num_views": k, "image_size": px, "solid_weight": w}
         for k, px, w in ((6, 128, 1.2), (6, 128, 0.7))
-    },  # fmt: skip
+    },
     "5 cameras, 128 px, softmax t = 0.05": {"num_views": 5, "temperature": 0.05},
     "5 cameras, 160 px, softmax t = 0.05": {"num_views": 5, "image_size": 160, "temperature": 0.05},
     "4 cameras, 192 px": {"num_views": 4, "image_size": 192},

@@ -17,6 +17,7 @@ viewing setting (``human.human_agreement``). The default's own row reproduces th
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import time
 from pathlib import Path
@@ -54,14 +55,12 @@ def main() -> None:
     bench = sets.tier_set(args.quick)
     jod = human.add_human(bench, args.human) if args.human else None
     method = DrkfsOnnx("DR-KFS", DEFAULT, None, args.threads)
-    # comparison index -> (A's ring, B's ring) -> [(distances, weights)] per direction, for each
-    # pairing of rings (match_rules.ring_pairings) and the turned ring's own comparison, which
-    # the own-ring pairing's part takes a share of (match_rules.pairing_part); a reduction's
-    # score is the least over the pairings
+    # comparison index -> (A's ring, B's ring) -> [(distances, weights)] per direction, for
+    # every two rings a pairing's part may read (match_rules.pairing_part); a reduction's score
+    # is the least over the pairings
     distances, solids = {}, {}  # and each pairing's solid term, which no reduction changes
     one = DEFAULT.one_ring()
-    compared = dict.fromkeys([*match_rules.ring_pairings(DEFAULT), *([(1, 1)] * (
-        len(DEFAULT.rings) == 2))])  # fmt: skip
+    compared = list(itertools.product(range(len(DEFAULT.rings)), repeat=2))
     for reference in dict.fromkeys(c.reference for c in bench.comparisons):
         verts, faces = bench.shapes[reference]
         frame = frame_of(verts)
