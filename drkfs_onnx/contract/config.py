@@ -55,7 +55,7 @@ class PipelineConfig:
     benchmark by the rule of ``bench/match_study.py`` (the most of its goals met on the three
     tiers of change, people's judgments, retrieval and the bars test; docs/matching.md); the
     nets were then fine-tuned for a viewer's tolerance (``drkfs tune-tolerant``, chosen on the
-    synthetic tiers, the real tiers' training side and people's judgments; docs/benchmark.md),
+    synthetic tiers, the real tiers' training side and people's judgments; docs/real_levers.md),
     and the cameras, view size and softmax temperature moved to 5 views of 144 px at t = 0.05
     (``bench/real_levers.py``: a finer view for about the same pixels a mesh, chosen on the same
     sides and kept only where the bars test, retrieval and the slide check held), and a second
@@ -73,7 +73,7 @@ class PipelineConfig:
     # Cameras: 5 views of 144 px cost a new mesh what 6 views of 128 px did (104k pixels against
     # 98k), and a small part or a surface defect covers 1.27x the pixels in each view; 4 views of
     # 192 px saw small parts better still but took a moved part for a removed one (the bars
-    # test, docs/benchmark.md)
+    # test, docs/real_levers.md)
     num_views: int = 5
     image_size: int = 144
     # A second ring of the same cameras turned by ``turn_degrees`` about the vertical (0: none).
@@ -81,7 +81,7 @@ class PipelineConfig:
     # one's own ring against the other's turned ring, and the least of the three scores counts:
     # a turn near this angle, which a viewer does not see, is matched away. 2.5 degrees won the
     # real tiers' training side over 1.5, 2 and 3 and matches none of the tiers' own turns
-    # (1, 2, 3 degrees) exactly (docs/benchmark.md). Twice the renders and descriptors a mesh.
+    # (1, 2, 3 degrees) exactly (docs/real_levers.md). Twice the renders and descriptors a mesh.
     turn_degrees: float = 2.5
     fov_degrees: float = 50.0
     camera_distance: float = 2.5
@@ -141,7 +141,7 @@ class PipelineConfig:
     # moved bar for a removed one, and a single reach of 1 inside the mesh raised the chair
     # leg's slide in one step; the ramp (reaches 2-3, 1-2 inside) keeps it smooth. Chosen on the
     # synthetic tiers and the real tiers' training side with the bench's targets kept
-    # (docs/benchmark.md); the weight 1.2 with the own-ring pairing below, 0.7 before it.
+    # (docs/real_levers.md); the weight 1.2 with the own-ring pairing below, 0.7 before it.
     solid_weight: float = 1.2
     solid_shift: int = 3
     solid_block: int = 3
@@ -154,7 +154,7 @@ class PipelineConfig:
     # the turned ring's own comparison, and with ``solid_both_rings`` each view's solid change
     # is the larger of its camera's two rings'. Chosen with the weight above on the synthetic
     # tiers and the real tiers' training side with the bench's targets kept; a larger share
-    # lost people's far/normal (docs/benchmark.md, "The turned ring's own comparison").
+    # lost people's far/normal (docs/real_levers.md, "The turned ring's own comparison").
     turned_part_share: float = 0.2
     solid_both_rings: bool = True
 
