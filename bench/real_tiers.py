@@ -24,7 +24,7 @@ from drkfs_onnx import PipelineConfig
 from drkfs_onnx.benchmark import sets
 from drkfs_onnx.benchmark.methods import build_methods
 from drkfs_onnx.benchmark.real_tiers import HELDOUT_MESHES, TRAINING_MESHES
-from drkfs_onnx.benchmark.run import peer_methods, real_summary, score_everything
+from drkfs_onnx.benchmark.run import peer_methods, real_summary, score_everything, tier_accuracy
 
 DEFAULT_METHODS = "DR-KFS,DR-KFS paper,DR-KFS structure,pixel MSE,Chamfer-L1,F-score 1%,LFD"
 RENDER = PipelineConfig(num_views=6, turn_degrees=0.0, image_size=256)  # the figure's: view VIEW
@@ -108,6 +108,24 @@ def write_parts(bench: sets.BenchSet, path: Path, threads: int) -> None:
     path.write_text(json.dumps(results, indent=1) + "\n")
 
 
+def shares_without(bench: sets.BenchSet, results: dict, left_out: list[str]) -> dict:
+    """Each method's real-tier shares (``tier_accuracy``) from a results file's scores, with the
+    variants ``left_out`` ("mesh/variant") taken out of every pair: what a label would move."""
+    keys = [f"{c.base}/{c.label}" for c in bench.comparisons]
+    unknown = {sets.REAL_PREFIX + name for name in left_out} - set(keys)
+    if unknown:
+        raise SystemExit(f"no such real-tier variant: {', '.join(sorted(unknown))}")
+    dropped = {sets.REAL_PREFIX + name for name in left_out}
+    return {
+        method: tier_accuracy(
+            bench,
+            {i: values.get(key) for i, key in enumerate(keys) if key not in dropped},
+            "real",
+        )
+        for method, values in results["values"].items()
+    }
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, help="the results' JSON")
@@ -117,6 +135,12 @@ def main() -> None:
         "--scan-renders", type=Path, help="a PNG of the synthetic tiers' variants of the meshes"
     )
     parser.add_argument("--methods", default=DEFAULT_METHODS, help="outputs, comma-separated")
+    parser.add_argument(
+        "--shares-from", type=Path, help="a results JSON whose shares to recompute (no scoring)"
+    )
+    parser.add_argument(
+        "--leave-out", default="", help="with --shares-from: mesh/variant,... to take out"
+    )
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--work", type=Path, default=Path("runs/real_tiers"))
     args = parser.parse_args()
@@ -136,6 +160,17 @@ def main() -> None:
                       f"python bench/real_tiers.py --scan-renders {args.scan_renders}")  # fmt: skip
     if args.parts is not None:
         write_parts(bench, args.parts, args.threads)
+    if args.shares_from is not None:
+        left_out = [name for name in args.leave_out.split(",") if name]
+        shares = shares_without(bench, json.loads(args.shares_from.read_text()), left_out)
+        for name, row in shares.items():
+            print(f"{name:24} training {row['training']}, held out {row['held_out']}")
+        if args.out is not None:
+            command = (f"python bench/real_tiers.py --shares-from {args.shares_from} "
+                       f"--leave-out {args.leave_out} --out {args.out}")  # fmt: skip
+            record = {"command": command, "left_out": left_out, "methods": shares}
+            args.out.write_text(json.dumps(record, indent=1))
+        return
     if args.out is None:
         return
     methods = [m for m in build_methods(args.work / "models", args.threads)

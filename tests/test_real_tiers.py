@@ -170,3 +170,37 @@ def test_the_parts_split_each_score_into_its_two_terms_and_name_every_misordered
             parts[upper]["score"] <= parts[lower]["score"]
         )
         assert ((upper, lower) in listed) == wrong
+
+
+def test_the_shares_recomputed_without_some_variants_leave_out_exactly_their_pairs(tmp_path):
+    import json
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    committed = json.loads((root / "bench/results/real_tiers.json").read_text())
+
+    def shares(left_out: str) -> subprocess.CompletedProcess:
+        out = tmp_path / "shares.json"
+        return subprocess.run(
+            [sys.executable, "bench/real_tiers.py", "--shares-from",
+             "bench/results/real_tiers.json", "--leave-out", left_out, "--out", str(out)],
+            cwd=root, capture_output=True, text=True, timeout=300,
+        )  # fmt: skip
+
+    assert shares("").returncode == 0
+    found = json.loads((tmp_path / "shares.json").read_text())["methods"]["DR-KFS"]
+    for side in ("training", "held_out"):
+        assert found[side] == committed["methods"]["DR-KFS"][side]
+    assert shares("cheburashka/noise").returncode == 0
+    without = json.loads((tmp_path / "shares.json").read_text())["methods"]["DR-KFS"]
+    structural = sum(
+        kind == "structural" and key.startswith("real-cheburashka/")
+        for key, kind in committed["labels"].items()
+    )
+    assert without["pairs"]["surface_vs_structural"] == (
+        found["pairs"]["surface_vs_structural"] - structural
+    )
+    wrong = shares("cheburashka/no-such-variant")
+    assert wrong.returncode != 0 and "cheburashka/no-such-variant" in wrong.stderr
