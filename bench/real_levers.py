@@ -12,13 +12,14 @@ reaches 2-3, ...", then ``NOW_LEVER``), named "default" in the results. The turn
 (``RECOMBINED``, not run unless named: the descriptors' part bounded, the solid change from other
 cameras than the descriptors', the views' solid changes in a power mean, a pixel's change taken over
 other reaches inside the mesh and at its outline than a config's ramp allows, the descriptors'
-distances counted above a floor the whole shown surface sets, or the outline's change netted, mesh
-lost against mesh gained, so that a moved part counts less than a removed one, or the own-ring
-pairing's solid change taken over both rings' views). A lever's solid change is at one reach unless
-it names a ramp (``ONE_REACH``), as every lever before the ramp was, and its own-ring pairing from
-its own ring alone unless it names both (``OWN_RING_ONLY``), as every lever before ``NOW_LEVER``. A
-turn search's slide check is its lever's, as the torch path has none; a recombination's is its own,
-on the runtime path it is scored on (``runtime_slide``).
+distances counted above a floor the whole shown surface sets, the outline's change netted, mesh
+lost against mesh gained, so that a moved part counts less than a removed one, the own-ring
+pairing's solid change taken over both rings' views, or the descriptors' part made convex). A
+lever's solid change is at one reach unless it names a ramp (``ONE_REACH``), as every lever
+before the ramp was, and its own-ring pairing from its own ring alone unless it names both
+(``OWN_RING_ONLY``), as every lever before ``NOW_LEVER``. A turn search's slide check is its
+lever's, as the torch path has none; a recombination's is its own, on the runtime path it is
+scored on (``runtime_slide``).
 
     python bench/real_levers.py --out bench/results/real_levers_tolerant.json
     python bench/real_levers.py --nets metric --out bench/results/real_levers.json
@@ -394,6 +395,12 @@ RECOMBINED = {
                       ("max", 1.0, 0.15))
 } | {
     f"descriptors from both rings, {DEFAULT_NOW}": (DEFAULT_NOW, {"both_parts": 0.5}),
+} | {  # the default with its descriptors' part convex: a moderate part (a crumpled or faceted
+    # surface) counts less against the solid change, a large one (another shape) as before
+    f"descriptors' part to the power {q:g} about {c:g}, {NOW_LEVER}": (
+        NOW_LEVER, {"both_rings": "max", "both_parts": 0.2, "part_power": (q, c)}
+    )
+    for q, c in ((2.0, 1.0), (1.5, 1.0), (2.0, 0.5))
 }  # fmt: skip
 WRAPPED = {name: lever for name, (lever, *_) in (TURN_SEARCHES | RECOMBINED).items()}
 
@@ -459,7 +466,9 @@ class Recombined(Method):
     against the same ring's: the turned ring's cameras, a few degrees off, see a sliver the own
     ring's miss ('mean': the mean over all their views; 'max': each camera's larger change of
     its two rings, then the views' mean); with ``both_parts`` = s its descriptor part is
-    (1 - s) times ring 0's own part plus s times ring 1's (0.5: their mean)."""
+    (1 - s) times ring 0's own part plus s times ring 1's (0.5: their mean). With
+    ``part_power`` = (q, c) each pairing's descriptor part is c (part / c)^q: convex, so that
+    a moderate part counts less against the solid change while a part near c keeps its value."""
 
     def __init__(self, method: DrkfsOnnx, name: str, threads: int, ceiling: float | None = None,
                  solid_cameras: tuple[int, int] | None = None, view_power: float = 1.0,
@@ -469,11 +478,12 @@ class Recombined(Method):
                  moved: float = 0.0, by_area: bool = False,
                  local: float | None = None, near: float | None = None,
                  solid_ceiling: float | None = None,
-                 both_rings: str | None = None, both_parts: float = 0.0):  # fmt: skip
+                 both_rings: str | None = None, both_parts: float = 0.0,
+                 part_power: tuple[float, float] | None = None):  # fmt: skip
         self.method, self.outputs, self.symmetric = method, (name,), method.symmetric
         self.floor, self.netted, self.moved, self.by_area = floor, netted, moved, by_area
         self.local, self.near, self.solid_ceiling = local, near, solid_ceiling
-        self.both_rings, self.both_parts = both_rings, both_parts
+        self.both_rings, self.both_parts, self.part_power = both_rings, both_parts, part_power
         self.config, self.ceiling, self.view_power = method.scorer.config, ceiling, view_power
         self.solid = None
         solid_config = self.config
@@ -508,6 +518,9 @@ class Recombined(Method):
                 part = floored_part(a[0].ring(i), b[0].ring(j), one, *self.floor)
             if self.ceiling is not None:
                 part = self.ceiling * math.tanh(part / self.ceiling)
+            if self.part_power is not None:
+                power, kept = self.part_power
+                part = kept * (part / kept) ** power
             # the views compared for the solid change: the pairing's rings, and with
             # ``both_rings`` in the own-ring pairing the turned ring's against each other too
             rings = [(i, j)] + ([(1, 1)] if self.both_rings and (i, j) == (0, 0) else [])

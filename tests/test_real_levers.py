@@ -61,7 +61,9 @@ class _Rings:
         return i
 
 
-def _recombined_score(real_levers, monkeypatch, both_rings: str | None, both_parts=0.0) -> float:
+def _recombined_score(
+    real_levers, monkeypatch, both_rings: str | None, both_parts=0.0, **options
+) -> float:
     """A, whose turned ring alone shows a bar, against B, which shows none: each ring pairing's
     descriptor part 1 across rings (a turn the mesh does not have), 0 for ring 0 against ring
     0 and 0.2 for ring 1 against ring 1; the solid change at weight 1."""
@@ -69,7 +71,9 @@ def _recombined_score(real_levers, monkeypatch, both_rings: str | None, both_par
     parts = {(0, 0): 0.0, (1, 1): 0.2, (0, 1): 1.0, (1, 0): 1.0}
     monkeypatch.setattr(real_levers, "descriptor_part", lambda a, b, _: parts[a, b])
     method = SimpleNamespace(scorer=SimpleNamespace(config=config), symmetric=True)
-    lever = real_levers.Recombined(method, "lever", 1, both_rings=both_rings, both_parts=both_parts)
+    lever = real_levers.Recombined(
+        method, "lever", 1, both_rings=both_rings, both_parts=both_parts, **options
+    )
     a = (_Rings(), np.concatenate([_views(), _views((10, 10))]))
     b = (_Rings(), np.concatenate([_views(), _views()]))
     return lever.compare(a, b)[0]
@@ -86,3 +90,16 @@ def test_both_parts_weighs_the_turned_rings_own_descriptor_part(real_levers, mon
     assert _recombined_score(real_levers, monkeypatch, None, 0.5) == pytest.approx(0.1)
     assert _recombined_score(real_levers, monkeypatch, None, 0.25) == pytest.approx(0.05)
     assert _recombined_score(real_levers, monkeypatch, "max", 0.25) == pytest.approx(0.85)
+
+
+def test_a_convex_part_counts_a_moderate_descriptor_part_less_and_keeps_the_solid_change(
+    real_levers, monkeypatch
+):
+    # the own-ring pairing's part 0.1 (both_parts 0.5) squared about 1, and about 0.5
+    score = _recombined_score(real_levers, monkeypatch, None, 0.5, part_power=(2.0, 1.0))
+    assert score == pytest.approx(0.01)
+    score = _recombined_score(real_levers, monkeypatch, None, 0.5, part_power=(2.0, 0.5))
+    assert score == pytest.approx(0.02)
+    # the turned ring's bar still counts whole: 0.05 squared plus the solid change's 0.8
+    score = _recombined_score(real_levers, monkeypatch, "max", 0.25, part_power=(2.0, 1.0))
+    assert score == pytest.approx(0.0025 + 0.8)
