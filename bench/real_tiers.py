@@ -112,10 +112,9 @@ def shares_without(bench: sets.BenchSet, results: dict, left_out: list[str]) -> 
     """Each method's real-tier shares (``tier_accuracy``) from a results file's scores, with the
     variants ``left_out`` ("mesh/variant") taken out of every pair: what a label would move."""
     keys = [f"{c.base}/{c.label}" for c in bench.comparisons]
-    unknown = {sets.REAL_PREFIX + name for name in left_out} - set(keys)
-    if unknown:
-        raise SystemExit(f"no such real-tier variant: {', '.join(sorted(unknown))}")
     dropped = {sets.REAL_PREFIX + name for name in left_out}
+    if unknown := dropped - set(keys):
+        raise SystemExit(f"no such real-tier variant: {', '.join(sorted(unknown))}")
     return {
         method: tier_accuracy(
             bench,

@@ -11,6 +11,7 @@ import dataclasses
 import json
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Any
 
 NORMALIZATIONS = ("joint", "each", "none")
@@ -273,8 +274,9 @@ class PipelineConfig:
         return self.num_views * len(self.rings)
 
     def one_ring(self) -> PipelineConfig:
-        """This config with the cameras' own ring only: the match of one ring against another."""
-        return self.replace(turn_degrees=0.0)
+        """This config with the cameras' own ring only: the match of one ring against another
+        (made once per config: every match asks for it, and a replace re-checks every field)."""
+        return _one_ring(self)
 
     @property
     def patches_per_side(self) -> int:
@@ -327,3 +329,8 @@ class PipelineConfig:
 
     def replace(self, **changes: Any) -> PipelineConfig:
         return dataclasses.replace(self, **changes)
+
+
+@lru_cache(maxsize=64)
+def _one_ring(config: PipelineConfig) -> PipelineConfig:
+    return config.replace(turn_degrees=0.0)
