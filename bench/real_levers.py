@@ -43,7 +43,7 @@ import numpy as np
 from drkfs_onnx import PipelineConfig
 from drkfs_onnx.benchmark import human, sets, torch_checks
 from drkfs_onnx.benchmark.methods import DrkfsOnnx, Method, Placed
-from drkfs_onnx.benchmark.real_tiers import HELDOUT_MESHES, TRAINING_MESHES
+from drkfs_onnx.benchmark.real_tiers import HELDOUT_MESHES, TRAINING_MESHES, parse_relabels
 from drkfs_onnx.benchmark.run import (
     bars_summary,
     lever_summary,
@@ -401,6 +401,11 @@ RECOMBINED = {
         NOW_LEVER, {"both_rings": "max", "both_parts": 0.2, "part_power": (q, c)}
     )
     for q, c in ((2.0, 1.0), (1.5, 1.0), (2.0, 0.5))
+} | {  # the same, linear up to a knee: a small defect's part as the default counts it
+    f"descriptors' part to the power 2 about 1 above {k:g}, {NOW_LEVER}": (
+        NOW_LEVER, {"both_rings": "max", "both_parts": 0.2, "part_power": (2.0, 1.0, k)}
+    )
+    for k in (0.005, 0.01, 0.02)
 }  # fmt: skip
 WRAPPED = {name: lever for name, (lever, *_) in (TURN_SEARCHES | RECOMBINED).items()}
 
@@ -468,7 +473,10 @@ class Recombined(Method):
     its two rings, then the views' mean); with ``both_parts`` = s its descriptor part is
     (1 - s) times ring 0's own part plus s times ring 1's (0.5: their mean). With
     ``part_power`` = (q, c) each pairing's descriptor part is c (part / c)^q: convex, so that
-    a moderate part counts less against the solid change while a part near c keeps its value."""
+    a moderate part counts less against the solid change while a part near c keeps its value;
+    given as (q, c, k), a part up to k keeps its value and one above it is k + c ((part - k) /
+    c)^q: a small defect's part, which a turn's solid change would outweigh once squared, stays
+    as it is."""
 
     def __init__(self, method: DrkfsOnnx, name: str, threads: int, ceiling: float | None = None,
                  solid_cameras: tuple[int, int] | None = None, view_power: float = 1.0,
@@ -479,7 +487,7 @@ class Recombined(Method):
                  local: float | None = None, near: float | None = None,
                  solid_ceiling: float | None = None,
                  both_rings: str | None = None, both_parts: float = 0.0,
-                 part_power: tuple[float, float] | None = None):  # fmt: skip
+                 part_power: tuple[float, ...] | None = None):  # fmt: skip
         self.method, self.outputs, self.symmetric = method, (name,), method.symmetric
         self.floor, self.netted, self.moved, self.by_area = floor, netted, moved, by_area
         self.local, self.near, self.solid_ceiling = local, near, solid_ceiling
@@ -519,8 +527,9 @@ class Recombined(Method):
             if self.ceiling is not None:
                 part = self.ceiling * math.tanh(part / self.ceiling)
             if self.part_power is not None:
-                power, kept = self.part_power
-                part = kept * (part / kept) ** power
+                power, kept, knee = (*self.part_power, 0.0)[:3]
+                if part > knee:
+                    part = knee + kept * ((part - knee) / kept) ** power
             # the views compared for the solid change: the pairing's rings, and with
             # ``both_rings`` in the own-ring pairing the turned ring's against each other too
             rings = [(i, j)] + ([(1, 1)] if self.both_rings and (i, j) == (0, 0) else [])
@@ -671,12 +680,20 @@ def main() -> None:
         help="every lever but the turn searches and recombinations unless set",
     )
     parser.add_argument("--human", type=Path, help="a Geo-metric clone (see drkfs bench --human)")
+    parser.add_argument(
+        "--other", type=Path, help="a folder of meshes from outside the repository: a third side"
+    )
+    parser.add_argument(
+        "--relabel", default="", help="with --other: mesh/variant=tier,... as the renders show"
+    )
     args = parser.parse_args()
     start = time.perf_counter()
     default = PipelineConfig(nets=args.nets, **NETS_TRAINED_AT, **ONE_REACH, **OWN_RING_ONLY)
     configs = {name: default.replace(**LEVERS[WRAPPED.get(name, name)]) for name in args.levers}
     bench = sets.tier_set(quick=False)
     sets.real_tiers(bench, [*TRAINING_MESHES, *HELDOUT_MESHES])
+    if args.other is not None:
+        sets.other_tiers(bench, args.other, parse_relabels(args.relabel))
     sets.bars(bench)  # the benchmark's own targets a default must keep
     sets.retrieval(bench, list(sets.ALL_FAMILIES), sets.RETRIEVAL_PER_FAMILY)
     jod = human.add_human(bench, args.human) if args.human else None
@@ -714,7 +731,8 @@ def main() -> None:
     results = {
         "command": f"python bench/real_levers.py --nets {args.nets} --out {args.out}"
         + ("" if args.levers == list(LEVERS) else " --levers " + " ".join(map(repr, args.levers)))
-        + (" --human DIR" if args.human else ""),
+        + (" --human DIR" if args.human else "")
+        + (f" --other DIR --relabel '{args.relabel}'" if args.other is not None else ""),
         "threads": args.threads,
         "levers": rows,
         "values": {

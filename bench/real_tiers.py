@@ -8,6 +8,9 @@ method's tier shares on both sides and the turn and salient-part checks (docs/be
                                                   # terms: descriptors' and solid change's
     python bench/real_tiers.py --scan-renders bench/results/scan_tiers.png  # the synthetic
                                                   # tiers' variants of the same meshes, drawn alike
+    python bench/real_tiers.py --other DIR --relabel mesh/variant=tier,... --renders ... --out ...
+                                                  # the same for meshes from outside the
+                                                  # repository (docs/benchmark.md says which)
 """
 
 from __future__ import annotations
@@ -23,8 +26,14 @@ from matplotlib.figure import Figure
 from drkfs_onnx import PipelineConfig
 from drkfs_onnx.benchmark import sets
 from drkfs_onnx.benchmark.methods import build_methods
-from drkfs_onnx.benchmark.real_tiers import HELDOUT_MESHES, TRAINING_MESHES
-from drkfs_onnx.benchmark.run import peer_methods, real_summary, score_everything, tier_accuracy
+from drkfs_onnx.benchmark.real_tiers import HELDOUT_MESHES, TRAINING_MESHES, parse_relabels
+from drkfs_onnx.benchmark.run import (
+    peer_methods,
+    real_sides,
+    real_summary,
+    score_everything,
+    tier_accuracy,
+)
 
 DEFAULT_METHODS = "DR-KFS,DR-KFS paper,DR-KFS structure,pixel MSE,Chamfer-L1,F-score 1%,LFD"
 RENDER = PipelineConfig(num_views=6, turn_degrees=0.0, image_size=256)  # the figure's: view VIEW
@@ -91,9 +100,10 @@ def write_parts(bench: sets.BenchSet, path: Path, threads: int) -> None:
                       "descriptors": shown.score - shown.solid_change,
                       "solid_change": shown.solid_change}  # fmt: skip
         rows.setdefault(c.base, []).append(key)
-    misses = {"training": [], "held_out": []}
+    sides = real_sides(list(rows))
+    misses: dict[str, list] = {side: [] for side in sides}
     for base, keys in rows.items():
-        side = "training" if base.removeprefix(sets.REAL_PREFIX) in TRAINING_MESHES else "held_out"
+        side = next(name for name, bases in sides.items() if base in bases)
         for lower in (k for k in keys if parts[k]["kind"] in ("invisible", "surface")):
             for upper in (k for k in keys if parts[k]["kind"] == "structural"):
                 if parts[upper]["score"] <= parts[lower]["score"]:
@@ -140,16 +150,27 @@ def main() -> None:
     parser.add_argument(
         "--leave-out", default="", help="with --shares-from: mesh/variant,... to take out"
     )
+    parser.add_argument(
+        "--other", type=Path, help="a folder of meshes from outside the repository, scored alone"
+    )
+    parser.add_argument(
+        "--relabel", default="", help="with --other: mesh/variant=tier,... as the renders show"
+    )
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--work", type=Path, default=Path("runs/real_tiers"))
     args = parser.parse_args()
     start = time.perf_counter()
     wanted = args.methods.split(",")
     bench = sets.BenchSet()
-    sets.real_tiers(bench, [*TRAINING_MESHES, *HELDOUT_MESHES])
+    if args.other is None:
+        sides = {"training": list(TRAINING_MESHES), "held_out": list(HELDOUT_MESHES)}
+        sets.real_tiers(bench, [*sides["training"], *sides["held_out"]])
+    else:
+        sides = {"other": sets.other_tiers(bench, args.other, parse_relabels(args.relabel))}
+    chosen = f" --other DIR --relabel '{args.relabel}'" if args.other is not None else ""
     if args.renders is not None:
         write_renders(bench, args.renders, args.threads,
-                      f"python bench/real_tiers.py --renders {args.renders}")  # fmt: skip
+                      f"python bench/real_tiers.py{chosen} --renders {args.renders}")  # fmt: skip
     if args.scan_renders is not None:
         # the synthetic tiers' scan variants (``synthetic.tiers.scan_tiers``) of the swept
         # meshes, labelled by their recipe, not by looking
@@ -181,10 +202,11 @@ def main() -> None:
         for peer in peers:
             peer.close()
     results = {
-        "command": f"python bench/real_tiers.py --out {args.out} --methods '{args.methods}'",
+        "command": f"python bench/real_tiers.py{chosen} --out {args.out} --methods "
+        f"'{args.methods}'",
         "threads": args.threads,
         "peers": notes,
-        "sides": {"training": list(TRAINING_MESHES), "held_out": list(HELDOUT_MESHES)},
+        "sides": sides,
         "labels": {f"{c.base}/{c.label}": c.kind for c in bench.comparisons},
         "methods": {
             name: {
@@ -203,10 +225,11 @@ def main() -> None:
     }
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(results, indent=1))
+    last = list(sides)[-1]  # the held-out side, or the other meshes
     for name, row in results["methods"].items():
-        held, checks = row["held_out"], row["checks"]["held_out"]
+        held, checks = row[last], row["checks"][last]
         print(
-            f"{name:24} held-out inv<str {held['invisible_vs_structural']}, sur<str "
+            f"{name:24} {last} inv<str {held['invisible_vs_structural']}, sur<str "
             f"{held['surface_vs_structural']}, inv<sur {held['invisible_vs_surface']}; turn "
             f"{checks['turn_below_every_surface']}, every turn "
             f"{checks['every_turn_below_every_surface']}, "

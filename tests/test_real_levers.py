@@ -103,3 +103,8 @@ def test_a_convex_part_counts_a_moderate_descriptor_part_less_and_keeps_the_soli
     # the turned ring's bar still counts whole: 0.05 squared plus the solid change's 0.8
     score = _recombined_score(real_levers, monkeypatch, "max", 0.25, part_power=(2.0, 1.0))
     assert score == pytest.approx(0.0025 + 0.8)
+    # linear up to a knee: 0.1 above 0.05 is 0.05 + 0.05^2; 0.1 below 0.2 keeps its value
+    score = _recombined_score(real_levers, monkeypatch, None, 0.5, part_power=(2.0, 1.0, 0.05))
+    assert score == pytest.approx(0.05 + 0.0025)
+    score = _recombined_score(real_levers, monkeypatch, None, 0.5, part_power=(2.0, 1.0, 0.2))
+    assert score == pytest.approx(0.1)

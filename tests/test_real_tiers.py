@@ -204,3 +204,44 @@ def test_the_shares_recomputed_without_some_variants_leave_out_exactly_their_pai
     )
     wrong = shares("cheburashka/no-such-variant")
     assert wrong.returncode != 0 and "cheburashka/no-such-variant" in wrong.stderr
+
+
+def test_meshes_from_outside_the_repository_form_a_third_side_with_their_own_labels(tmp_path):
+    from drkfs_onnx.benchmark.real_tiers import parse_relabels
+    from drkfs_onnx.benchmark.run import real_sides
+
+    other = tmp_path / "other"
+    other.mkdir()
+    (other / "gingerbread.obj").write_bytes(sets.real_mesh("woody").read_bytes())
+    relabelled = parse_relabels("gingerbread/smoothed=invisible")
+    assert relabelled == {("gingerbread", "smoothed"): "invisible"}
+    bench = sets.BenchSet()
+    sets.real_tiers(bench, ["cow"])
+    assert sets.other_tiers(bench, other, relabelled) == ["gingerbread"]
+    kinds = {c.label: c.kind for c in bench.comparisons if c.base == "real-gingerbread"}
+    assert kinds["smoothed"] == "invisible" and kinds["noise"] == "surface"
+    # the repository's meshes keep the recipe's labels: a relabel names its mesh
+    assert {c.label: c.kind for c in bench.comparisons if c.base == "real-cow"}["smoothed"] == (
+        "surface"
+    )
+    bases = sorted({c.base for c in bench.comparisons})
+    assert real_sides(bases) == {
+        "training": ["real-cow"], "held_out": [], "other": ["real-gingerbread"],
+    }  # fmt: skip
+    assert "other" not in real_sides(["real-cow"])  # no third side unless one is scored
+    values = {i: float(c.kind != "invisible") for i, c in enumerate(bench.comparisons)}
+    assert tier_accuracy(bench, values, "real")["other"]["invisible_vs_surface"] == 1.0
+    assert "other" in real_checks(bench, values)
+
+
+def test_a_third_side_refuses_a_repository_meshs_name_and_a_malformed_relabel(tmp_path):
+    from drkfs_onnx.benchmark.real_tiers import parse_relabels
+
+    (tmp_path / "cow.obj").write_bytes(sets.real_mesh("cow").read_bytes())
+    with pytest.raises(ValueError, match="cow named as the repository's meshes"):
+        sets.other_tiers(sets.BenchSet(), tmp_path, {})
+    with pytest.raises(ValueError, match="no .obj meshes"):
+        sets.other_tiers(sets.BenchSet(), tmp_path / "nothing", {})
+    for bad in ("cow/noise", "cow=invisible", "cow/noise=hidden"):
+        with pytest.raises(ValueError, match="a relabel is mesh/variant=tier"):
+            parse_relabels(bad)

@@ -31,7 +31,7 @@ import numpy as np
 import trimesh
 
 from ..synthetic.shapes import subdivide
-from ..synthetic.tiers import simplified, smoothed, turned
+from ..synthetic.tiers import TIERS, simplified, smoothed, turned
 from ..synthetic.variants import (
     Variant,
     _vertex_normals,
@@ -62,6 +62,19 @@ RELABELLED = {
 }
 
 
+def parse_relabels(text: str) -> dict[tuple[str, str], str]:
+    """Relabels written "mesh/variant=tier,..." -> {(mesh, variant): tier}: what the renders of
+    meshes from outside the repository show where it is not the recipe's tier."""
+    relabelled = {}
+    for item in filter(None, text.split(",")):
+        key, _, tier = item.partition("=")
+        mesh, _, variant = key.partition("/")
+        if not (mesh and variant and tier in TIERS):
+            raise ValueError(f"{item!r}: a relabel is mesh/variant=tier, tier one of {TIERS}")
+        relabelled[(mesh, variant)] = tier
+    return relabelled
+
+
 def mean_edge(verts: np.ndarray, faces: np.ndarray) -> float:
     """The mean length of the faces' edges (an edge of two faces counts twice)."""
     return float(np.linalg.norm(verts[faces[:, [1, 2, 0]]] - verts[faces], axis=-1).mean())
@@ -84,9 +97,14 @@ def second_piece(verts: np.ndarray, faces: np.ndarray) -> np.ndarray | None:
 
 
 def real_variants(
-    name: str, verts: np.ndarray, faces: np.ndarray, rng: np.random.Generator
+    name: str,
+    verts: np.ndarray,
+    faces: np.ndarray,
+    rng: np.random.Generator,
+    relabelled: dict[tuple[str, str], str] = RELABELLED,
 ) -> list[Variant]:
-    """Every real-mesh tier's variants of the mesh ``name``, labelled as its renders show."""
+    """Every real-mesh tier's variants of the mesh ``name``, labelled as its renders show
+    (the recipe's tier unless ``relabelled`` names the variant)."""
     size = float(np.linalg.norm(np.ptp(verts, axis=0)))
     used = np.unique(faces)
     hole_centre = verts[used[int(rng.integers(len(used)))]]
@@ -110,4 +128,4 @@ def real_variants(
     piece = second_piece(verts, faces)
     if piece is not None:
         variants.append(Variant("piece_removed", "structural", verts, faces[~piece]))
-    return [replace(v, kind=RELABELLED.get((name, v.name), v.kind)) for v in variants]
+    return [replace(v, kind=relabelled.get((name, v.name), v.kind)) for v in variants]

@@ -34,6 +34,8 @@ from .peers import LightField, find_lfd
 from .torch_checks import gradient_check, self_score, slide
 
 CHARTED = "invisible_vs_structural"  # the accuracy on the chart's y axis
+# the real tiers' third side: meshes from outside the repository, never chosen on (--other DIR)
+OTHER_SIDE = "other"
 
 
 @dataclass
@@ -145,13 +147,22 @@ def _tier_values(bench: sets.BenchSet, values: dict[int, float | None], group: s
     return groups
 
 
+def real_sides(bases: list[str]) -> dict[str, list[str]]:
+    """The real tiers' bases by side: the meshes levers are chosen on ("training"), the
+    held-out ones, and, where any are scored, ``OTHER_SIDE``: meshes from outside the
+    repository."""
+    side = {sets.REAL_PREFIX + name: "training" for name in sets.TRAINING_MESHES}
+    side |= {sets.REAL_PREFIX + name: "held_out" for name in sets.HELDOUT_MESHES}
+    found = {b: side.get(b, OTHER_SIDE) for b in bases}
+    sides = ["training", "held_out", *([OTHER_SIDE] if OTHER_SIDE in found.values() else [])]
+    return {name: [b for b in bases if found[b] == name] for name in sides}
+
+
 def _halves(group: str, bases: list[str]) -> dict[str, list[str]]:
-    """The tier set's halves (synthetic bases, shared meshes); the real tiers' sides (the
-    meshes levers are chosen on, the held-out ones)."""
+    """The tier set's halves (synthetic bases, shared meshes); the real tiers' sides
+    (``real_sides``)."""
     if group == "real":
-        side = {sets.REAL_PREFIX + name: "training" for name in sets.TRAINING_MESHES}
-        side |= {sets.REAL_PREFIX + name: "held_out" for name in sets.HELDOUT_MESHES}
-        return {half: [b for b in bases if side[b] == half] for half in ("training", "held_out")}
+        return real_sides(bases)
     return {
         "synthetic": [b for b in bases if b not in sets.SHARED_MESHES],
         "shared": [b for b in bases if b in sets.SHARED_MESHES],
@@ -246,7 +257,7 @@ def lever_summary(bench: sets.BenchSet, values: dict[int, float | None]) -> dict
     return {
         "tiers": {pair: synthetic[pair] for pair in TIER_PAIRS},
         "real": {side: {pair: real[side][pair] for pair in TIER_PAIRS}
-                 for side in ("training", "held_out")},
+                 for side in real_sides(list(_tier_values(bench, values, "real")))},
         "checks": real_checks(bench, values),
     }  # fmt: skip
 

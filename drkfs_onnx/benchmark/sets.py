@@ -152,6 +152,27 @@ def real_tiers(bench: BenchSet, names: list[str], seed: int = SEED) -> None:
         _variants_of(bench, REAL_PREFIX + name, mesh.vertices, mesh.faces, variants, "real")
 
 
+def other_tiers(
+    bench: BenchSet, folder: Path, relabelled: dict[tuple[str, str], str], seed: int = SEED
+) -> list[str]:
+    """Every OBJ in ``folder`` (meshes from outside the repository: the real tiers' third side,
+    never chosen on) and its real-mesh tier variants, labelled as the recipe says but where
+    ``relabelled`` ((mesh, variant) -> tier) says what its renders show, as the 'real' group;
+    the meshes' names, sorted. A name of the repository's meshes is refused: it would be read
+    as that mesh's side."""
+    names = sorted(path.stem for path in Path(folder).glob("*.obj"))
+    if not names:
+        raise ValueError(f"{folder}: no .obj meshes to take as the real tiers' other side")
+    if taken := sorted(set(names) & {*TRAINING_MESHES, *HELDOUT_MESHES}):
+        raise ValueError(f"{folder}: {', '.join(taken)} named as the repository's meshes")
+    rng = np.random.default_rng(seed)
+    for name in names:
+        mesh = load_mesh(Path(folder) / f"{name}.obj")
+        variants = real_variants(name, mesh.vertices, mesh.faces, rng, relabelled)
+        _variants_of(bench, REAL_PREFIX + name, mesh.vertices, mesh.faces, variants, "real")
+    return names
+
+
 def bar_chair(height: float | None) -> list[Part]:
     """The paper's feature-level test: a chair with bars between its front and back legs at
     ``height`` (None: no bars)."""
