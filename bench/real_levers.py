@@ -402,10 +402,11 @@ RECOMBINED = {
     )
     for q, c in ((2.0, 1.0), (1.5, 1.0), (2.0, 0.5))
 } | {  # the same, linear up to a knee: a small defect's part as the default counts it
-    f"descriptors' part to the power 2 about 1 above {k:g}, {NOW_LEVER}": (
-        NOW_LEVER, {"both_rings": "max", "both_parts": 0.2, "part_power": (2.0, 1.0, k)}
+    f"descriptors' part to the power {q:g} about 1 above {k:g}, {NOW_LEVER}": (
+        NOW_LEVER, {"both_rings": "max", "both_parts": 0.2, "part_power": (q, 1.0, k)}
     )
-    for k in (0.005, 0.01, 0.02)
+    for q, k in ((2.0, 0.005), (2.0, 0.01), (2.0, 0.02),
+                 (1.25, 0.01), (1.5, 0.01), (1.5, 0.02), (1.75, 0.01))
 }  # fmt: skip
 WRAPPED = {name: lever for name, (lever, *_) in (TURN_SEARCHES | RECOMBINED).items()}
 
