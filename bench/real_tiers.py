@@ -184,9 +184,9 @@ def main() -> None:
         left_out = [name for name in args.leave_out.split(",") if name]
         shares = shares_without(bench, json.loads(args.shares_from.read_text()), left_out)
         for name, row in shares.items():
-            print(f"{name:24} training {row['training']}, held out {row['held_out']}")
+            print(f"{name:24}", ", ".join(f"{side} {row[side]}" for side in sides))
         if args.out is not None:
-            command = (f"python bench/real_tiers.py --shares-from {args.shares_from} "
+            command = (f"python bench/real_tiers.py{chosen} --shares-from {args.shares_from} "
                        f"--leave-out {args.leave_out} --out {args.out}")  # fmt: skip
             record = {"command": command, "left_out": left_out, "methods": shares}
             args.out.write_text(json.dumps(record, indent=1))
