@@ -688,13 +688,18 @@ def main() -> None:
         "--relabel", default="", help="with --other: mesh/variant=tier,... as the renders show"
     )
     args = parser.parse_args()
+    if args.relabel and args.other is None:
+        parser.error("--relabel names meshes of --other DIR")
     start = time.perf_counter()
     default = PipelineConfig(nets=args.nets, **NETS_TRAINED_AT, **ONE_REACH, **OWN_RING_ONLY)
     configs = {name: default.replace(**LEVERS[WRAPPED.get(name, name)]) for name in args.levers}
     bench = sets.tier_set(quick=False)
     sets.real_tiers(bench, [*TRAINING_MESHES, *HELDOUT_MESHES])
     if args.other is not None:
-        sets.other_tiers(bench, args.other, parse_relabels(args.relabel))
+        try:
+            sets.other_tiers(bench, args.other, parse_relabels(args.relabel))
+        except ValueError as exc:  # a bad folder or relabel: say which, no traceback
+            parser.error(str(exc))
     sets.bars(bench)  # the benchmark's own targets a default must keep
     sets.retrieval(bench, list(sets.ALL_FAMILIES), sets.RETRIEVAL_PER_FAMILY)
     jod = human.add_human(bench, args.human) if args.human else None

@@ -28,6 +28,7 @@ from drkfs_onnx.benchmark import sets
 from drkfs_onnx.benchmark.methods import build_methods
 from drkfs_onnx.benchmark.real_tiers import HELDOUT_MESHES, TRAINING_MESHES, parse_relabels
 from drkfs_onnx.benchmark.run import (
+    OTHER_SIDE,
     peer_methods,
     real_sides,
     real_summary,
@@ -81,7 +82,7 @@ def write_renders(bench: sets.BenchSet, path: Path, threads: int, command: str) 
     path.with_name(f"{path.stem}_pixels.json").write_text(json.dumps(pixels, indent=1) + "\n")
 
 
-def write_parts(bench: sets.BenchSet, path: Path, threads: int) -> None:
+def write_parts(bench: sets.BenchSet, path: Path, threads: int, command: str) -> None:
     """Each variant's default score split into the descriptors' part and the solid change's
     (``runtime.explain``), and per side each misordered pair of tiers (a structural variant at
     or below an invisible or surface one of its mesh) with both variants' parts: which term
@@ -109,7 +110,7 @@ def write_parts(bench: sets.BenchSet, path: Path, threads: int) -> None:
                 if parts[upper]["score"] <= parts[lower]["score"]:
                     misses[side].append({"below": upper, "above": lower})
     results = {
-        "command": f"python bench/real_tiers.py --parts {path}",
+        "command": command,
         "config": PipelineConfig().to_dict(),
         "variants": parts,
         "misses": misses,
@@ -120,8 +121,14 @@ def write_parts(bench: sets.BenchSet, path: Path, threads: int) -> None:
 
 def shares_without(bench: sets.BenchSet, results: dict, left_out: list[str]) -> dict:
     """Each method's real-tier shares (``tier_accuracy``) from a results file's scores, with the
-    variants ``left_out`` ("mesh/variant") taken out of every pair: what a label would move."""
+    variants ``left_out`` ("mesh/variant") taken out of every pair: what a label would move.
+    The file's labels must be the bench's (the same relabels): its scores are read by them."""
     keys = [f"{c.base}/{c.label}" for c in bench.comparisons]
+    labels = {f"{c.base}/{c.label}": c.kind for c in bench.comparisons}
+    if results["labels"] != labels:
+        differ = sorted(k for k in {*labels, *results["labels"]}
+                        if labels.get(k) != results["labels"].get(k))  # fmt: skip
+        raise SystemExit(f"the results' labels are not these: {', '.join(differ)}")
     dropped = {sets.REAL_PREFIX + name for name in left_out}
     if unknown := dropped - set(keys):
         raise SystemExit(f"no such real-tier variant: {', '.join(sorted(unknown))}")
@@ -159,6 +166,8 @@ def main() -> None:
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--work", type=Path, default=Path("runs/real_tiers"))
     args = parser.parse_args()
+    if args.relabel and args.other is None:
+        parser.error("--relabel names meshes of --other DIR")
     start = time.perf_counter()
     wanted = args.methods.split(",")
     bench = sets.BenchSet()
@@ -166,7 +175,10 @@ def main() -> None:
         sides = {"training": list(TRAINING_MESHES), "held_out": list(HELDOUT_MESHES)}
         sets.real_tiers(bench, [*sides["training"], *sides["held_out"]])
     else:
-        sides = {"other": sets.other_tiers(bench, args.other, parse_relabels(args.relabel))}
+        try:
+            sides = {OTHER_SIDE: sets.other_tiers(bench, args.other, parse_relabels(args.relabel))}
+        except ValueError as exc:  # a bad folder or relabel: say which, no traceback
+            parser.error(str(exc))
     chosen = f" --other DIR --relabel '{args.relabel}'" if args.other is not None else ""
     if args.renders is not None:
         write_renders(bench, args.renders, args.threads,
@@ -179,7 +191,8 @@ def main() -> None:
         write_renders(scans, args.scan_renders, args.threads,
                       f"python bench/real_tiers.py --scan-renders {args.scan_renders}")  # fmt: skip
     if args.parts is not None:
-        write_parts(bench, args.parts, args.threads)
+        write_parts(bench, args.parts, args.threads,
+                    f"python bench/real_tiers.py{chosen} --parts {args.parts}")  # fmt: skip
     if args.shares_from is not None:
         left_out = [name for name in args.leave_out.split(",") if name]
         shares = shares_without(bench, json.loads(args.shares_from.read_text()), left_out)

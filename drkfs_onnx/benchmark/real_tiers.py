@@ -65,12 +65,14 @@ RELABELLED = {
 def parse_relabels(text: str) -> dict[tuple[str, str], str]:
     """Relabels written "mesh/variant=tier,..." -> {(mesh, variant): tier}: what the renders of
     meshes from outside the repository show where it is not the recipe's tier."""
-    relabelled = {}
+    relabelled: dict[tuple[str, str], str] = {}
     for item in filter(None, text.split(",")):
         key, _, tier = item.partition("=")
         mesh, _, variant = key.partition("/")
-        if not (mesh and variant and tier in TIERS):
+        if not (mesh and variant and "/" not in variant and tier in TIERS):
             raise ValueError(f"{item!r}: a relabel is mesh/variant=tier, tier one of {TIERS}")
+        if (mesh, variant) in relabelled:
+            raise ValueError(f"{key!r} relabelled twice")
         relabelled[(mesh, variant)] = tier
     return relabelled
 

@@ -23,7 +23,7 @@ from ..synthetic.shapes import (
     subdivide,
 )
 from ..synthetic.tiers import part_tiers, scan_tiers
-from .real_tiers import HELDOUT_MESHES, TRAINING_MESHES, real_variants
+from .real_tiers import HELDOUT_MESHES, RELABELLED, TRAINING_MESHES, real_variants
 
 # The real meshes (meshes/README.md gives each one's origin and terms): a checkout's meshes/
 # folder, or the folder DRKFS_MESHES names (``drkfs bench --meshes`` sets it)
@@ -142,13 +142,22 @@ def tiers(
 REAL_PREFIX = "real-"  # the real tiers' base keys: real-<mesh>
 
 
-def real_tiers(bench: BenchSet, names: list[str], seed: int = SEED) -> None:
-    """Each named real mesh and its real-mesh tier variants (``real_tiers.real_variants``), as
-    the 'real' group."""
+def real_tiers(
+    bench: BenchSet,
+    names: list[str],
+    seed: int = SEED,
+    folder: Path | None = None,
+    relabelled: dict[tuple[str, str], str] = RELABELLED,
+) -> None:
+    """Each named real mesh (of the repository, or ``folder``'s OBJ of that name) and its
+    real-mesh tier variants (``real_tiers.real_variants``, labelled as ``relabelled`` says
+    where its renders show another tier than the recipe's), as the 'real' group. One random
+    generator serves the names in order: a mesh's noise and hole depend on the meshes before
+    it."""
     rng = np.random.default_rng(seed)
     for name in names:
-        mesh = load_mesh(real_mesh(name))
-        variants = real_variants(name, mesh.vertices, mesh.faces, rng)
+        mesh = load_mesh(real_mesh(name) if folder is None else Path(folder) / f"{name}.obj")
+        variants = real_variants(name, mesh.vertices, mesh.faces, rng, relabelled)
         _variants_of(bench, REAL_PREFIX + name, mesh.vertices, mesh.faces, variants, "real")
 
 
@@ -156,20 +165,23 @@ def other_tiers(
     bench: BenchSet, folder: Path, relabelled: dict[tuple[str, str], str], seed: int = SEED
 ) -> list[str]:
     """Every OBJ in ``folder`` (meshes from outside the repository: the real tiers' third side,
-    never chosen on) and its real-mesh tier variants, labelled as the recipe says but where
-    ``relabelled`` ((mesh, variant) -> tier) says what its renders show, as the 'real' group;
-    the meshes' names, sorted. A name of the repository's meshes is refused: it would be read
-    as that mesh's side."""
+    never chosen on) and its real-mesh tier variants (``real_tiers``, over the sorted names),
+    with ``relabelled`` ((mesh, variant) -> tier) naming what the renders show; the meshes'
+    names, sorted. A name of the repository's meshes is refused (it would be read as that
+    mesh's side), and so is a relabel of no variant there (a typo would keep the recipe's
+    tier)."""
     names = sorted(path.stem for path in Path(folder).glob("*.obj"))
     if not names:
         raise ValueError(f"{folder}: no .obj meshes to take as the real tiers' other side")
     if taken := sorted(set(names) & {*TRAINING_MESHES, *HELDOUT_MESHES}):
         raise ValueError(f"{folder}: {', '.join(taken)} named as the repository's meshes")
-    rng = np.random.default_rng(seed)
-    for name in names:
-        mesh = load_mesh(Path(folder) / f"{name}.obj")
-        variants = real_variants(name, mesh.vertices, mesh.faces, rng, relabelled)
-        _variants_of(bench, REAL_PREFIX + name, mesh.vertices, mesh.faces, variants, "real")
+    added = len(bench.comparisons)
+    real_tiers(bench, names, seed, Path(folder), relabelled)
+    made = {(c.base.removeprefix(REAL_PREFIX), c.label) for c in bench.comparisons[added:]}
+    if unknown := sorted(set(relabelled) - made):
+        raise ValueError(
+            f"{folder}: no such variant to relabel: {', '.join(f'{m}/{v}' for m, v in unknown)}"
+        )
     return names
 
 
