@@ -254,12 +254,12 @@ def lever_summary(bench: sets.BenchSet, values: dict[int, float | None]) -> dict
     """What a lever is judged by: the synthetic tier set's three shares, each side's shares of
     the real tiers and the real checks (``tier_accuracy``, ``real_checks``)."""
     synthetic, real = tier_accuracy(bench, values), tier_accuracy(bench, values, "real")
+    checks = real_checks(bench, values)  # one entry per side scored
     return {
         "tiers": {pair: synthetic[pair] for pair in TIER_PAIRS},
-        "real": {side: {pair: real[side][pair] for pair in TIER_PAIRS}
-                 for side in real_sides(list(_tier_values(bench, values, "real")))},
-        "checks": real_checks(bench, values),
-    }  # fmt: skip
+        "real": {side: {pair: real[side][pair] for pair in TIER_PAIRS} for side in checks},
+        "checks": checks,
+    }
 
 
 def real_summary(bench: sets.BenchSet, values: dict[int, float | None]) -> dict:
