@@ -87,6 +87,10 @@ NOW_SETTINGS = {  # NOW_LEVER's: what it moves from NETS_TRAINED_AT
     "turned_part_share": 0.2,
     "solid_both_rings": True,
 }
+WINDOW_LEVER = f"descriptors' part at slope 0.6 between 0.04 and 0.18, {NOW_LEVER}"
+WINDOW_SETTINGS = {
+    **NOW_SETTINGS, "moderate_slope": 0.6, "moderate_from": 0.04, "moderate_to": 0.18,
+}  # fmt: skip
 RAMP_LEVER = (  # the default since the ramp and its neighbours
     "solid change x{w:g} over reaches 2-3, 1-2 at power 1.5 inside the mesh, block 3, rings 0 "
     "and 2.5, {k} cameras, {px} px, softmax t = {t:g}"
@@ -222,6 +226,9 @@ LEVERS = {
     # (``match_rules.pairing_part``, ``pairing_solid``): what the recombination "descriptors'
     # and solid change from both rings (max, ring 1's part x0.2), ... x1.2 ..." measured
     NOW_LEVER: NOW_SETTINGS,
+    # the default since its descriptors' part counts at slope 0.6 between 0.04 and 0.18
+    # (``match_rules.moderated_part``), chosen by bench/part_transforms.py from NOW_LEVER's parts
+    WINDOW_LEVER: WINDOW_SETTINGS,
     # the default's match from 6 cameras of 128 px, which saw the bunny's hole (0.023) before
     # the own-ring pairing read both rings
     **{
@@ -477,7 +484,9 @@ class Recombined(Method):
     a moderate part counts less against the solid change while a part near c keeps its value;
     given as (q, c, k), a part up to k keeps its value and one above it is k + c ((part - k) /
     c)^q: a small defect's part, which a turn's solid change would outweigh once squared, stays
-    as it is."""
+    as it is (``powered_part``). With ``part_window`` = (s, low, high) a part counts at slope s
+    between low and high and in full elsewhere (``match_rules.moderated_part``, the config's
+    own since the default's window)."""
 
     def __init__(self, method: DrkfsOnnx, name: str, threads: int, ceiling: float | None = None,
                  solid_cameras: tuple[int, int] | None = None, view_power: float = 1.0,
@@ -488,11 +497,13 @@ class Recombined(Method):
                  local: float | None = None, near: float | None = None,
                  solid_ceiling: float | None = None,
                  both_rings: str | None = None, both_parts: float = 0.0,
-                 part_power: tuple[float, ...] | None = None):  # fmt: skip
+                 part_power: tuple[float, ...] | None = None,
+                 part_window: tuple[float, float, float] | None = None):  # fmt: skip
         self.method, self.outputs, self.symmetric = method, (name,), method.symmetric
         self.floor, self.netted, self.moved, self.by_area = floor, netted, moved, by_area
         self.local, self.near, self.solid_ceiling = local, near, solid_ceiling
         self.both_rings, self.both_parts, self.part_power = both_rings, both_parts, part_power
+        self.part_window = part_window
         self.config, self.ceiling, self.view_power = method.scorer.config, ceiling, view_power
         self.solid = None
         solid_config = self.config
@@ -515,7 +526,12 @@ class Recombined(Method):
         return (features, views), seconds + render_s
 
     def compare(self, a, b):
-        one, scores = self.config.one_ring(), []
+        return (min(part + term for part, term in self.pairings(a, b)),)
+
+    def pairings(self, a, b) -> list[tuple[float, float]]:
+        """Each ring pairing's (descriptor part, solid term) of A against B: the score is the
+        least of their sums."""
+        one, pairs = self.config.one_ring(), []
         solid_config = self.config if self.solid is None else self.solid.config
         for i, j in match_rules.ring_pairings(self.config):
             if self.floor is None:
@@ -528,9 +544,9 @@ class Recombined(Method):
             if self.ceiling is not None:
                 part = self.ceiling * math.tanh(part / self.ceiling)
             if self.part_power is not None:
-                power, kept, knee = (*self.part_power, 0.0)[:3]
-                if part > knee:
-                    part = knee + kept * ((part - knee) / kept) ** power
+                part = float(powered_part(part, *self.part_power))
+            if self.part_window is not None:
+                part = float(match_rules.moderated_part(part, *self.part_window))
             # the views compared for the solid change: the pairing's rings, and with
             # ``both_rings`` in the own-ring pairing the turned ring's against each other too
             rings = [(i, j)] + ([(1, 1)] if self.both_rings and (i, j) == (0, 0) else [])
@@ -546,8 +562,8 @@ class Recombined(Method):
             term = self.config.solid_weight * solid + moved
             if self.solid_ceiling is not None:  # a whole region changed: noticed, then no more
                 term = self.solid_ceiling * math.tanh(term / self.solid_ceiling)
-            scores.append(part + term)
-        return (min(scores),)
+            pairs.append((part, term))
+        return pairs
 
     def _view_changes(
         self, views_a: np.ndarray, views_b: np.ndarray, i: int, j: int,
@@ -583,6 +599,13 @@ class Recombined(Method):
             if self.netted:
                 per_view = np.maximum(peaks[0], net)
         return per_view, moved
+
+
+def powered_part(part, power: float, kept: float, knee: float = 0.0):
+    """A descriptors' part (a float or an array) kept up to ``knee`` and ``knee + kept ((part -
+    knee) / kept)^power`` above it: convex, so that a moderate part counts less."""
+    above = np.maximum(np.asarray(part) - knee, 0.0)
+    return np.where(np.asarray(part) > knee, knee + kept * (above / kept) ** power, part)
 
 
 def floored_part(a, b, config: PipelineConfig, quantile: float, scale: float) -> float:

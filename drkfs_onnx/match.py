@@ -141,7 +141,7 @@ def pairing_scores(
         _check_views(views_a, views_b, config)
     scores = []
     for i, j in match_rules.ring_pairings(config):
-        score = match_rules.pairing_part(i, j, part, config)
+        score = match_rules.pairing_part(i, j, part, config, TORCH_OPS)
         if config.solid_weight:
             score = score + match_rules.pairing_solid(i, j, solid, config, TORCH_OPS)
         scores.append(score)

@@ -130,8 +130,10 @@ def pairing_part(a: MeshFeatures, b: MeshFeatures, i: int, j: int, config: Pipel
     """The descriptors' part of A's ring ``i`` against B's ring ``j`` (``match_rules.
     pairing_part``) of two meshes' features."""
     one = config.one_ring()
-    return match_rules.pairing_part(
-        i, j, lambda k, m: descriptor_part(a.ring(k), b.ring(m), one), config
+    return float(
+        match_rules.pairing_part(
+            i, j, lambda k, m: descriptor_part(a.ring(k), b.ring(m), one), config
+        )
     )
 
 

@@ -6,7 +6,13 @@ import numpy as np
 import pytest
 
 from drkfs_onnx.contract.cameras import hemisphere_directions, make_cameras, rotation_y
-from drkfs_onnx.contract.config import NETS_TRAINED_AT, ONE_REACH, OWN_RING_ONLY, PipelineConfig
+from drkfs_onnx.contract.config import (
+    FULL_PARTS,
+    NETS_TRAINED_AT,
+    ONE_REACH,
+    OWN_RING_ONLY,
+    PipelineConfig,
+)
 
 
 def test_paper_preset_is_the_papers_pipeline():
@@ -48,7 +54,9 @@ def test_config_is_frozen_and_round_trips_through_json():
     "bad",
     [{"num_views": 0}, {"image_size": 16}, {"detector_kernel": 4}, {"sigma": 0.0},
      {"camera_distance": 0.9}, {"patch_size": 30}, {"turn_degrees": -2.0},
-     {"turn_degrees": 90.0}, {"turned_part_share": -0.1}, {"turned_part_share": 1.5}],
+     {"turn_degrees": 90.0}, {"turned_part_share": -0.1}, {"turned_part_share": 1.5},
+     {"moderate_slope": 0.0}, {"moderate_slope": 1.5}, {"moderate_from": -0.1},
+     {"moderate_from": 0.2, "moderate_to": 0.1}],
 )  # fmt: skip
 def test_invalid_configs_are_refused(bad):
     with pytest.raises(ValueError):
@@ -57,13 +65,17 @@ def test_invalid_configs_are_refused(bad):
 
 def test_a_record_without_later_fields_reads_as_it_was_made():
     """A config written before a field existed (a features file, a results JSON) takes the
-    value it was made with: one ring, no solid change, one reach, the own ring alone."""
+    value it was made with: one ring, no solid change, one reach, the own ring alone, the
+    descriptors' part in full."""
     record = PipelineConfig().to_dict()
-    for name in ("turn_degrees", "solid_weight", *ONE_REACH, *OWN_RING_ONLY):
+    for name in ("turn_degrees", "solid_weight", *ONE_REACH, *OWN_RING_ONLY, *FULL_PARTS):
         del record[name]
     old = PipelineConfig.from_dict(record)
-    assert old == PipelineConfig(turn_degrees=0.0, solid_weight=0.0, **ONE_REACH, **OWN_RING_ONLY)
+    assert old == PipelineConfig(
+        turn_degrees=0.0, solid_weight=0.0, **ONE_REACH, **OWN_RING_ONLY, **FULL_PARTS
+    )
     assert (old.turned_part_share, old.solid_both_rings) == (0.0, False)
+    assert old.moderate_slope == 1.0
 
 
 def test_unknown_keys_are_refused():

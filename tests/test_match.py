@@ -7,7 +7,7 @@ import torch
 
 from drkfs_onnx.contract import match_rules
 from drkfs_onnx.contract.array_ops import NUMPY_OPS
-from drkfs_onnx.contract.config import DIRECTIONS, ONE_REACH, PipelineConfig
+from drkfs_onnx.contract.config import DIRECTIONS, FULL_PARTS, ONE_REACH, PipelineConfig
 from drkfs_onnx.contract.solid_change import view_solid_changes
 from drkfs_onnx.match import match_score
 from drkfs_onnx.render.torch_ops import TORCH_OPS
@@ -318,7 +318,7 @@ def test_global_matching_sees_a_part_missing_from_a_only_backward_window_both_wa
 
 @pytest.mark.parametrize("matching", ["global", "window"])
 def test_a_turned_ring_counts_the_least_of_own_against_own_and_own_against_turned(matching):
-    rings = GRID.replace(turn_degrees=2.0, matching=matching)
+    rings = GRID.replace(turn_degrees=2.0, matching=matching, **FULL_PARTS)  # parts in full
     a, b, empty = _near_tie_sets()
     other = np.random.default_rng(3).normal(size=a.shape).astype(np.float32)  # far from both
 
@@ -330,7 +330,7 @@ def test_a_turned_ring_counts_the_least_of_own_against_own_and_own_against_turne
         return expected
 
     one_ring = match(_features(a, empty, GRID), _features(b, empty, GRID), GRID.replace(
-        matching=matching))  # fmt: skip
+        matching=matching, **FULL_PARTS))  # fmt: skip
     # own vs own: the turned ring's own comparison (other against other, 0) has its share
     share = rings.turned_part_share
     assert score([a, other], [b, other]) == pytest.approx((1 - share) * one_ring, rel=1e-6)
@@ -338,6 +338,38 @@ def test_a_turned_ring_counts_the_least_of_own_against_own_and_own_against_turne
     assert score([other, b], [b, other]) == 0.0  # and the other way round
     # both turned is no turn between them: that pairing is not searched
     assert score([other, a], [b[:, ::-1].copy(), a]) > 0.0
+
+
+def test_a_moderated_part_counts_at_the_slope_inside_its_window_and_in_full_outside():
+    parts = np.array([0.005, 0.04, 0.1, 0.18, 0.2, 0.5])
+    out = match_rules.moderated_part(parts, 0.6, 0.04, 0.18)
+    assert out[:2] == pytest.approx([0.005, 0.04])  # in full below the window
+    assert out[2] == pytest.approx(0.04 + 0.6 * 0.06)  # at the slope inside
+    assert out[5] - out[4] == pytest.approx(0.3)  # above it, differences kept
+    tensor = match_rules.moderated_part(torch.from_numpy(parts), 0.6, 0.04, 0.18, TORCH_OPS)
+    assert tensor.numpy() == pytest.approx(out)
+    assert match_rules.moderated_part(0.1, 1.0, 0.04, 0.18) == 0.1  # slope 1: no window
+
+
+def test_a_moderate_descriptor_part_counts_at_the_windows_slope_on_both_paths():
+    a, b, empty = _near_tie_sets()
+    full = GRID.replace(**FULL_PARTS)
+    fa, fb = _features(a, empty, full), _features(b, empty, full)
+    part = match(fa, fb, full)
+
+    def windowed(slope: float, low: float, high: float) -> float:
+        config = full.replace(moderate_slope=slope, moderate_from=low, moderate_to=high)
+        score = match(fa, fb, config)
+        dense = match_score(torch.from_numpy(fa.dense), torch.from_numpy(fb.dense), config)
+        assert score == pytest.approx(float(dense), rel=1e-5)  # torch = runtime
+        return score
+
+    # inside the window: in full up to its start, at the slope above it
+    assert windowed(0.5, part / 4, 2 * part) == pytest.approx(part / 4 + 0.5 * 0.75 * part)
+    # above it: the window's width counts at the slope, the rest in full
+    assert windowed(0.5, part / 4, part / 2) == pytest.approx(part - 0.5 * part / 4)
+    assert windowed(0.5, 2 * part, 3 * part) == pytest.approx(part)  # below it: in full
+    assert windowed(1.0, part / 4, 2 * part) == pytest.approx(part)  # slope 1: no window
 
 
 def test_runtime_refuses_features_of_another_config_or_graph():

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from drkfs_onnx import PipelineConfig
+from drkfs_onnx.contract.config import FULL_PARTS
 from drkfs_onnx.contract.solid_change import solid_reaches
 
 SCRIPT = Path(__file__).resolve().parents[1] / "bench" / "real_levers.py"
@@ -67,7 +68,9 @@ def _recombined_score(
     """A, whose turned ring alone shows a bar, against B, which shows none: each ring pairing's
     descriptor part 1 across rings (a turn the mesh does not have), 0 for ring 0 against ring
     0 and 0.2 for ring 1 against ring 1; the solid change at weight 1."""
-    config = PipelineConfig(image_size=48, num_views=1, turn_degrees=2.5, solid_weight=1.0)
+    config = PipelineConfig(
+        image_size=48, num_views=1, turn_degrees=2.5, solid_weight=1.0, **FULL_PARTS
+    )
     parts = {(0, 0): 0.0, (1, 1): 0.2, (0, 1): 1.0, (1, 0): 1.0}
     monkeypatch.setattr(real_levers, "descriptor_part", lambda a, b, _: parts[a, b])
     method = SimpleNamespace(scorer=SimpleNamespace(config=config), symmetric=True)

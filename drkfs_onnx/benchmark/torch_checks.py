@@ -96,7 +96,13 @@ def slide_of(against, steps: int = SLIDE_STEPS) -> dict:
     for t in offsets:
         v, f = assemble(shifted(parts, "leg_3", (t * size, 0.0, 0.0)), 1)
         scores.append(score(place(v, frame), f))
-    steps_ = np.abs(np.diff(scores))
-    ratio = float(steps_.max() / steps_.mean()) if steps_.mean() > 0 else float("inf")
+    ratio = jump_ratio(scores)
     return {"offsets": offsets.tolist(), "scores": scores, "max_over_mean_step": ratio,
             "limit": JUMP_LIMIT, "passed": ratio <= JUMP_LIMIT}  # fmt: skip
+
+
+def jump_ratio(scores) -> float:
+    """A slide's largest step over its mean step (inf when it never moves): at most
+    JUMP_LIMIT passes."""
+    steps = np.abs(np.diff(np.asarray(scores, dtype=float)))
+    return float(steps.max() / steps.mean()) if steps.mean() > 0 else float("inf")

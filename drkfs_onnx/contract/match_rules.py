@@ -69,13 +69,28 @@ def _own_rings(i: int, j: int, config: PipelineConfig) -> bool:
     return (i, j) == (0, 0) and len(config.rings) == 2
 
 
-def pairing_part(i: int, j: int, part: Callable[[int, int], Any], config: PipelineConfig) -> Any:
+def pairing_part(
+    i: int, j: int, part: Callable[[int, int], Any], config: PipelineConfig,
+    ops: ArrayOps = NUMPY_OPS,
+) -> Any:  # fmt: skip
     """The descriptors' part of A's ring ``i`` against B's ring ``j``, ``part(i, j)`` of one
     ring's sets; in the own-ring pairing ``turned_part_share`` of it is the turned ring's own
-    comparison's: the same cameras 2.5° on, a second look at the same surface."""
+    comparison's: the same cameras 2.5° on, a second look at the same surface. Moderated
+    (``moderated_part``) by the config's window."""
     share = config.turned_part_share if _own_rings(i, j, config) else 0.0
     own = part(i, j)
-    return (1.0 - share) * own + share * part(1, 1) if share else own
+    blended = (1.0 - share) * own + share * part(1, 1) if share else own
+    window = (config.moderate_slope, config.moderate_from, config.moderate_to)
+    return moderated_part(blended, *window, ops)
+
+
+def moderated_part(part: T, slope: float, low: float, high: float, ops: ArrayOps = NUMPY_OPS) -> T:
+    """A descriptors' part (a float or an array) counted at ``slope`` between ``low`` and
+    ``high`` and in full elsewhere: a moderate part counts less against the solid change, a
+    small one keeps its value and two above ``high`` keep their difference."""
+    if slope == 1.0 or high <= low:
+        return part
+    return part - (1.0 - slope) * ops.clip(part - low, 0.0, high - low)
 
 
 def pairing_solid(
