@@ -8,9 +8,10 @@ transform plus the term), with the bench's own summaries. The default here is
 ``real_levers.py``'s part levers to the digit; the window rows (``match_rules.moderated_part``)
 chose the window the default has since.
 
-It also says which misorderings no such transform can mend: a pair whose higher-tier variant
-has, for each pairing of the lower one, a pairing with no larger part and no larger term
-scores at most as high under every non-decreasing transform and every weight.
+It keeps the records of the tiers' variants, and says which misorderings no such transform can
+mend: a pair whose higher-tier variant has, for each pairing of the lower one, a pairing with
+no larger part and no larger term scores at most as high under every non-decreasing transform
+and every weight.
 
     python bench/part_transforms.py --out bench/results/part_transforms.json \\
         --other DIR --relabel spot/smoothed=invisible,teapot/smoothed=invisible --human DIR
@@ -64,6 +65,15 @@ RULE = (
     "-0.43); then best training surface < structural, best synthetic invisible < surface, the "
     "milder slope, the narrower window"
 )
+
+
+def recorded_config() -> PipelineConfig:
+    """``real_levers.NOW_LEVER``'s config, the default before its window: parts in full, as
+    every transform here is judged from them."""
+    trained_at = PipelineConfig(
+        nets=PipelineConfig().nets, **NETS_TRAINED_AT, **ONE_REACH, **OWN_RING_ONLY
+    )
+    return trained_at.replace(**levers.LEVERS[levers.NOW_LEVER])
 
 
 class Recorded(levers.Recombined):
@@ -188,6 +198,15 @@ def unorderable(bench, recorded: dict) -> dict:
     return result
 
 
+def records_by_variant(bench, recorded: dict) -> dict[str, list[list[float]]]:
+    """Each tier and real-tier variant's recorded parts and terms, one [part, term] a ring
+    pairing, by "base/variant": the numbers the study's findings quote."""
+    keys, parts = recorded["comparisons"]
+    named = ((bench.comparisons[i], parts[n]) for n, i in enumerate(keys))
+    return {f"{c.base}/{c.label}": record.round(6).tolist()
+            for c, record in named if c.group in ("tiers", "real")}  # fmt: skip
+
+
 def candidate(row: dict, default: dict) -> bool:
     """``RULE``'s first half: every target the default keeps, kept (people's unless scored)."""
     people = row["human"]
@@ -216,8 +235,7 @@ def main() -> None:
     if args.relabel and args.other is None:
         parser.error("--relabel names meshes of --other DIR")
     start = time.perf_counter()
-    config = PipelineConfig(nets=PipelineConfig().nets, **NETS_TRAINED_AT, **ONE_REACH,
-                            **OWN_RING_ONLY).replace(**levers.LEVERS[levers.NOW_LEVER])  # fmt: skip
+    config = recorded_config()
     bench = sets.tier_set(quick=False)
     sets.real_tiers(bench, [*TRAINING_MESHES, *HELDOUT_MESHES])
     if args.other is not None:
@@ -270,6 +288,7 @@ def main() -> None:
         "candidates": [windows[w] for w in candidates],
         "chosen": None if chosen is None else windows[chosen],
         "unorderable": unorderable(bench, recorded),
+        "records": records_by_variant(bench, recorded),
         "rows": rows,
         "scoring_seconds": scoring_seconds,
         "seconds": time.perf_counter() - start,

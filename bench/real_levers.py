@@ -484,9 +484,8 @@ class Recombined(Method):
     a moderate part counts less against the solid change while a part near c keeps its value;
     given as (q, c, k), a part up to k keeps its value and one above it is k + c ((part - k) /
     c)^q: a small defect's part, which a turn's solid change would outweigh once squared, stays
-    as it is (``powered_part``). With ``part_window`` = (s, low, high) a part counts at slope s
-    between low and high and in full elsewhere (``match_rules.moderated_part``, the config's
-    own since the default's window)."""
+    as it is (``powered_part``). Each of these reads the pairing's part as the config gives it:
+    moderated by its window where it has one (``match_rules.moderated_part``)."""
 
     def __init__(self, method: DrkfsOnnx, name: str, threads: int, ceiling: float | None = None,
                  solid_cameras: tuple[int, int] | None = None, view_power: float = 1.0,
@@ -497,13 +496,11 @@ class Recombined(Method):
                  local: float | None = None, near: float | None = None,
                  solid_ceiling: float | None = None,
                  both_rings: str | None = None, both_parts: float = 0.0,
-                 part_power: tuple[float, ...] | None = None,
-                 part_window: tuple[float, float, float] | None = None):  # fmt: skip
+                 part_power: tuple[float, ...] | None = None):  # fmt: skip
         self.method, self.outputs, self.symmetric = method, (name,), method.symmetric
         self.floor, self.netted, self.moved, self.by_area = floor, netted, moved, by_area
         self.local, self.near, self.solid_ceiling = local, near, solid_ceiling
         self.both_rings, self.both_parts, self.part_power = both_rings, both_parts, part_power
-        self.part_window = part_window
         self.config, self.ceiling, self.view_power = method.scorer.config, ceiling, view_power
         self.solid = None
         solid_config = self.config
@@ -541,12 +538,13 @@ class Recombined(Method):
                 )  # fmt: skip
             else:
                 part = floored_part(a[0].ring(i), b[0].ring(j), one, *self.floor)
+                window = (self.config.moderate_slope, self.config.moderate_from,
+                          self.config.moderate_to)  # fmt: skip
+                part = float(match_rules.moderated_part(part, *window))
             if self.ceiling is not None:
                 part = self.ceiling * math.tanh(part / self.ceiling)
             if self.part_power is not None:
                 part = float(powered_part(part, *self.part_power))
-            if self.part_window is not None:
-                part = float(match_rules.moderated_part(part, *self.part_window))
             # the views compared for the solid change: the pairing's rings, and with
             # ``both_rings`` in the own-ring pairing the turned ring's against each other too
             rings = [(i, j)] + ([(1, 1)] if self.both_rings and (i, j) == (0, 0) else [])

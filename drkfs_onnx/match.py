@@ -6,7 +6,7 @@ from __future__ import annotations
 import torch
 
 from .contract import match_rules
-from .contract.config import PipelineConfig
+from .contract.config import FULL_PARTS, PipelineConfig
 from .contract.solid_change import view_solid_changes
 from .render.torch_ops import TORCH_OPS
 
@@ -163,9 +163,11 @@ def descriptor_score(
     temperature: float | None = None,
     table: torch.Tensor | None = None,
 ) -> torch.Tensor:
-    """``match_score`` of the descriptors alone, without the views' solid change: what the nets
-    are trained to order (the solid change has no weights to train)."""
-    return match_score(desc_a, desc_b, config.replace(solid_weight=0.0), temperature, table)
+    """``match_score`` of the descriptors alone, without the views' solid change and with their
+    part in full (``FULL_PARTS``): what the nets are trained to order (the solid change has no
+    weights to train, and the window is a reading of the nets' distances, not a target)."""
+    alone = config.replace(solid_weight=0.0, **FULL_PARTS)
+    return match_score(desc_a, desc_b, alone, temperature, table)
 
 
 def ring_views(views: torch.Tensor | None, ring: int, config: PipelineConfig):

@@ -34,6 +34,16 @@ def test_training_preset_is_the_previous_default_with_a_softer_renderer():
     assert PipelineConfig.training(num_views=2).num_views == 2
 
 
+def test_only_the_default_reads_the_descriptors_part_through_its_window():
+    # the window's ends are in the default's units (softmax at t = 0.05 over its views); the
+    # presets, the loss and the config the nets were trained at count the part in full
+    assert PipelineConfig().moderate_slope < 1.0
+    assert {name: NETS_TRAINED_AT[name] for name in FULL_PARTS} == FULL_PARTS
+    for preset in (PipelineConfig.paper(), PipelineConfig.structure(), PipelineConfig.training(),
+                   PipelineConfig.loss()):  # fmt: skip
+        assert {name: getattr(preset, name) for name in FULL_PARTS} == FULL_PARTS
+
+
 def test_presets_share_the_defaults_cameras_and_differ_in_nets_and_match():
     default, structure = PipelineConfig(), PipelineConfig.structure()
     assert (default.nets, default.matching, default.reduction) == ("tolerant", "window", "softmax")
@@ -120,3 +130,17 @@ def test_a_turned_ring_repeats_the_cameras_turned_about_the_vertical():
     # the paper, the nets' training and the loss see one ring
     for config in (PipelineConfig.paper(), PipelineConfig.training(), PipelineConfig.loss()):
         assert config.rings == (0.0,) and config.views_per_mesh == config.num_views
+
+
+def test_another_reduction_than_the_presets_counts_the_descriptors_part_in_full():
+    from drkfs_onnx.contract.cli_options import pick_config
+
+    window = ("moderate_slope", "moderate_from", "moderate_to")
+    assert pick_config() == PipelineConfig()
+    assert pick_config(reduction="softmax") == PipelineConfig()  # the preset's own: kept
+    summed = pick_config(reduction="sum")
+    assert {name: getattr(summed, name) for name in window} == FULL_PARTS
+    assert (
+        summed.replace(reduction="softmax", **{n: getattr(PipelineConfig(), n) for n in window})
+        == PipelineConfig()
+    )

@@ -9,7 +9,7 @@ from drkfs_onnx.contract import match_rules
 from drkfs_onnx.contract.array_ops import NUMPY_OPS
 from drkfs_onnx.contract.config import DIRECTIONS, FULL_PARTS, ONE_REACH, PipelineConfig
 from drkfs_onnx.contract.solid_change import view_solid_changes
-from drkfs_onnx.match import match_score
+from drkfs_onnx.match import descriptor_score, match_score
 from drkfs_onnx.render.torch_ops import TORCH_OPS
 from drkfs_onnx.runtime.features import MeshFeatures
 from drkfs_onnx.runtime.match import descriptor_part, match, solid_views
@@ -349,6 +349,35 @@ def test_a_moderated_part_counts_at_the_slope_inside_its_window_and_in_full_outs
     tensor = match_rules.moderated_part(torch.from_numpy(parts), 0.6, 0.04, 0.18, TORCH_OPS)
     assert tensor.numpy() == pytest.approx(out)
     assert match_rules.moderated_part(0.1, 1.0, 0.04, 0.18) == 0.1  # slope 1: no window
+
+
+def test_the_window_reads_the_own_ring_pairings_blend_and_passes_gradients_at_its_slope():
+    a, b, empty = _near_tie_sets()
+    other = np.random.default_rng(3).normal(size=a.shape).astype(np.float32)
+    rings = GRID.replace(turn_degrees=2.0, **FULL_PARTS)
+    fa = _features(np.concatenate([a, other]), empty, rings)
+    fb = _features(np.concatenate([b, other]), empty, rings)
+    blended = match(fa, fb, rings)  # (1 - share) of A's own ring against B's, in full
+    low, high = blended / 2, 2 * blended
+    windowed = rings.replace(moderate_slope=0.5, moderate_from=low, moderate_to=high)
+    assert match(fa, fb, windowed) == pytest.approx(low + 0.5 * (blended - low), rel=1e-6)
+    # the torch path's gradient inside the window is the slope's share of the part's
+    dense_a = torch.from_numpy(fa.dense).requires_grad_(True)
+    match_score(dense_a, torch.from_numpy(fb.dense), windowed).backward()
+    inside = dense_a.grad.clone()
+    dense_a.grad = None
+    match_score(dense_a, torch.from_numpy(fb.dense), rings).backward()
+    assert torch.allclose(inside, 0.5 * dense_a.grad, rtol=1e-4, atol=1e-8)
+
+
+def test_the_nets_train_on_the_descriptors_part_in_full():
+    a, b, empty = _near_tie_sets()
+    full = GRID.replace(**FULL_PARTS)
+    dense_a, dense_b = (torch.from_numpy(_features(x, empty, full).dense) for x in (a, b))
+    part = float(match_score(dense_a, dense_b, full))
+    windowed = full.replace(moderate_slope=0.5, moderate_from=part / 4, moderate_to=2 * part)
+    assert float(descriptor_score(dense_a, dense_b, windowed)) == pytest.approx(part)
+    assert float(match_score(dense_a, dense_b, windowed)) < part
 
 
 def test_a_moderate_descriptor_part_counts_at_the_windows_slope_on_both_paths():

@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from .config import DIRECTIONS, MATCHINGS, NORMALIZATIONS, REDUCTIONS, PipelineConfig
+from .config import DIRECTIONS, FULL_PARTS, MATCHINGS, NORMALIZATIONS, REDUCTIONS, PipelineConfig
 
 PRESETS = {
     "default": PipelineConfig,
@@ -44,7 +44,11 @@ Direction = Annotated[
     str | None, typer.Option(help=f"Override the searched direction: {', '.join(DIRECTIONS)}.")
 ]
 Reduction = Annotated[
-    str | None, typer.Option(help=f"Override the reduction: {', '.join(REDUCTIONS)}.")
+    str | None,
+    typer.Option(
+        help=f"Override the reduction: {', '.join(REDUCTIONS)} (another than the preset's "
+        "counts the descriptors' part in full: the default's window is in its units)."
+    ),
 ]
 SolidWeight = Annotated[
     float | None,
@@ -88,7 +92,11 @@ def pick_config(
         solid_weight=solid_weight,
     )  # fmt: skip
     changes.update({key: value for key, value in picked.items() if value is not None})
-    config = PRESETS[preset]().replace(**changes)
+    base = PRESETS[preset]()
+    if reduction is not None and reduction != base.reduction:
+        # the window on the descriptors' part is in the preset reduction's units
+        changes = {**FULL_PARTS, **changes}
+    config = base.replace(**changes)
     if window is not None and config.matching != "window":
         raise ValueError(
             f"--window {window} sets the window match's radius, but the {preset} preset "

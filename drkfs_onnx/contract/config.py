@@ -171,8 +171,9 @@ class PipelineConfig:
     # parts' difference (another shape) count as before. Chosen among 120 windows, each the
     # default's parts transformed, by the synthetic tiers and the real tiers' training side
     # with every synthetic pair and the bench's targets kept (``bench/part_transforms.py``,
-    # docs/real_levers.md); a window reaching above 0.18 lost a synthetic pair, a slope under
-    # about 0.4 the slide check.
+    # docs/real_levers.md); a window reaching above 0.18 lost a synthetic pair, one reaching
+    # 0.18 at a slope of 0.3 or less the slide check. Its ends are in this reduction's units:
+    # another reduction picked on the command line counts the part in full (``pick_config``).
     moderate_slope: float = 0.6
     moderate_from: float = 0.04
     moderate_to: float = 0.18
