@@ -39,7 +39,6 @@ import real_levers as levers
 from drkfs_onnx import PipelineConfig
 from drkfs_onnx.benchmark import human, sets, torch_checks
 from drkfs_onnx.benchmark.methods import DrkfsOnnx, Placed
-from drkfs_onnx.benchmark.real_tiers import HELDOUT_MESHES, TRAINING_MESHES, parse_relabels
 from drkfs_onnx.benchmark.run import (
     bars_summary,
     lever_summary,
@@ -48,7 +47,6 @@ from drkfs_onnx.benchmark.run import (
     score_everything,
 )
 from drkfs_onnx.contract import match_rules
-from drkfs_onnx.contract.config import NETS_TRAINED_AT, ONE_REACH, OWN_RING_ONLY
 
 TIERS = ("invisible", "surface", "structural")
 KNEES = [(q, k) for q in (1.25, 1.5, 1.75, 2.0) for k in (0.005, 0.01, 0.02)]
@@ -70,10 +68,7 @@ RULE = (
 def recorded_config() -> PipelineConfig:
     """``real_levers.NOW_LEVER``'s config, the default before its window: parts in full, as
     every transform here is judged from them."""
-    trained_at = PipelineConfig(
-        nets=PipelineConfig().nets, **NETS_TRAINED_AT, **ONE_REACH, **OWN_RING_ONLY
-    )
-    return trained_at.replace(**levers.LEVERS[levers.NOW_LEVER])
+    return levers.trained_at(PipelineConfig().nets).replace(**levers.LEVERS[levers.NOW_LEVER])
 
 
 class Recorded(levers.Recombined):
@@ -228,25 +223,11 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, required=True)
     parser.add_argument("--threads", type=int, default=2)
-    parser.add_argument("--human", type=Path, help="a Geo-metric clone (see drkfs bench --human)")
-    parser.add_argument("--other", type=Path, help="a folder of meshes: the third side")
-    parser.add_argument("--relabel", default="", help="with --other: mesh/variant=tier,...")
+    levers.add_bench_options(parser)
     args = parser.parse_args()
-    if args.relabel and args.other is None:
-        parser.error("--relabel names meshes of --other DIR")
     start = time.perf_counter()
-    config = recorded_config()
-    bench = sets.tier_set(quick=False)
-    sets.real_tiers(bench, [*TRAINING_MESHES, *HELDOUT_MESHES])
-    if args.other is not None:
-        try:
-            sets.other_tiers(bench, args.other, parse_relabels(args.relabel))
-        except ValueError as exc:  # a bad folder or relabel: say which, no traceback
-            parser.error(str(exc))
-    sets.bars(bench)
-    sets.retrieval(bench, list(sets.ALL_FAMILIES), sets.RETRIEVAL_PER_FAMILY)
-    jod = human.add_human(bench, args.human) if args.human else None
-    recorded = record(bench, config, args.threads, print)
+    bench, jod = levers.lever_bench(parser, args)
+    recorded = record(bench, recorded_config(), args.threads, print)
     scoring_seconds = time.perf_counter() - start
 
     def identity(part):

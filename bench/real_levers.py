@@ -688,6 +688,41 @@ def feature_graph(config: PipelineConfig, folder: Path) -> Path | None:
     return path
 
 
+def trained_at(nets: str) -> PipelineConfig:
+    """The config every lever moves: the nets' at the config they were trained at, its solid
+    change at one reach and its own-ring pairing from its own ring alone."""
+    return PipelineConfig(nets=nets, **NETS_TRAINED_AT, **ONE_REACH, **OWN_RING_ONLY)
+
+
+def add_bench_options(parser: argparse.ArgumentParser) -> None:
+    """--human, --other and --relabel: what ``lever_bench`` reads besides the repository."""
+    parser.add_argument("--human", type=Path, help="a Geo-metric clone (see drkfs bench --human)")
+    parser.add_argument(
+        "--other", type=Path, help="a folder of meshes from outside the repository: a third side"
+    )
+    parser.add_argument(
+        "--relabel", default="", help="with --other: mesh/variant=tier,... as the renders show"
+    )
+
+
+def lever_bench(parser: argparse.ArgumentParser, args) -> tuple[sets.BenchSet, dict | None]:
+    """The bench a lever is judged on: the synthetic tiers, both sides of the real tiers (and
+    the third with --other), the bars, retrieval and people's pairs with --human; with the
+    people's judgments. A bad folder or relabel ends the run through ``parser.error``."""
+    if args.relabel and args.other is None:
+        parser.error("--relabel names meshes of --other DIR")
+    bench = sets.tier_set(quick=False)
+    sets.real_tiers(bench, [*TRAINING_MESHES, *HELDOUT_MESHES])
+    if args.other is not None:
+        try:
+            sets.other_tiers(bench, args.other, parse_relabels(args.relabel))
+        except ValueError as exc:  # a bad folder or relabel: say which, no traceback
+            parser.error(str(exc))
+    sets.bars(bench)  # the benchmark's own targets a default must keep
+    sets.retrieval(bench, list(sets.ALL_FAMILIES), sets.RETRIEVAL_PER_FAMILY)
+    return bench, human.add_human(bench, args.human) if args.human else None
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, required=True)
@@ -701,29 +736,12 @@ def main() -> None:
         metavar="LEVER",
         help="every lever but the turn searches and recombinations unless set",
     )
-    parser.add_argument("--human", type=Path, help="a Geo-metric clone (see drkfs bench --human)")
-    parser.add_argument(
-        "--other", type=Path, help="a folder of meshes from outside the repository: a third side"
-    )
-    parser.add_argument(
-        "--relabel", default="", help="with --other: mesh/variant=tier,... as the renders show"
-    )
+    add_bench_options(parser)
     args = parser.parse_args()
-    if args.relabel and args.other is None:
-        parser.error("--relabel names meshes of --other DIR")
     start = time.perf_counter()
-    default = PipelineConfig(nets=args.nets, **NETS_TRAINED_AT, **ONE_REACH, **OWN_RING_ONLY)
+    default = trained_at(args.nets)
     configs = {name: default.replace(**LEVERS[WRAPPED.get(name, name)]) for name in args.levers}
-    bench = sets.tier_set(quick=False)
-    sets.real_tiers(bench, [*TRAINING_MESHES, *HELDOUT_MESHES])
-    if args.other is not None:
-        try:
-            sets.other_tiers(bench, args.other, parse_relabels(args.relabel))
-        except ValueError as exc:  # a bad folder or relabel: say which, no traceback
-            parser.error(str(exc))
-    sets.bars(bench)  # the benchmark's own targets a default must keep
-    sets.retrieval(bench, list(sets.ALL_FAMILIES), sets.RETRIEVAL_PER_FAMILY)
-    jod = human.add_human(bench, args.human) if args.human else None
+    bench, jod = lever_bench(parser, args)
     with tempfile.TemporaryDirectory() as folder:
         methods = [
             DrkfsOnnx(name, config, feature_graph(config, Path(folder)), args.threads)
