@@ -1,25 +1,25 @@
 """Levers for a viewer's tolerance and attention, measured without retraining: a config's nets (the
 default's unless ``--nets``) under other matches, reductions, camera counts, view sizes, turned
-rings of cameras, solid changes of the views and searches over turns of the meshes, on the
-benchmark's synthetic tiers and on both sides of its real-mesh tiers (a lever is chosen on the
-training side and judged on the held-out one), with the bench's targets a default must keep (the
-bars test, retrieval, the slide check; people's judgments with --human). Each lever moves the config
-the nets were trained at (``NETS_TRAINED_AT``: 6 views of 128 px, t = 0.1, one ring, no solid
-change, the default's until the lever "5 cameras, 144 px, softmax t = 0.05" became the default, then
-"rings 0 and 2.5, ...", then "solid change x0.5 shift 2 block 3, ...", then "solid change x0.7 over
-reaches 2-3, ...", then ``NOW_LEVER``), named "default" in the results. The turn searches
-(``TURN_SEARCHES``, not run unless named) wrap a lever's scorer, and so do the recombinations
-(``RECOMBINED``, not run unless named: the descriptors' part bounded, the solid change from other
-cameras than the descriptors', the views' solid changes in a power mean, a pixel's change taken over
-other reaches inside the mesh and at its outline than a config's ramp allows, the descriptors'
-distances counted above a floor the whole shown surface sets, the outline's change netted, mesh
-lost against mesh gained, so that a moved part counts less than a removed one, the own-ring
-pairing's solid change taken over both rings' views, or the descriptors' part made convex). A
-lever's solid change is at one reach unless it names a ramp (``ONE_REACH``), as every lever
-before the ramp was, and its own-ring pairing from its own ring alone unless it names both
-(``OWN_RING_ONLY``), as every lever before ``NOW_LEVER``. A turn search's slide check is its
-lever's, as the torch path has none; a recombination's is its own, on the runtime path it is
-scored on (``runtime_slide``).
+rings of cameras, solid changes of the views, the light on faces seen from behind and searches over
+turns of the meshes, on the benchmark's synthetic tiers and on both sides of its real-mesh tiers (a
+lever is chosen on the training side and judged on the held-out one), with the bench's targets a
+default must keep (the bars test, retrieval, the slide check; people's judgments with --human). Each
+lever moves the config the nets were trained at (``NETS_TRAINED_AT``: 6 views of 128 px, t = 0.1,
+one ring, no solid change, the default's until the lever "5 cameras, 144 px, softmax t = 0.05"
+became the default, then "rings 0 and 2.5, ...", then "solid change x0.5 shift 2 block 3, ...", then
+"solid change x0.7 over reaches 2-3, ...", then ``NOW_LEVER``, then ``WINDOW_LEVER``), named
+"default" in the results. The turn searches (``TURN_SEARCHES``, not run unless named) wrap a lever's
+scorer, and so do the recombinations (``RECOMBINED``, not run unless named: the descriptors' part
+bounded, the solid change from other cameras than the descriptors', the views' solid changes in a
+power mean, a pixel's change taken over other reaches inside the mesh and at its outline than a
+config's ramp allows, the descriptors' distances counted above a floor the whole shown surface sets,
+the outline's change netted, mesh lost against mesh gained, so that a moved part counts less than a
+removed one, the own-ring pairing's solid change taken over both rings' views, or the descriptors'
+part made convex). A lever's solid change is at one reach unless it names a ramp (``ONE_REACH``), as
+every lever before the ramp was, and its own-ring pairing from its own ring alone unless it names
+both (``OWN_RING_ONLY``), as every lever before ``NOW_LEVER``. A turn search's slide check is its
+lever's, as the torch path has none; a recombination's is its own, on the runtime path it is scored
+on (``runtime_slide``).
 
     python bench/real_levers.py --out bench/results/real_levers_tolerant.json
     python bench/real_levers.py --nets metric --out bench/results/real_levers.json
@@ -229,6 +229,16 @@ LEVERS = {
     # the default since its descriptors' part counts at slope 0.6 between 0.04 and 0.18
     # (``match_rules.moderated_part``), chosen by bench/part_transforms.py from NOW_LEVER's parts
     WINDOW_LEVER: WINDOW_SETTINGS,
+    # the default with faces seen from behind lit by a share of the diffuse light
+    # (``PipelineConfig.back_light``): at 0 the inside of a cut hole or a removed part's opening
+    # lies in the shell's shadow, as a viewer sees it, where two-sided light shows more surface
+    **{
+        f"faces seen from behind at {share:g} of the light, {WINDOW_LEVER}": {
+            **WINDOW_SETTINGS,
+            "back_light": share,
+        }
+        for share in (0.0, 0.25, 0.5, 0.75)
+    },  # fmt: skip
     # the default's match from 6 cameras of 128 px, which saw the bunny's hole (0.023) before
     # the own-ring pairing read both rings
     **{

@@ -81,13 +81,14 @@ def open_features(
 ) -> Graph:
     """The feature graph for ``config`` (the shipped one unless ``path``), refused with a
     ModelMismatch naming the differing settings when it was built for another config (the match
-    settings and the cameras' count and turn aside: the graph describes any views)."""
+    settings, the cameras' count and turn and the light on faces seen from behind aside: the
+    graph describes any views, however lit)."""
     graph = Graph.open(*_read(path, features_file(config)), threads)
     if CONFIG_KEY not in graph.metadata:
         raise ModelMismatch(f"{graph.source}: no {CONFIG_KEY} metadata; not a DR-KFS feature graph")
     built = PipelineConfig.from_json(graph.metadata[CONFIG_KEY])
-    cameras = {"num_views": config.num_views, "turn_degrees": config.turn_degrees}
-    built = built.features_part().replace(**cameras)
+    views = {name: getattr(config, name) for name in ("num_views", "turn_degrees", "back_light")}
+    built = built.features_part().replace(**views)
     if built != config.features_part():
         raise ModelMismatch(
             f"{graph.source} was built for another pipeline config: "

@@ -20,6 +20,7 @@ from drkfs_onnx.benchmark.sets import STABILITY, _box_with_cavity
 from drkfs_onnx.benchmark.torch_checks import agreement, value_and_gradient
 from drkfs_onnx.contract.config import PipelineConfig
 from drkfs_onnx.contract.mesh import frame_of, load_mesh, place
+from drkfs_onnx.runtime.render import NumpyRenderer
 from drkfs_onnx.synthetic.shapes import (
     ALL_FAMILIES,
     FAMILIES,
@@ -342,6 +343,18 @@ def test_configs_that_differ_only_in_their_match_describe_a_mesh_once(monkeypatc
     assert shared is features and charged == seconds
     own, _ = previous.prepare(placed)
     assert described == [default, previous] and own.config != features.config
+
+
+def test_views_are_shared_only_between_configs_that_render_alike():
+    """Two levers that differ in the match share a mesh's renders; one that lights faces seen
+    from behind otherwise renders its own."""
+    verts, faces = assemble(FAMILIES["chair"](np.random.default_rng(0)), 1)
+    placed = Placed("chair", place(verts, frame_of(verts)), faces)
+    config = PipelineConfig(num_views=2, image_size=64)
+    views, _ = placed.views(NumpyRenderer(config))
+    assert placed.views(NumpyRenderer(config.replace(temperature=0.5)))[0] is views
+    shadowed, _ = placed.views(NumpyRenderer(config.replace(back_light=0.0)))
+    assert shadowed is not views and not np.array_equal(shadowed, views)
 
 
 def _geometric_folder(folder, faces: dict[str, dict[str, float]]):

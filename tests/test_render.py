@@ -111,6 +111,27 @@ def test_back_faces_render_like_front_faces():
     assert torch.allclose(front, renderer.render(verts, faces[:, [0, 2, 1]]), atol=1e-9)
 
 
+def test_faces_seen_from_behind_take_back_light_of_the_diffuse_light():
+    """Inside out, a sphere shows every face from behind: at back_light 0 it lies in its own
+    shadow (ambient light alone, as the inside of a shell seen through a hole), at 1 it renders
+    as the sphere, and in between the image moves in proportion (the blend is linear in the
+    faces' greys)."""
+    verts, faces = _tensors(*icosphere(2))
+    inside_out = faces[:, [0, 2, 1]]
+
+    def render(share, faces=inside_out):
+        return Renderer(SMALL.replace(back_light=share)).render(verts, faces)
+
+    lit, shadowed = render(1.0), render(0.0)
+    assert torch.allclose(lit, render(1.0, faces), atol=1e-9)
+    covered = Renderer(SMALL).render(verts, faces, mode="silhouette") > 0.999
+    assert torch.allclose(shadowed[covered], torch.tensor(SMALL.ambient, dtype=lit.dtype))
+    assert (lit[covered] > SMALL.ambient + 0.1).float().mean() > 0.5
+    assert torch.allclose(render(0.25), 0.75 * shadowed + 0.25 * lit, atol=1e-9)
+    # faces seen from the front are lit alike at any share
+    assert torch.allclose(render(0.0, faces)[covered], lit[covered], atol=1e-9)
+
+
 def test_retessellation_barely_changes_the_image():
     """Splitting every triangle into four keeps the surface, so the render stays nearly equal,
     far closer than moving one leg by 2%."""

@@ -104,8 +104,19 @@ def test_a_model_for_another_config_is_refused_with_the_difference():
     shipped = models_dir() / features_file(PipelineConfig.paper())
     with pytest.raises(ModelMismatch, match=r"image_size 256 \(asked 96\)"):
         Scorer(PipelineConfig.paper(image_size=96), model=shipped)
-    # the view count and the match are not in the graph: the paper's graph serves them
-    Scorer(PipelineConfig.paper(num_views=12, matching="window"), model=shipped)
+    # the view count, the light on faces seen from behind and the match are not in the graph:
+    # the paper's graph serves them
+    Scorer(PipelineConfig.paper(num_views=12, matching="window", back_light=0.0), model=shipped)
+
+
+def test_features_made_under_another_light_are_refused_with_the_difference(scorer, tmp_path):
+    """The graph describes views however lit, but the views and descriptors of a mesh are its
+    renders': a reference described with two-sided light does not serve faces seen from
+    behind in shadow."""
+    scorer.features(EXAMPLES / "chair.obj").save(tmp_path / "lit.npz")
+    shadowed = Scorer(scorer.config.replace(back_light=0.0), threads=2)
+    with pytest.raises(ValueError, match=r"lit\.npz: .*back_light 1(\.0)? \(asked 0(\.0)?\)"):
+        shadowed.score(EXAMPLES / "chair_no_leg.obj", tmp_path / "lit.npz")
 
 
 def test_both_directions_are_order_free_and_joint_uses_the_reference_frame_for_both():

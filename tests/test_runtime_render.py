@@ -63,6 +63,14 @@ def test_numpy_images_equal_torch_float64_images(mesh, size):
     assert np.abs(got - expected).max() < 1e-6
 
 
+@pytest.mark.parametrize("mesh", [_chair, _inside_out_sphere])
+def test_numpy_images_equal_torch_images_with_faces_seen_from_behind_in_shadow(mesh):
+    config = CONFIG.replace(back_light=0.0)
+    verts, faces = mesh()
+    expected = Renderer(config).render(torch.tensor(verts), torch.tensor(faces)).numpy()
+    assert np.abs(NumpyRenderer(config).render(verts, faces) - expected).max() < 1e-6
+
+
 def test_a_mesh_behind_every_camera_renders_background():
     verts, faces = icosphere(0, radius=0.1)
     got = NumpyRenderer(CONFIG).render(verts + 100.0, faces)

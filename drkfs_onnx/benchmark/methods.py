@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from ..contract.config import MATCH_FIELDS, PipelineConfig
+from ..contract.config import MATCH_FIELDS, VIEW_FIELDS, PipelineConfig
 from ..contract.model_files import features_file, models_dir
 from ..match import match_score
 from ..metric import DRKFS
@@ -52,7 +52,7 @@ class Placed:
         """(K * T, S, S) images from the renderer's cameras (T rings of K), and the seconds they
         took to render."""
         config = renderer.config
-        key = ("views", config.num_views, config.turn_degrees, config.image_size)
+        key = ("views", *(getattr(config, name) for name in VIEW_FIELDS))
         return self.shared(key, lambda: renderer.render(self.verts, self.faces))
 
 

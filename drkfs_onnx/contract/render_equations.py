@@ -329,8 +329,9 @@ def face_shading(verts_cam, faces, config: PipelineConfig, ops):
     """(K, V, 3) camera-frame vertices, (F, 3) faces, or a batch (B, K, V, 3), (B, F, 3) ->
     (B*K*F,) grey value per face.
 
-    Flat two-sided Lambertian shading: a face seen from behind is lit as if its normal faced the
-    camera, so open and non-watertight meshes show their inner side instead of a black hole.
+    Flat Lambertian shading. A face seen from behind is lit as if its normal faced the camera,
+    with ``config.back_light`` of the diffuse light: at 1 (two-sided) open and non-watertight
+    meshes show their inner side lit as surface, at 0 in the shell's shadow (ambient alone).
     """
     # one (B, K, F) array per coordinate of each corner: contiguous loops, not length-3 rows
     verts_cam, _, corners = _corner_values(verts_cam, faces)
@@ -342,10 +343,12 @@ def face_shading(verts_cam, faces, config: PipelineConfig, ops):
     length = ops.sqrt(nx * nx + ny * ny + nz * nz + 1e-20)
     nx, ny, nz = nx / length, ny / length, nz / length
     outward = nx * (x0 + x1 + x2) / 3.0 + ny * (y0 + y1 + y2) / 3.0 + nz * (z0 + z1 + z2) / 3.0
-    towards = ops.where(outward > 0, -1.0, 1.0)
+    behind = outward > 0
+    towards = ops.where(behind, -1.0, 1.0)
     light = np.asarray(config.light_direction, dtype=np.float64)
     lx, ly, lz = (float(v) for v in light / np.linalg.norm(light))
     lambert = ops.clip((nx * lx + ny * ly + nz * lz) * towards, 0.0, None)
+    lambert = lambert * ops.where(behind, config.back_light, 1.0)
     return (config.ambient + config.diffuse * lambert).reshape(-1)
 
 
