@@ -129,7 +129,8 @@ def test_faces_seen_from_behind_take_back_light_of_the_diffuse_light():
     assert (lit[covered] > SMALL.ambient + 0.1).float().mean() > 0.5
     assert torch.allclose(render(0.25), 0.75 * shadowed + 0.25 * lit, atol=1e-9)
     # faces seen from the front are lit alike at any share
-    assert torch.allclose(render(0.0, faces)[covered], lit[covered], atol=1e-9)
+    for share in (0.0, 0.3):
+        assert torch.allclose(render(share, faces)[covered], lit[covered], atol=1e-9)
 
 
 def test_retessellation_barely_changes_the_image():

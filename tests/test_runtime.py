@@ -109,6 +109,18 @@ def test_a_model_for_another_config_is_refused_with_the_difference():
     Scorer(PipelineConfig.paper(num_views=12, matching="window", back_light=0.0), model=shipped)
 
 
+def test_below_two_sided_light_the_score_reads_the_faces_winding(scorer):
+    """Two-sided light ignores which way the faces wind; in the shadow a mesh wound inside out
+    renders as its own inside and scores as a large change (the chair against itself, flipped,
+    at least half of what a missing leg scores)."""
+    chair = load_mesh(EXAMPLES / "chair.obj")
+    flipped = Mesh(chair.vertices, chair.faces[:, ::-1].copy(), "flipped")
+    assert scorer.score(flipped, chair) < 1e-6
+    shadowed = Scorer(scorer.config.replace(back_light=0.0), threads=2)
+    missing_leg = shadowed.score(EXAMPLES / "chair_no_leg.obj", chair)
+    assert shadowed.score(flipped, chair) > 0.5 * missing_leg
+
+
 def test_features_made_under_another_light_are_refused_with_the_difference(scorer, tmp_path):
     """The graph describes views however lit, but the views and descriptors of a mesh are its
     renders': a reference described with two-sided light does not serve faces seen from

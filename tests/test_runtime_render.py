@@ -64,8 +64,9 @@ def test_numpy_images_equal_torch_float64_images(mesh, size):
 
 
 @pytest.mark.parametrize("mesh", [_chair, _inside_out_sphere])
-def test_numpy_images_equal_torch_images_with_faces_seen_from_behind_in_shadow(mesh):
-    config = CONFIG.replace(back_light=0.0)
+@pytest.mark.parametrize("share", [0.0, 0.3])
+def test_numpy_images_equal_torch_images_with_faces_seen_from_behind_in_shadow(mesh, share):
+    config = CONFIG.replace(back_light=share)
     verts, faces = mesh()
     expected = Renderer(config).render(torch.tensor(verts), torch.tensor(faces)).numpy()
     assert np.abs(NumpyRenderer(config).render(verts, faces) - expected).max() < 1e-6

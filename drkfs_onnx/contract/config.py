@@ -119,7 +119,8 @@ class PipelineConfig:
     # shell's shadow, so that a cut hole or a removed part's opening shows a dark inside. 0
     # ordered the real tiers' held-out side's surface < structural far better but moved the
     # faces at every outline too, lost synthetic invisible < surface pairs, won no training
-    # pair and failed the slide check (docs/real_levers.md): the default keeps 1.
+    # pair and failed the slide check (docs/real_levers.md): the default keeps 1. Below 1 the
+    # score reads the faces' winding: a mesh wound inside out renders as its inside.
     back_light: float = 1.0
     # PoI detector: sum_n delta_n max_m (W_mn * I + b_mn); N = M = 2 with 9 x 9 filters, the
     # smallest of the training sweep's sizes within 0.01 repeatability of the best

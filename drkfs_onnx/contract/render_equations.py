@@ -348,7 +348,7 @@ def face_shading(verts_cam, faces, config: PipelineConfig, ops):
     light = np.asarray(config.light_direction, dtype=np.float64)
     lx, ly, lz = (float(v) for v in light / np.linalg.norm(light))
     lambert = ops.clip((nx * lx + ny * ly + nz * lz) * towards, 0.0, None)
-    lambert = lambert * ops.where(behind, config.back_light, 1.0)
+    lambert = ops.where(behind, lambert * config.back_light, lambert)
     return (config.ambient + config.diffuse * lambert).reshape(-1)
 
 
