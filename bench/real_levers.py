@@ -239,6 +239,14 @@ LEVERS = {
         }
         for share in (0.0, 0.25, 0.5, 0.75)
     },  # fmt: skip
+    # the shadow only where faces seen from behind still show when pushed back in the depth
+    # order by that much normalised inverse depth (``PipelineConfig.back_push``): an opening's
+    # inside, not the outlines, where the soft depth order blends the faces that meet there
+    **{
+        f"openings seen dark (faces seen from behind at {share:g} of the light, pushed back "
+        f"{push:g}), {WINDOW_LEVER}": {**WINDOW_SETTINGS, "back_light": share, "back_push": push}
+        for share, push in ((0.0, 0.02), (0.0, 0.05), (0.0, 0.1), (0.5, 0.05))
+    },  # fmt: skip
     # the default's match from 6 cameras of 128 px, which saw the bunny's hole (0.023) before
     # the own-ring pairing read both rings
     **{

@@ -115,6 +115,24 @@ def pixel_boxes(params: np.ndarray, visible: np.ndarray, config: PipelineConfig)
     return PixelBoxes(i0, j0, width * visible.astype(np.int32), height)
 
 
+def faces_over(
+    pixels: np.ndarray, params: np.ndarray, visible: np.ndarray, views: int, config: PipelineConfig
+) -> np.ndarray:
+    """(K*F,) bool: the visible faces whose box (``pixel_boxes``) holds one of ``pixels`` (flat
+    indices), from a summed-area table of the pixels per view."""
+    size = config.image_size
+    marked = np.zeros(views * size * size, np.int32)
+    marked[pixels] = 1
+    table = np.zeros((views, size + 1, size + 1), np.int64)
+    table[:, 1:, 1:] = marked.reshape(views, size, size).cumsum(1).cumsum(2)
+    boxes = pixel_boxes(params, visible, config)
+    view = np.arange(len(boxes.i0)) // (len(boxes.i0) // views)
+    i0, j0 = boxes.i0, boxes.j0
+    i1, j1 = i0 + boxes.width, j0 + boxes.height
+    held = table[view, j1, i1] - table[view, j0, i1] - table[view, j1, i0] + table[view, j0, i0]
+    return (boxes.counts > 0) & (held > 0)
+
+
 @dataclass
 class CandidatePairs:
     """Listed pairs: flat pixel (view * S * S + row * S + column) and view-face index, the

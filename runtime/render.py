@@ -19,16 +19,20 @@ from drkfs_onnx.contract.config import PipelineConfig
 from drkfs_onnx.contract.mesh import has_area
 from drkfs_onnx.contract.render_equations import (
     DEPTH_CULL,
+    ScreenFaces,
     background_logit,
-    face_shading,
+    face_light,
+    mesh_orientation,
     pair_logit,
     pair_terms,
     pixel_centre,
     project_faces,
+    pushed_back,
+    pushes_back,
     soft_blend,
 )
 
-from .candidates import candidate_pairs, select
+from .candidates import candidate_pairs, faces_over, select
 
 # Pairs per exact-pass chunk: its float64 temporaries stay in cache, and the chunk is long enough
 # that threads rendering other views seldom wait for the GIL between numpy calls
@@ -69,14 +73,48 @@ class NumpyRenderer:
         k = len(cameras)
         verts_cam = cameras.world_to_camera(verts)
         screen = project_faces(verts_cam, faces, cameras.focal, cfg, NUMPY_OPS)
+        orientation = mesh_orientation(verts, faces, NUMPY_OPS)
+        lit, shadow, behind = face_light(verts_cam, faces, orientation, cfg, NUMPY_OPS)
+        pairs = self._kept_pairs(screen, k)
+        if not pushes_back(cfg):
+            image = soft_blend(*pairs, lit - shadow, cfg, NUMPY_OPS)
+            return image.reshape(k, size, size).astype(np.float32)
+        # lit from both sides, less the shadow where faces seen from behind still show pushed
+        # back: an opening's inside, not an outline
+        image = soft_blend(*pairs, lit, cfg, NUMPY_OPS)
+        image -= self._shadow(screen, behind, shadow, pairs)
+        return image.reshape(k, size, size).astype(np.float32)
+
+    def _kept_pairs(self, screen: ScreenFaces, k: int) -> tuple[np.ndarray, ...]:
+        """The pairs the soft blend of ``screen``'s k views keeps (pixel, face, logit) and each
+        pixel's largest logit, the background's included."""
+        cfg, size = self.config, self.config.image_size
         candidates = candidate_pairs(screen.params, screen.visible, k, cfg)
         pixel, face, logit = self._exact_logits(screen.params, *candidates)
         logit_max = np.full(k * size * size, background_logit(cfg))
         NUMPY_OPS.scatter_max(logit_max, pixel, logit)
         pixel, face, logit = select(logit >= logit_max[pixel] - DEPTH_CULL, pixel, face, logit)
-        colors = face_shading(verts_cam, faces, cfg, NUMPY_OPS)
-        image = soft_blend(pixel, face, logit, logit_max, colors, cfg, NUMPY_OPS)
-        return image.reshape(k, size, size).astype(np.float32)
+        return pixel, face, logit, logit_max
+
+    def _shadow(self, screen: ScreenFaces, behind, shadow, pairs) -> np.ndarray:
+        """(k*S*S,) the blend of the shadow over the screen pushed back (``pushed_back``), given
+        the unpushed blend's kept ``pairs``. Pushed back, a face seen from behind keeps no pair
+        it did not keep unpushed, so the shadow is 0 beyond the pixels where one kept a pair,
+        and only the faces over those pixels shape it there: they alone are listed again,
+        pushed back, each view's first."""
+        cfg, k = self.config, screen.num_views
+        pixel, face = pairs[:2]
+        shaded = np.unique(pixel[behind[face] > 0])
+        over = faces_over(shaded, screen.params, screen.visible, k, cfg).reshape(k, -1)
+        first = np.argsort(~over, axis=1, kind="stable")[:, : over.sum(1).max(initial=0)]
+        index = (first + screen.num_faces * np.arange(k)[:, None]).reshape(-1)
+        listed = np.take_along_axis(over, first, 1).reshape(-1)
+        pushed = pushed_back(screen, behind, cfg, NUMPY_OPS)
+        pushed = ScreenFaces(pushed.params[:, index], listed, k, first.shape[1])
+        shade = np.zeros(len(pairs[3]))
+        again = soft_blend(*self._kept_pairs(pushed, k), shadow[index], cfg, NUMPY_OPS, 0.0)
+        shade[shaded] = again[shaded]
+        return shade
 
     def _exact_logits(self, params: np.ndarray, pixel: np.ndarray, face: np.ndarray):
         """The covered pairs among candidates and their logits, log D' + depth / gamma, in

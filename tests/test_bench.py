@@ -347,7 +347,7 @@ def test_configs_that_differ_only_in_their_match_describe_a_mesh_once(monkeypatc
 
 def test_views_are_shared_only_between_configs_that_render_alike():
     """Two levers that differ in the match share a mesh's renders; one that lights faces seen
-    from behind otherwise renders its own."""
+    from behind otherwise, or pushes them back otherwise, renders its own."""
     verts, faces = assemble(FAMILIES["chair"](np.random.default_rng(0)), 1)
     placed = Placed("chair", place(verts, frame_of(verts)), faces)
     config = PipelineConfig(num_views=2, image_size=64)
@@ -355,6 +355,8 @@ def test_views_are_shared_only_between_configs_that_render_alike():
     assert placed.views(NumpyRenderer(config.replace(temperature=0.5)))[0] is views
     shadowed, _ = placed.views(NumpyRenderer(config.replace(back_light=0.0)))
     assert shadowed is not views and not np.array_equal(shadowed, views)
+    pushed, _ = placed.views(NumpyRenderer(config.replace(back_light=0.0, back_push=0.1)))
+    assert pushed is not shadowed and not np.array_equal(pushed, shadowed)
 
 
 def _geometric_folder(folder, faces: dict[str, dict[str, float]]):

@@ -67,7 +67,8 @@ def test_config_is_frozen_and_round_trips_through_json():
      {"camera_distance": 0.9}, {"patch_size": 30}, {"turn_degrees": -2.0},
      {"turn_degrees": 90.0}, {"turned_part_share": -0.1}, {"turned_part_share": 1.5},
      {"moderate_slope": 0.0}, {"moderate_slope": 1.5}, {"moderate_from": -0.1},
-     {"moderate_from": 0.2, "moderate_to": 0.1}, {"back_light": -0.1}, {"back_light": 1.5}],
+     {"moderate_from": 0.2, "moderate_to": 0.1}, {"back_light": -0.1}, {"back_light": 1.5},
+     {"back_push": -0.01}, {"back_push": 1.0}],
 )  # fmt: skip
 def test_invalid_configs_are_refused(bad):
     with pytest.raises(ValueError):
@@ -78,7 +79,7 @@ def test_a_record_without_later_fields_reads_as_it_was_made():
     """A config written before a field existed (a features file, a results JSON) takes the
     value it was made with: one ring, no solid change, one reach, the own ring alone, the
     descriptors' part in full, faces seen from behind lit as their fronts."""
-    record = PipelineConfig(back_light=0.0).to_dict()
+    record = PipelineConfig(back_light=0.0, back_push=0.05).to_dict()
     added = ("turn_degrees", "solid_weight", *ONE_REACH, *OWN_RING_ONLY, *FULL_PARTS, *TWO_SIDED)
     for name in added:
         del record[name]

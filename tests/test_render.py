@@ -10,7 +10,9 @@ from dense_reference import dense_render
 
 from drkfs_onnx.contract.cameras import make_cameras
 from drkfs_onnx.contract.config import PipelineConfig
+from drkfs_onnx.contract.render_equations import mesh_orientation
 from drkfs_onnx.render.renderer import Renderer
+from drkfs_onnx.render.torch_ops import TORCH_OPS
 from drkfs_onnx.synthetic.shapes import assemble, chair
 
 SMALL = PipelineConfig(turn_degrees=0.0, num_views=3, image_size=40)
@@ -111,26 +113,92 @@ def test_back_faces_render_like_front_faces():
     assert torch.allclose(front, renderer.render(verts, faces[:, [0, 2, 1]]), atol=1e-9)
 
 
-def test_faces_seen_from_behind_take_back_light_of_the_diffuse_light():
-    """Inside out, a sphere shows every face from behind: at back_light 0 it lies in its own
-    shadow (ambient light alone, as the inside of a shell seen through a hole), at 1 it renders
-    as the sphere, and in between the image moves in proportion (the blend is linear in the
-    faces' greys)."""
+def _bowl():
+    """A sphere with its top cut away: the cameras above see its inside through the opening."""
+    verts, faces = icosphere(3)
+    return verts, faces[verts[faces].mean(1)[:, 1] < 0.25]
+
+
+def test_a_mesh_wound_inside_out_is_oriented_by_its_signed_volume():
+    """Which side of a face is its outside comes from the mesh's winding, turned by the sign of
+    its volume: a sphere wound inside out renders as the sphere at any light on faces seen from
+    behind, and an open bowl reads outward like the sphere it was cut from."""
     verts, faces = _tensors(*icosphere(2))
     inside_out = faces[:, [0, 2, 1]]
+    assert mesh_orientation(verts, faces, TORCH_OPS).tolist() == [1.0]
+    assert mesh_orientation(verts, inside_out, TORCH_OPS).tolist() == [-1.0]
+    assert mesh_orientation(*_tensors(*_bowl()), TORCH_OPS).tolist() == [1.0]
+    # a flat relief, roughened or not, has no volume to tell its outside by: its winding stands
+    grid = np.stack(np.meshgrid(np.linspace(-0.7, 0.7, 8), np.linspace(-0.7, 0.7, 8)), -1)
+    flat = np.concatenate([grid.reshape(-1, 2), np.zeros((64, 1))], 1)
+    rough = flat + [0, 0, 0.01] * np.random.default_rng(2).normal(size=(64, 1))
+    corner = np.array([8 * r + c for r in range(7) for c in range(7)])[:, None]
+    cells = np.concatenate([corner + [0, 1, 9], corner + [0, 9, 8]])
+    for relief in (flat, rough):
+        for winding in (cells, cells[:, ::-1].copy()):
+            assert mesh_orientation(*_tensors(relief, winding), TORCH_OPS).tolist() == [1.0]
+    for share in (0.0, 1.0):
+        renderer = Renderer(SMALL.replace(back_light=share))
+        front = renderer.render(verts, faces)
+        assert torch.allclose(renderer.render(verts, inside_out), front, atol=1e-9)
 
-    def render(share, faces=inside_out):
+
+def test_faces_seen_from_behind_take_back_light_of_the_diffuse_light():
+    """Through the bowl's opening the cameras see its inside, faces seen from behind: at
+    back_light 0 they lie in the shell's shadow (ambient light alone), at 1 they are lit as
+    their fronts, and in between the image moves in proportion (the blend is linear in the
+    faces' greys). Faces seen from the front are lit alike at any share."""
+    verts, faces = _tensors(*_bowl())
+
+    def render(share, faces=faces):
         return Renderer(SMALL.replace(back_light=share)).render(verts, faces)
 
     lit, shadowed = render(1.0), render(0.0)
-    assert torch.allclose(lit, render(1.0, faces), atol=1e-9)
-    covered = Renderer(SMALL).render(verts, faces, mode="silhouette") > 0.999
-    assert torch.allclose(shadowed[covered], torch.tensor(SMALL.ambient, dtype=lit.dtype))
-    assert (lit[covered] > SMALL.ambient + 0.1).float().mean() > 0.5
+    inside = (shadowed - SMALL.ambient).abs() < 1e-9
+    assert inside.sum() > 100 and (lit[inside] > SMALL.ambient + 0.1).float().mean() > 0.5
+    assert (shadowed <= lit + 1e-9).all()
     assert torch.allclose(render(0.25), 0.75 * shadowed + 0.25 * lit, atol=1e-9)
-    # faces seen from the front are lit alike at any share
+    sphere = _tensors(*icosphere(2))[1]
+    covered = Renderer(SMALL).render(verts, sphere, mode="silhouette") > 0.999
     for share in (0.0, 0.3):
-        assert torch.allclose(render(share, faces)[covered], lit[covered], atol=1e-9)
+        assert torch.allclose(render(share, sphere)[covered], render(1.0, sphere)[covered])
+
+
+def test_pushed_back_faces_seen_from_behind_shade_only_openings():
+    """Where two faces meet at an outline, one seen from the front and one from behind, the soft
+    depth order blends both into its pixels: unpushed, the shadow darkens every closed mesh's
+    outline. Pushed back by back_push, a face seen from behind shows only where no face seen
+    from the front reaches: a closed mesh renders as under two-sided light, and the bowl's
+    inside as in the unpushed shadow, but for pixels at its rim."""
+    pushed = SMALL.replace(back_light=0.0, back_push=0.1)
+    lit_renderer, pushed_renderer = Renderer(SMALL), Renderer(pushed)
+    for closed in (icosphere(3), _chair()):
+        verts, faces = _tensors(*closed)
+        lit = lit_renderer.render(verts, faces)
+        unpushed = Renderer(SMALL.replace(back_light=0.0)).render(verts, faces)
+        assert (lit - unpushed).abs().max() > 0.1
+        assert (pushed_renderer.render(verts, faces) - lit).abs().max() < 1e-9
+    verts, faces = _tensors(*_bowl())
+    shadowed = Renderer(SMALL.replace(back_light=0.0)).render(verts, faces)
+    inside = (shadowed - SMALL.ambient).abs() < 1e-9
+    shade = pushed_renderer.render(verts, faces)
+    assert ((shade - shadowed).abs() < 1e-9)[inside].float().mean() > 0.9
+
+
+def test_pushed_shadow_gradcheck_float64():
+    """The pushed shadow's second blend passes the gradient too: both blends' pairs move."""
+    config = PipelineConfig(
+        turn_degrees=0.0, num_views=2, image_size=10, patch_size=8, sigma=2e-3, gamma=5e-2,
+        back_light=0.2, back_push=0.05,
+    )  # fmt: skip
+    rng = np.random.default_rng(3)
+    verts = torch.tensor(rng.uniform(-0.6, 0.6, (5, 3)), requires_grad=True)
+    faces = torch.tensor([[0, 1, 2], [1, 3, 2], [2, 3, 4]])
+    renderer = Renderer(config)
+    probe = torch.tensor(rng.normal(size=(2, 10, 10)))
+    torch.autograd.gradcheck(
+        lambda v: (renderer.render(v, faces) * probe).sum(), (verts,), eps=1e-6, atol=1e-5
+    )
 
 
 def test_retessellation_barely_changes_the_image():

@@ -106,19 +106,26 @@ def test_a_model_for_another_config_is_refused_with_the_difference():
         Scorer(PipelineConfig.paper(image_size=96), model=shipped)
     # the view count, the light on faces seen from behind and the match are not in the graph:
     # the paper's graph serves them
-    Scorer(PipelineConfig.paper(num_views=12, matching="window", back_light=0.0), model=shipped)
+    paper = PipelineConfig.paper(num_views=12, matching="window", back_light=0.0, back_push=0.05)
+    Scorer(paper, model=shipped)
 
 
-def test_below_two_sided_light_the_score_reads_the_faces_winding(scorer):
-    """Two-sided light ignores which way the faces wind; in the shadow a mesh wound inside out
-    renders as its own inside and scores as a large change (the chair against itself, flipped,
-    at least half of what a missing leg scores)."""
+def test_below_two_sided_light_the_score_reads_a_part_wound_against_the_rest(scorer):
+    """Two-sided light ignores which way the faces wind. In the shadow a mesh wound inside out
+    as a whole is turned outward by its signed volume and scores as itself, pushed back or not;
+    a part wound against the rest (the example chair's first leg) renders as an inside and,
+    unpushed, scores above the leg moved."""
     chair = load_mesh(EXAMPLES / "chair.obj")
     flipped = Mesh(chair.vertices, chair.faces[:, ::-1].copy(), "flipped")
-    assert scorer.score(flipped, chair) < 1e-6
+    leg_flipped = chair.faces.copy()
+    leg_flipped[:12] = leg_flipped[:12, ::-1]
+    leg = Mesh(chair.vertices, leg_flipped, "leg flipped")
+    assert scorer.score(flipped, chair) < 1e-6 and scorer.score(leg, chair) < 1e-6
     shadowed = Scorer(scorer.config.replace(back_light=0.0), threads=2)
-    missing_leg = shadowed.score(EXAMPLES / "chair_no_leg.obj", chair)
-    assert shadowed.score(flipped, chair) > 0.5 * missing_leg
+    assert shadowed.score(leg, chair) > shadowed.score(EXAMPLES / "chair_leg_shifted.obj", chair)
+    for push in (0.0, 0.05):
+        shadowed = Scorer(scorer.config.replace(back_light=0.0, back_push=push), threads=2)
+        assert shadowed.score(flipped, chair) < 1e-6
 
 
 def test_features_made_under_another_light_are_refused_with_the_difference(scorer, tmp_path):
@@ -129,6 +136,10 @@ def test_features_made_under_another_light_are_refused_with_the_difference(score
     shadowed = Scorer(scorer.config.replace(back_light=0.0), threads=2)
     with pytest.raises(ValueError, match=r"lit\.npz: .*back_light 1(\.0)? \(asked 0(\.0)?\)"):
         shadowed.score(EXAMPLES / "chair_no_leg.obj", tmp_path / "lit.npz")
+    shadowed.features(EXAMPLES / "chair.obj").save(tmp_path / "unpushed.npz")
+    pushed = Scorer(shadowed.config.replace(back_push=0.05), threads=2)
+    with pytest.raises(ValueError, match=r"unpushed\.npz: .*back_push 0(\.0)? \(asked 0\.05\)"):
+        pushed.score(EXAMPLES / "chair_no_leg.obj", tmp_path / "unpushed.npz")
 
 
 def test_both_directions_are_order_free_and_joint_uses_the_reference_frame_for_both():

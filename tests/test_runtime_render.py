@@ -1,6 +1,7 @@
 """The runtime's numpy renderer computes the torch renderer's evaluation images."""
 
 from functools import partial
+from unittest.mock import patch
 
 import numpy as np
 import pytest
@@ -17,6 +18,7 @@ from drkfs_onnx.runtime.candidates import (
     _row_spans,
     candidate_pairs,
     face_tests,
+    faces_over,
     pixel_boxes,
 )
 from drkfs_onnx.runtime.render import VIEW_FACES_PER_CALL, NumpyRenderer
@@ -63,18 +65,34 @@ def test_numpy_images_equal_torch_float64_images(mesh, size):
     assert np.abs(got - expected).max() < 1e-6
 
 
-@pytest.mark.parametrize("mesh", [_chair, _inside_out_sphere])
-@pytest.mark.parametrize("share", [0.0, 0.3])
-def test_numpy_images_equal_torch_images_with_faces_seen_from_behind_in_shadow(mesh, share):
-    config = CONFIG.replace(back_light=share)
+def _bowl():
+    """A sphere with its top cut away: the cameras see its inside through the opening."""
+    verts, faces = icosphere(3)
+    return verts, faces[verts[faces].mean(1)[:, 1] < 0.25]
+
+
+@pytest.mark.parametrize("mesh", [_chair, _inside_out_sphere, _bowl])
+@pytest.mark.parametrize("share, push", [(0.0, 0.0), (0.3, 0.0), (0.0, 0.05), (0.3, 0.1)])
+def test_numpy_images_equal_torch_images_with_faces_seen_from_behind_in_shadow(mesh, share, push):
+    config = CONFIG.replace(back_light=share, back_push=push)
     verts, faces = mesh()
     expected = Renderer(config).render(torch.tensor(verts), torch.tensor(faces)).numpy()
     assert np.abs(NumpyRenderer(config).render(verts, faces) - expected).max() < 1e-6
 
 
-def test_a_mesh_behind_every_camera_renders_background():
+def test_numpy_pushed_shadow_is_the_same_in_threads():
+    """Views rendered in groups on threads, one view a call, list the faces again per group."""
+    config = CONFIG.replace(back_light=0.0, back_push=0.05)
+    verts, faces = _bowl()
+    expected = NumpyRenderer(config).render(verts, faces)
+    with patch("drkfs_onnx.runtime.render.VIEW_FACES_PER_CALL", len(faces)):
+        assert np.array_equal(NumpyRenderer(config, threads=2).render(verts, faces), expected)
+
+
+@pytest.mark.parametrize("push", [0.0, 0.05])
+def test_a_mesh_behind_every_camera_renders_background(push):
     verts, faces = icosphere(0, radius=0.1)
-    got = NumpyRenderer(CONFIG).render(verts + 100.0, faces)
+    got = NumpyRenderer(CONFIG.replace(back_light=0.0, back_push=push)).render(verts + 100.0, faces)
     assert np.all(got == CONFIG.background)
 
 
@@ -104,6 +122,29 @@ def test_candidates_hold_every_pair_the_exact_pass_keeps(mesh):
     key = pixel * len(visible) + face
     assert np.isin(key[needed], got_pixel * len(visible) + got_face).all()
     assert len(got_pixel) < covered.sum()  # hidden pairs are dropped
+
+
+def test_faces_over_are_the_visible_faces_whose_box_holds_a_marked_pixel():
+    """The pushed shadow's second blend lists only these: brute force over each face's box."""
+    config = CONFIG.replace(image_size=40)
+    verts, faces = _chair()
+    cameras = make_cameras(config)
+    screen = project_faces(cameras.world_to_camera(verts), faces, cameras.focal, config, NUMPY_OPS)
+    k, size = config.num_views, config.image_size
+    pixels = np.random.default_rng(5).choice(k * size * size, 60, replace=False)
+    got = faces_over(pixels, screen.params, screen.visible, k, config)
+    boxes = pixel_boxes(screen.params, screen.visible, config)
+    view, row, column = pixels // size**2, pixels // size % size, pixels % size
+    expected = [
+        any(
+            v == index // len(faces) and i0 <= c < i0 + w and j0 <= r < j0 + h
+            for v, r, c in zip(view, row, column, strict=True)
+        )
+        for index, (i0, j0, w, h) in enumerate(
+            zip(boxes.i0, boxes.j0, boxes.width, boxes.height, strict=True)
+        )
+    ]
+    assert np.array_equal(got, expected) and 0 < got.sum() < screen.visible.sum()
 
 
 def test_row_spans_are_the_columns_every_edge_line_allows():

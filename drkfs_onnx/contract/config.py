@@ -41,8 +41,9 @@ NETS_TRAINED_AT = {
 ONE_REACH = {"solid_ramp": 0, "solid_inner_drop": 0, "solid_inner_power": 1.0}
 # The own-ring pairing from its own ring alone, as before the turned ring's views joined it.
 OWN_RING_ONLY = {"turned_part_share": 0.0, "solid_both_rings": False}
-# A face seen from behind lit as its front, as before ``back_light`` was a setting.
-TWO_SIDED = {"back_light": 1.0}
+# A face seen from behind lit as its front, as before ``back_light`` was a setting, and its
+# shadow spread wherever it blends in (``back_push`` 0).
+TWO_SIDED = {"back_light": 1.0, "back_push": 0.0}
 ADDED_FIELDS = {
     "turn_degrees": 0.0, "solid_weight": 0.0, **ONE_REACH, **OWN_RING_ONLY, **FULL_PARTS,
     **TWO_SIDED,
@@ -52,7 +53,7 @@ ADDED_FIELDS = {
 VIEW_FIELDS = (
     "num_views", "turn_degrees", "image_size", "fov_degrees", "camera_distance", "sigma", "gamma",
     "coverage_eps", "background_eps", "background", "light_direction", "ambient", "diffuse",
-    "back_light",
+    "back_light", "back_push",
 )  # fmt: skip
 # The settings that shape only the match of two meshes' descriptors and views, not the
 # descriptors: a feature graph or features file serves every value of these (a features file
@@ -116,12 +117,23 @@ class PipelineConfig:
     diffuse: float = 0.7
     # The share of the diffuse light a face seen from behind receives: 1 lights it as its front
     # (two-sided), 0 leaves it the ambient light alone, as the inside of a shell lies in the
-    # shell's shadow, so that a cut hole or a removed part's opening shows a dark inside. 0
-    # ordered the real tiers' held-out side's surface < structural far better but moved the
-    # faces at every outline too, lost synthetic invisible < surface pairs, won no training
-    # pair and failed the slide check (docs/real_levers.md): the default keeps 1. Below 1 the
-    # score reads the faces' winding: a mesh wound inside out renders as its inside.
+    # shell's shadow, so that a cut hole or a removed part's opening shows a dark inside. Which
+    # side is a face's outside comes from the mesh's winding, turned by the sign of its volume
+    # (``render_equations.mesh_orientation``): a mesh wound inside out as a whole renders as
+    # itself, a part wound against the rest as an inside.
     back_light: float = 1.0
+    # Where that shadow falls. Unpushed (0) it darkens a face seen from behind wherever it
+    # blends into a pixel, also at every outline, where SoftRas' soft depth order mixes the
+    # faces that meet there: that lost synthetic pairs and the slide check (docs/real_levers.md,
+    # "Faces seen from behind in the shell's shadow"). Pushed back by this much normalised
+    # inverse depth behind the faces seen from the front, it falls only where such a face
+    # still shows, an opening's inside: a closed mesh renders as under two-sided light, but
+    # where a contour edge spans more depth than the push. At 0 of the light and a push of
+    # 0.05 the real tiers' held-out side meets every bar and no other pair turns and no check
+    # moves, but no pair turns on the training side or the synthetic tiers either, where the
+    # rule chooses, and a second blend (of the shadow alone) costs a new mesh up to 1.3x: the
+    # default keeps two-sided light (docs/real_levers.md, "Openings seen dark").
+    back_push: float = 0.0
     # PoI detector: sum_n delta_n max_m (W_mn * I + b_mn); N = M = 2 with 9 x 9 filters, the
     # smallest of the training sweep's sizes within 0.01 repeatability of the best
     detector_kernel: int = 9
@@ -245,6 +257,8 @@ class PipelineConfig:
             raise ValueError("turned_part_share must be in [0, 1]")
         if not 0 <= self.back_light <= 1:
             raise ValueError("back_light must be in [0, 1]")
+        if not 0 <= self.back_push < 1:
+            raise ValueError("back_push must be in [0, 1): a share of the normalised depth")
         if not 0 < self.moderate_slope <= 1:
             raise ValueError("moderate_slope must be in (0, 1]")
         if not 0 <= self.moderate_from <= self.moderate_to:

@@ -53,7 +53,9 @@ def shipped_weights() -> list[dict]:
 # Settings that change what the nets are shown but not the nets: other cameras, a reduced config
 # (fitting, a quick run), the softer training renderer (``PipelineConfig.training()``) or
 # another light on faces seen from behind reuses the weights.
-RENDER_FIELDS = ("num_views", "turn_degrees", "image_size", "sigma", "gamma", "back_light")
+RENDER_FIELDS = (
+    "num_views", "turn_degrees", "image_size", "sigma", "gamma", "back_light", "back_push",
+)  # fmt: skip
 
 
 def shipped_entry(config: PipelineConfig, any_rendering: bool = False) -> dict | None:

@@ -6,7 +6,9 @@ renderer's culling (``runtime/candidates.py``).
 
 The stages: ``to_camera`` -> ``project_faces`` -> per face ``pixel_span`` (its box of pixels)
 -> per pixel-face pair ``pair_terms`` (coverage and depth) and ``pair_logit`` -> per pixel
-``soft_blend`` of the faces' ``face_shading`` with the background.
+``soft_blend`` of the faces' greys (``face_light``: lit less shadow) with the background; where
+the shadow is pushed back (``pushes_back``), the lit blend less the shadow's blend over the
+screen ``pushed_back``.
 """
 
 from __future__ import annotations
@@ -25,6 +27,13 @@ LOOSE_RADIUS = 1.01
 # A pair whose blend logit lies this far under its pixel's largest is dropped: its weight is
 # below exp(-DEPTH_CULL) of the front face's.
 DEPTH_CULL = 30.0
+# A mesh reads inside out (``mesh_orientation``) where its signed volume lies under minus this
+# share of its tetrahedra's unsigned volumes (beyond FLAT_VOLUME): the real meshes read
+# 0.47-0.95 (the horse of docs/real_levers.md -0.67), a flat relief roughened by noise under
+# 0.01 either way, its sign noise's.
+ORIENTED_SHARE = 0.05
+# Meshes render inside the unit sphere, where a flat mesh's volume rounds to about 1e-17.
+FLAT_VOLUME = 1e-9
 
 
 @dataclass
@@ -325,12 +334,33 @@ def background_logit(config: PipelineConfig) -> float:
     return config.background_eps / config.gamma
 
 
-def face_shading(verts_cam, faces, config: PipelineConfig, ops):
-    """(K, V, 3) camera-frame vertices, (F, 3) faces, or a batch (B, K, V, 3), (B, F, 3) ->
-    (B*K*F,) grey value per face.
+def mesh_orientation(verts, faces, ops):
+    """(V, 3) world vertices and (F, 3) faces, or a batch (B, V, 3) and (B, F, 3) -> (B,) +1.0
+    where the faces wind outward, -1.0 where the mesh is wound inside out: the sign of its signed
+    volume about the world origin, where the cameras look (an open mesh's is the side most of
+    its surface winds towards; a padding face of no area adds nothing). A mesh whose volume is
+    no clear share of its tetrahedra's (``ORIENTED_SHARE``), a flat relief even roughened,
+    keeps its winding: the sign would be rounding's or noise's."""
+    if faces.ndim == 2:
+        verts, faces = verts[None], faces[None]
+    (x0, y0, z0), (x1, y1, z1), (x2, y2, z2) = (
+        [ops.take(verts[..., axis], faces[..., corner]) for axis in range(3)] for corner in range(3)
+    )
+    # six times each face's tetrahedron with the origin, v0 . (v1 x v2)
+    tetra = x0 * (y1 * z2 - z1 * y2) + y0 * (z1 * x2 - x1 * z2) + z0 * (x1 * y2 - y1 * x2)
+    clear = ORIENTED_SHARE * abs(tetra).sum(-1) + 6.0 * FLAT_VOLUME
+    return ops.where(tetra.sum(-1) < -clear, -1.0, 1.0)
 
-    Flat Lambertian shading. A face seen from behind is lit as if its normal faced the camera,
-    with ``config.back_light`` of the diffuse light: at 1 (two-sided) open and non-watertight
+
+def face_light(verts_cam, faces, orientation, config: PipelineConfig, ops):
+    """(K, V, 3) camera-frame vertices, (F, 3) faces, or a batch (B, K, V, 3), (B, F, 3), and
+    the meshes' (B,) ``mesh_orientation`` -> (lit, shadow, behind), (B*K*F,) each.
+
+    lit: flat Lambertian grey, a face seen from behind lit as if its normal faced the camera
+    (two-sided); shadow: the diffuse light the shell's shadow takes from a face seen from behind,
+    (1 - ``config.back_light``) of it, 0 on a face seen from the front; behind: 1.0 where the
+    face's outward side (its winding, turned by the orientation) looks away from the camera.
+    A face's grey is lit - shadow: at ``back_light`` 1 (two-sided) open and non-watertight
     meshes show their inner side lit as surface, at 0 in the shell's shadow (ambient alone).
     """
     # one (B, K, F) array per coordinate of each corner: contiguous loops, not length-3 rows
@@ -343,13 +373,35 @@ def face_shading(verts_cam, faces, config: PipelineConfig, ops):
     length = ops.sqrt(nx * nx + ny * ny + nz * nz + 1e-20)
     nx, ny, nz = nx / length, ny / length, nz / length
     outward = nx * (x0 + x1 + x2) / 3.0 + ny * (y0 + y1 + y2) / 3.0 + nz * (z0 + z1 + z2) / 3.0
-    behind = outward > 0
-    towards = ops.where(behind, -1.0, 1.0)
+    # the normal as wound, turned towards the camera: two-sided light reads no winding
+    towards = ops.where(outward > 0, -1.0, 1.0)
     light = np.asarray(config.light_direction, dtype=np.float64)
     lx, ly, lz = (float(v) for v in light / np.linalg.norm(light))
     lambert = ops.clip((nx * lx + ny * ly + nz * lz) * towards, 0.0, None)
-    lambert = ops.where(behind, lambert * config.back_light, lambert)
-    return (config.ambient + config.diffuse * lambert).reshape(-1)
+    behind = ops.where(outward * orientation[:, None, None] > 0, 1.0, 0.0)
+    lit = config.ambient + config.diffuse * lambert
+    # the light times (1 - share) itself, not a precomputed factor: a share float32 cannot hold
+    # takes the same rounding on both paths
+    shadow = behind * (config.diffuse * lambert - config.diffuse * lambert * config.back_light)
+    return lit.reshape(-1), shadow.reshape(-1), behind.reshape(-1)
+
+
+def pushes_back(config: PipelineConfig) -> bool:
+    """Whether the shell's shadow falls only where faces seen from behind still show when pushed
+    back (``pushed_back``): a second blend, of the shadow alone."""
+    return config.back_push > 0 and config.back_light < 1
+
+
+def pushed_back(screen: ScreenFaces, behind, config: PipelineConfig, ops) -> ScreenFaces:
+    """The screen with each face seen from behind (``behind``, (N,) 1.0 or 0.0) pushed back by
+    ``config.back_push`` of normalised inverse depth behind the faces seen from the front, so
+    the soft blend leaves it only pixels that no face seen from the front reaches within the
+    push: an opening's inside, not an outline. The faces seen from the front are drawn forward
+    by the push, not those from behind sent back: the background stays behind both."""
+    shift = (1.0 - behind) * config.back_push
+    params = screen.params
+    params = ops.stack([*(params[i] for i in range(6)), *(params[i] + shift for i in range(6, 9))])
+    return ScreenFaces(params, screen.visible, screen.num_views, screen.num_faces)
 
 
 def blend_weight(logit, logit_max, ops):
@@ -358,18 +410,20 @@ def blend_weight(logit, logit_max, ops):
     return ops.exp(logit - logit_max)
 
 
-def blend_image(numerator, denominator, logit_max, config: PipelineConfig, ops):
+def blend_image(numerator, denominator, logit_max, config: PipelineConfig, ops, background=None):
     """Per pixel: I = (sum_j w_j C_j + w_b C_b) / (sum_j w_j + w_b), from the sums of the
     pairs' weighted colours (``numerator``) and weights (``denominator``), w_b = exp(background
-    logit - logit_max)."""
-    background = ops.exp(background_logit(config) - logit_max)
-    return (numerator + background * config.background) / (denominator + background)
+    logit - logit_max); C_b the config's background unless ``background`` is given (0 for the
+    shadow's blend, which only takes light away)."""
+    colour = config.background if background is None else background
+    weight = ops.exp(background_logit(config) - logit_max)
+    return (numerator + weight * colour) / (denominator + weight)
 
 
-def soft_blend(pixel, face, logit, logit_max, colors, config: PipelineConfig, ops):
+def soft_blend(pixel, face, logit, logit_max, colors, config: PipelineConfig, ops, background=None):
     """SoftRas aggregation of pixel-face pairs -> (K*S*S,) flat grey images; ``logit_max``
     (K*S*S,) is each pixel's largest logit, background included (``blend_image``)."""
     weight = blend_weight(logit, logit_max[pixel], ops)
     numerator = ops.scatter_sum(pixel, weight * colors[face], len(logit_max))
     denominator = ops.scatter_sum(pixel, weight, len(logit_max))
-    return blend_image(numerator, denominator, logit_max, config, ops)
+    return blend_image(numerator, denominator, logit_max, config, ops, background)

@@ -9,11 +9,17 @@ from torch import nn
 
 from ..contract.cameras import Cameras, make_cameras
 from ..contract.config import PipelineConfig
-from ..contract.render_equations import ScreenFaces, project_faces, to_camera
+from ..contract.render_equations import (
+    ScreenFaces,
+    project_faces,
+    pushed_back,
+    pushes_back,
+    to_camera,
+)
 from .kept_pairs import KeptPairs, kept_pairs
 from .mesh_batch import MeshBatch
 from .pair_plan import PairPlan
-from .shading import face_shading, shaded_images, silhouette
+from .shading import face_light, shaded_images, silhouette
 from .torch_ops import TORCH_OPS
 
 RenderMode = Literal["shaded", "silhouette"]
@@ -65,8 +71,15 @@ class Renderer(nn.Module):
         pairs = kept_pairs(PairPlan(screen, self.config), screen.params, mode == "shaded")
         if mode == "silhouette":
             return silhouette(pairs, screen.params)
-        colors = face_shading(verts_cam, meshes.faces, self.config)
-        return shaded_images(pairs, screen.params, colors)
+        lit, shadow, behind = face_light(meshes.verts, verts_cam, meshes.faces, self.config)
+        if not pushes_back(self.config):
+            return shaded_images(pairs, screen.params, lit - shadow)
+        # lit from both sides, less the shadow where faces seen from behind still show pushed
+        # back: an opening's inside, not an outline
+        pushed = pushed_back(screen, behind, self.config, TORCH_OPS)
+        shade_pairs = kept_pairs(PairPlan(pushed, self.config), pushed.params, True)
+        shade = shaded_images(shade_pairs, pushed.params, shadow, background=0.0)
+        return shaded_images(pairs, screen.params, lit) - shade
 
     @torch.no_grad()
     def rasterize(self, verts, faces=None, depth_cull: bool = True) -> KeptPairs:

@@ -15,12 +15,14 @@ from .torch_ops import TORCH_OPS
 SATURATED = 1.0 - 1e-6
 
 
-def face_shading(
-    verts_cam: torch.Tensor, faces: torch.Tensor, config: PipelineConfig
-) -> torch.Tensor:
-    """(B, K, V, 3) camera-frame vertices, (B, F, 3) faces -> (B*K*F,) grey value per face
-    (``render_equations.face_shading``)."""
-    return render_equations.face_shading(verts_cam, faces, config, TORCH_OPS)
+def face_light(
+    verts: torch.Tensor, verts_cam: torch.Tensor, faces: torch.Tensor, config: PipelineConfig
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """(B, V, 3) world and (B, K, V, 3) camera-frame vertices, (B, F, 3) faces -> (lit, shadow,
+    behind), (B*K*F,) each (``render_equations.face_light``, the meshes oriented by
+    ``mesh_orientation``)."""
+    orientation = render_equations.mesh_orientation(verts, faces, TORCH_OPS)
+    return render_equations.face_light(verts_cam, faces, orientation, config, TORCH_OPS)
 
 
 class Blend(Shader):
@@ -60,13 +62,15 @@ class Silhouette(Shader):
 
 
 def shaded_images(
-    pairs: KeptPairs, params: torch.Tensor, face_colors: torch.Tensor
+    pairs: KeptPairs, params: torch.Tensor, face_colors: torch.Tensor, background=None
 ) -> torch.Tensor:
     """SoftRas aggregation of the kept pairs -> (views, S, S) grey images
-    (``render_equations.blend_image``)."""
+    (``render_equations.blend_image``; the config's background unless ``background``)."""
     config, size = pairs.plan.config, pairs.plan.config.image_size
     numerator, denominator = pixel_sums(pairs, Blend(), params, face_colors)
-    image = render_equations.blend_image(numerator, denominator, pairs.logit_max, config, TORCH_OPS)
+    image = render_equations.blend_image(
+        numerator, denominator, pairs.logit_max, config, TORCH_OPS, background
+    )
     return image.reshape(pairs.plan.num_views, size, size)
 
 
