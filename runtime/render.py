@@ -98,22 +98,32 @@ class NumpyRenderer:
 
     def _shadow(self, screen: ScreenFaces, behind, shadow, pairs) -> np.ndarray:
         """(k*S*S,) the blend of the shadow over the screen pushed back (``pushed_back``), given
-        the unpushed blend's kept ``pairs``. Pushed back, a face seen from behind keeps no pair
-        it did not keep unpushed, so the shadow is 0 beyond the pixels where one kept a pair,
-        and only the faces over those pixels shape it there: they alone are listed again,
-        pushed back, each view's first."""
+        the unpushed blend's kept ``pairs``.
+
+        Pushed back, a face seen from behind keeps no pair it did not keep unpushed. Nor does
+        it keep one where a face seen from the front kept a pair, once the push exceeds twice
+        the depth cull: drawn forward, that face rises above it by more than the cull. There
+        the shadow is 0, at every outline of a closed mesh. The faces over the other pixels it
+        fell on (an opening's inside) are listed again, pushed back, each view's first."""
         cfg, k = self.config, screen.num_views
-        pixel, face = pairs[:2]
-        shaded = np.unique(pixel[behind[face] > 0])
-        over = faces_over(shaded, screen.params, screen.visible, k, cfg).reshape(k, -1)
-        first = np.argsort(~over, axis=1, kind="stable")[:, : over.sum(1).max(initial=0)]
+        pixel, face, _, logit_max = pairs
+        from_behind = behind[face] > 0
+        relisted = np.bincount(pixel[from_behind], minlength=len(logit_max)) > 0
+        # a logit's margin for the rounding of the pushed planes' depths
+        if cfg.back_push / cfg.gamma > 2 * DEPTH_CULL + 1.0:
+            relisted &= np.bincount(pixel[~from_behind], minlength=len(logit_max)) == 0
+        relisted = np.nonzero(relisted)[0]
+        shade = np.zeros(len(logit_max))
+        if not len(relisted):
+            return shade
+        over = faces_over(relisted, screen.params, screen.visible, k, cfg).reshape(k, -1)
+        first = np.argsort(~over, axis=1, kind="stable")[:, : over.sum(1).max()]
         index = (first + screen.num_faces * np.arange(k)[:, None]).reshape(-1)
         listed = np.take_along_axis(over, first, 1).reshape(-1)
         pushed = pushed_back(screen, behind, cfg, NUMPY_OPS)
         pushed = ScreenFaces(pushed.params[:, index], listed, k, first.shape[1])
-        shade = np.zeros(len(pairs[3]))
         again = soft_blend(*self._kept_pairs(pushed, k), shadow[index], cfg, NUMPY_OPS, 0.0)
-        shade[shaded] = again[shaded]
+        shade[relisted] = again[relisted]
         return shade
 
     def _exact_logits(self, params: np.ndarray, pixel: np.ndarray, face: np.ndarray):

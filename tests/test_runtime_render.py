@@ -72,7 +72,9 @@ def _bowl():
 
 
 @pytest.mark.parametrize("mesh", [_chair, _inside_out_sphere, _bowl])
-@pytest.mark.parametrize("share, push", [(0.0, 0.0), (0.3, 0.0), (0.0, 0.05), (0.3, 0.1)])
+@pytest.mark.parametrize(
+    "share, push", [(0.0, 0.0), (0.3, 0.0), (0.0, 0.005), (0.0, 0.05), (0.3, 0.1)]
+)
 def test_numpy_images_equal_torch_images_with_faces_seen_from_behind_in_shadow(mesh, share, push):
     config = CONFIG.replace(back_light=share, back_push=push)
     verts, faces = mesh()

@@ -131,7 +131,7 @@ class PipelineConfig:
     # where a contour edge spans more depth than the push. At 0 of the light and a push of
     # 0.05 the real tiers' held-out side meets every bar and no other pair turns and no check
     # moves, but no pair turns on the training side or the synthetic tiers either, where the
-    # rule chooses, and a second blend (of the shadow alone) costs a new mesh up to 1.3x: the
+    # rule chooses, and a second blend (of the shadow alone) costs a new mesh up to 1.13x: the
     # default keeps two-sided light (docs/real_levers.md, "Openings seen dark").
     back_push: float = 0.0
     # PoI detector: sum_n delta_n max_m (W_mn * I + b_mn); N = M = 2 with 9 x 9 filters, the
