@@ -14,6 +14,7 @@ from .contract.cli_options import (
     Direction,
     Matching,
     Normalize,
+    OpeningsDark,
     Preset,
     Reduction,
     SolidWeight,
@@ -80,12 +81,13 @@ def score(
     reduction: Reduction = None,
     symmetric: Symmetric = False,
     solid_weight: SolidWeight = None,
+    openings_dark: OpeningsDark = False,
     as_json: Annotated[bool, typer.Option("--json", help="Print a JSON object.")] = False,
 ) -> None:
     """Score MESH_A against the reference MESH_B (0 for identical meshes)."""
     try:
         config = pick_config(
-            preset, matching, window, direction, reduction, symmetric, solid_weight
+            preset, matching, window, direction, reduction, symmetric, solid_weight, openings_dark
         )
     except ValueError as exc:
         typer.echo(f"error: {exc}", err=True)

@@ -16,6 +16,7 @@ from drkfs_onnx.contract.cli_options import (
     Direction,
     Matching,
     Normalize,
+    OpeningsDark,
     Preset,
     Reduction,
     ReferenceNormalize,
@@ -126,6 +127,7 @@ def pair(
     reduction: Reduction = None,
     symmetric: Symmetric = False,
     solid_weight: SolidWeight = None,
+    openings_dark: OpeningsDark = False,
     width: Width = None,
     nets: Nets = None,
     model: Model = None,
@@ -135,7 +137,7 @@ def pair(
     scorer = _scorer(_spec(
         threads, normalize, width, nets, model, max_faces, preset=preset, matching=matching,
         window=window, direction=direction, reduction=reduction, symmetric=symmetric,
-        solid_weight=solid_weight,
+        solid_weight=solid_weight, openings_dark=openings_dark,
     ))  # fmt: skip
     start = time.perf_counter()
     with _exit_on(MeshError, ValueError):
@@ -168,6 +170,7 @@ def explain(
     reduction: Reduction = None,
     symmetric: Symmetric = False,
     solid_weight: SolidWeight = None,
+    openings_dark: OpeningsDark = False,
     width: Width = None,
     nets: Nets = None,
     model: Model = None,
@@ -186,7 +189,7 @@ def explain(
     scorer = _scorer(_spec(
         threads, normalize, width, nets, model, max_faces, preset=preset, matching=matching,
         window=window, direction=direction, reduction=reduction, symmetric=symmetric,
-        solid_weight=solid_weight,
+        solid_weight=solid_weight, openings_dark=openings_dark,
     ))  # fmt: skip
     with _exit_on(MeshError, ValueError):
         explanation = explain_pair(scorer, mesh_a, mesh_b)
@@ -209,6 +212,7 @@ def features(
     threads: Threads = None,
     normalize: ReferenceNormalize = "joint",
     preset: Preset = "default",
+    openings_dark: OpeningsDark = False,
     width: Width = None,
     nets: Nets = None,
     model: Model = None,
@@ -217,7 +221,11 @@ def features(
     """Describe a reference mesh once; pass the .npz as MESH_B to ``pair`` or in a batch CSV."""
     out = out if out.suffix == ".npz" else out.with_name(out.name + ".npz")  # numpy adds it
     _check_out(out)
-    scorer = _scorer(_spec(threads, normalize, width, nets, model, max_faces, preset=preset))
+    spec = _spec(
+        threads, normalize, width, nets, model, max_faces, preset=preset,
+        openings_dark=openings_dark,
+    )  # fmt: skip
+    scorer = _scorer(spec)
     with _exit_on(MeshError):
         result = scorer.features(mesh)
     with _exit_on(OSError):
@@ -298,6 +306,7 @@ def batch(
     reduction: Reduction = None,
     symmetric: Symmetric = False,
     solid_weight: SolidWeight = None,
+    openings_dark: OpeningsDark = False,
     width: Width = None,
     nets: Nets = None,
     model: Model = None,
@@ -335,7 +344,7 @@ def batch(
     spec = _spec(
         threads, normalize, width, nets, model, max_faces, preset=preset, matching=matching,
         window=window, direction=direction, reduction=reduction, symmetric=symmetric,
-        solid_weight=solid_weight,
+        solid_weight=solid_weight, openings_dark=openings_dark,
     )  # fmt: skip
     # checks the model and config here, before any worker starts; the progress bar says the rest
     scorer = _scorer(spec, progress=False)

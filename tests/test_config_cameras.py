@@ -10,6 +10,7 @@ from drkfs_onnx.contract.config import (
     FULL_PARTS,
     NETS_TRAINED_AT,
     ONE_REACH,
+    OPENINGS_DARK,
     OWN_RING_ONLY,
     TWO_SIDED,
     PipelineConfig,
@@ -148,3 +149,11 @@ def test_another_reduction_than_the_presets_counts_the_descriptors_part_in_full(
         summed.replace(reduction="softmax", **{n: getattr(PipelineConfig(), n) for n in window})
         == PipelineConfig()
     )
+
+
+def test_openings_dark_picks_the_measured_light_on_any_preset():
+    from drkfs_onnx.contract.cli_options import pick_config
+
+    assert pick_config(openings_dark=True) == PipelineConfig(**OPENINGS_DARK)
+    assert pick_config("paper", openings_dark=True) == PipelineConfig.paper(**OPENINGS_DARK)
+    assert OPENINGS_DARK == {"back_light": 0.0, "back_push": 0.05}

@@ -50,6 +50,33 @@ def test_precomputed_reference_gives_the_same_score(tmp_path):
     assert float(direct.stdout) == float(cached.stdout) > 0
 
 
+def test_openings_dark_shades_a_cut_hole_and_its_features_files_keep_to_it(tmp_path):
+    """--openings-dark scores with faces seen from behind in the shell's shadow, pushed behind
+    the outlines: the chair's seat cut open (its inside showing) scores otherwise than lit, a
+    whole chair the same, and a reference described under one light is refused under the
+    other."""
+    chair = load_mesh(CHAIR)
+    seat = chair.vertices[chair.faces].mean(1)
+    top = np.argmax(seat[:, 1] * (np.abs(seat[:, 0]) < 0.1) * (np.abs(seat[:, 2]) < 0.1))
+    cut = tmp_path / "cut.obj"
+    cut.write_text(
+        "".join(f"v {x} {y} {z}\n" for x, y, z in chair.vertices)
+        + "".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in np.delete(chair.faces, top, 0))
+    )
+    lit = _run("pair", cut, CHAIR, "--json", *FAST)
+    dark = _run("pair", cut, CHAIR, "--json", "--openings-dark", *FAST)
+    assert lit.exit_code == dark.exit_code == 0
+    config = json.loads(dark.stdout)["config"]
+    assert (config["back_light"], config["back_push"]) == (0.0, 0.05)
+    assert json.loads(dark.stdout)["score"] != json.loads(lit.stdout)["score"]
+    assert float(_run("pair", NO_LEG, CHAIR, "--openings-dark", *FAST).stdout) == float(
+        _run("pair", NO_LEG, CHAIR, *FAST).stdout
+    )
+    assert _run("features", CHAIR, "--out", tmp_path / "lit.npz", *FAST).exit_code == 0
+    refused = _run("pair", NO_LEG, tmp_path / "lit.npz", "--openings-dark", *FAST)
+    assert refused.exit_code == 2 and "back_light" in refused.output
+
+
 def test_a_features_file_remembers_its_normalisation_and_refuses_another(tmp_path):
     reference = tmp_path / "chair.npz"
     assert _run("features", CHAIR, "--out", reference, *FAST).exit_code == 0  # joint

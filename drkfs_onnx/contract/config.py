@@ -44,6 +44,9 @@ OWN_RING_ONLY = {"turned_part_share": 0.0, "solid_both_rings": False}
 # A face seen from behind lit as its front, as before ``back_light`` was a setting, and its
 # shadow spread wherever it blends in (``back_push`` 0).
 TWO_SIDED = {"back_light": 1.0, "back_push": 0.0}
+# Openings seen dark: faces seen from behind in the shell's shadow, pushed behind the outlines
+# (docs/real_levers.md, "Openings seen dark"; not the default).
+OPENINGS_DARK = {"back_light": 0.0, "back_push": 0.05}
 ADDED_FIELDS = {
     "turn_degrees": 0.0, "solid_weight": 0.0, **ONE_REACH, **OWN_RING_ONLY, **FULL_PARTS,
     **TWO_SIDED,
