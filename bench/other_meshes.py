@@ -1,12 +1,16 @@
-"""The real tiers' third side: six meshes from outside the repository, never chosen on, written
-as welded OBJs into a folder for ``bench/real_tiers.py --other`` and ``bench/real_levers.py
---other`` (docs/benchmark.md, "A third side").
+"""The real tiers' third and fourth sides: meshes from outside the repository, never chosen on,
+written as welded OBJs into a folder for ``bench/real_tiers.py --other`` and
+``bench/real_levers.py --other`` (docs/benchmark.md, "A third side"; docs/real_levers.md,
+"Openings seen dark").
 
     git clone https://github.com/alecjacobson/common-3d-test-models CLONE   # commit 8a4f864
     python bench/other_meshes.py --clone CLONE --out DIR
+    git clone https://github.com/libigl/libigl-tutorial-data CLONE   # commit c1f9ede
+    python bench/other_meshes.py --side fourth --clone CLONE --out DIR
 
-They are read from a clone of common-3d-test-models (the repository the ten shipped meshes come
-from, meshes/README.md), not shipped: their sources' terms are theirs. Each is welded (vertices
+The third side is read from common-3d-test-models (the repository the ten shipped meshes come
+from, meshes/README.md), the fourth, chosen by kind before any was scored, from libigl's
+tutorial data; neither is shipped: their sources' terms are theirs. Each is welded (vertices
 at one position merged, whatever their texture coordinates or normals): the files split their
 surfaces along texture seams, where the recipe's noise would open cracks and the second piece
 would be a texture island.
@@ -20,40 +24,52 @@ from pathlib import Path
 
 import trimesh
 
-# name -> its file under data/ of the clone (an archive's member after a colon)
-OTHER_MESHES = {
-    "horse": "horse.zip:horse.ply",
-    "nefertiti": "nefertiti.obj",
-    "ogre": "ogre.obj",
-    "spot": "spot.obj",
-    "suzanne": "suzanne.obj",
-    "teapot": "teapot.obj",
+# side -> name -> its file in the clone (an archive's member after a colon)
+SIDES = {
+    "third": {
+        "horse": "data/horse.zip:horse.ply",
+        "nefertiti": "data/nefertiti.obj",
+        "ogre": "data/ogre.obj",
+        "spot": "data/spot.obj",
+        "suzanne": "data/suzanne.obj",
+        "teapot": "data/teapot.obj",
+    },
+    # a scan, a bust, an animal, a statue of holes, a sculpted head, a CAD part
+    "fourth": {
+        "armadillo": "armadillo.obj",
+        "max": "decimated-max.obj",
+        "elephant": "elephant.obj",
+        "fertility": "fertility.off",
+        "lion": "lion.off",
+        "screwdriver": "screwdriver.off",
+    },
 }
 
 
-def read(data: Path, entry: str) -> trimesh.Trimesh:
-    """The mesh ``entry`` names under ``data``, welded."""
+def read(clone: Path, entry: str) -> trimesh.Trimesh:
+    """The mesh ``entry`` names in ``clone``, welded."""
     archive, _, member = entry.partition(":")
     if member:
-        with zipfile.ZipFile(data / archive) as opened, opened.open(member) as file:
+        with zipfile.ZipFile(clone / archive) as opened, opened.open(member) as file:
             mesh = trimesh.load(file, file_type=Path(member).suffix[1:], force="mesh")
     else:
-        mesh = trimesh.load(data / archive, force="mesh")
+        mesh = trimesh.load(clone / archive, force="mesh")
     mesh.merge_vertices(merge_tex=True, merge_norm=True)
     return mesh
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--clone", type=Path, required=True, help="common-3d-test-models")
+    parser.add_argument("--side", choices=list(SIDES), default="third")
+    parser.add_argument("--clone", type=Path, required=True, help="the side's repository")
     parser.add_argument("--out", type=Path, required=True, help="the folder to write")
     args = parser.parse_args()
-    data = args.clone / "data"
-    if missing := [e for e in OTHER_MESHES.values() if not (data / e.split(":")[0]).is_file()]:
-        raise SystemExit(f"{data}: not in this clone: {', '.join(missing)}")
+    meshes = SIDES[args.side]
+    if missing := [e for e in meshes.values() if not (args.clone / e.split(":")[0]).is_file()]:
+        raise SystemExit(f"{args.clone}: not in this clone: {', '.join(missing)}")
     args.out.mkdir(parents=True, exist_ok=True)
-    for name, entry in OTHER_MESHES.items():
-        mesh = read(data, entry)
+    for name, entry in meshes.items():
+        mesh = read(args.clone, entry)
         mesh.export(args.out / f"{name}.obj")
         print(f"{name}: {len(mesh.vertices)} vertices, {len(mesh.faces)} faces")
 

@@ -296,4 +296,4 @@ def test_the_third_sides_meshes_are_written_welded_from_a_clone(tmp_path):
         [sys.executable, "bench/other_meshes.py", "--clone", str(tmp_path / "clone"),
          "--out", str(out)], cwd=root, capture_output=True, text=True, timeout=120,
     )  # fmt: skip
-    assert done.returncode != 0 and "not in this clone: spot.obj" in done.stderr
+    assert done.returncode != 0 and "not in this clone: data/spot.obj" in done.stderr
