@@ -68,16 +68,18 @@ class Renderer(nn.Module):
 
     def _render(self, meshes: MeshBatch, mode: RenderMode) -> torch.Tensor:
         verts_cam, screen = self.screen(meshes)
-        pairs = kept_pairs(PairPlan(screen, self.config), screen.params, mode == "shaded")
+        plan = PairPlan(screen, self.config)
+        pairs = kept_pairs(plan, screen.params, mode == "shaded")
         if mode == "silhouette":
             return silhouette(pairs, screen.params)
         lit, shadow, behind = face_light(meshes.verts, verts_cam, meshes.faces, self.config)
         if not pushes_back(self.config):
             return shaded_images(pairs, screen.params, lit - shadow)
         # lit from both sides, less the shadow where faces seen from behind still show pushed
-        # back: an opening's inside, not an outline
+        # back: an opening's inside, not an outline. The push moves depths alone, so the plan
+        # of pixel-face pairs (screen boxes and spans) serves both blends.
         pushed = pushed_back(screen, behind, self.config, TORCH_OPS)
-        shade_pairs = kept_pairs(PairPlan(pushed, self.config), pushed.params, True)
+        shade_pairs = kept_pairs(plan, pushed.params, True)
         shade = shaded_images(shade_pairs, pushed.params, shadow, background=0.0)
         return shaded_images(pairs, screen.params, lit) - shade
 
