@@ -14,11 +14,11 @@ from .contract.cli_options import (
     Direction,
     Matching,
     Normalize,
-    OpeningsDark,
     Preset,
     Reduction,
     SolidWeight,
     Symmetric,
+    TwoSided,
     Window,
     pick_config,
 )
@@ -81,13 +81,13 @@ def score(
     reduction: Reduction = None,
     symmetric: Symmetric = False,
     solid_weight: SolidWeight = None,
-    openings_dark: OpeningsDark = False,
+    two_sided: TwoSided = False,
     as_json: Annotated[bool, typer.Option("--json", help="Print a JSON object.")] = False,
 ) -> None:
     """Score MESH_A against the reference MESH_B (0 for identical meshes)."""
     try:
         config = pick_config(
-            preset, matching, window, direction, reduction, symmetric, solid_weight, openings_dark
+            preset, matching, window, direction, reduction, symmetric, solid_weight, two_sided
         )
     except ValueError as exc:
         typer.echo(f"error: {exc}", err=True)

@@ -16,12 +16,12 @@ from drkfs_onnx.contract.cli_options import (
     Direction,
     Matching,
     Normalize,
-    OpeningsDark,
     Preset,
     Reduction,
     ReferenceNormalize,
     SolidWeight,
     Symmetric,
+    TwoSided,
     Window,
     pick_config,
 )
@@ -127,7 +127,7 @@ def pair(
     reduction: Reduction = None,
     symmetric: Symmetric = False,
     solid_weight: SolidWeight = None,
-    openings_dark: OpeningsDark = False,
+    two_sided: TwoSided = False,
     width: Width = None,
     nets: Nets = None,
     model: Model = None,
@@ -137,7 +137,7 @@ def pair(
     scorer = _scorer(_spec(
         threads, normalize, width, nets, model, max_faces, preset=preset, matching=matching,
         window=window, direction=direction, reduction=reduction, symmetric=symmetric,
-        solid_weight=solid_weight, openings_dark=openings_dark,
+        solid_weight=solid_weight, two_sided=two_sided,
     ))  # fmt: skip
     start = time.perf_counter()
     with _exit_on(MeshError, ValueError):
@@ -170,7 +170,7 @@ def explain(
     reduction: Reduction = None,
     symmetric: Symmetric = False,
     solid_weight: SolidWeight = None,
-    openings_dark: OpeningsDark = False,
+    two_sided: TwoSided = False,
     width: Width = None,
     nets: Nets = None,
     model: Model = None,
@@ -189,7 +189,7 @@ def explain(
     scorer = _scorer(_spec(
         threads, normalize, width, nets, model, max_faces, preset=preset, matching=matching,
         window=window, direction=direction, reduction=reduction, symmetric=symmetric,
-        solid_weight=solid_weight, openings_dark=openings_dark,
+        solid_weight=solid_weight, two_sided=two_sided,
     ))  # fmt: skip
     with _exit_on(MeshError, ValueError):
         explanation = explain_pair(scorer, mesh_a, mesh_b)
@@ -212,7 +212,7 @@ def features(
     threads: Threads = None,
     normalize: ReferenceNormalize = "joint",
     preset: Preset = "default",
-    openings_dark: OpeningsDark = False,
+    two_sided: TwoSided = False,
     width: Width = None,
     nets: Nets = None,
     model: Model = None,
@@ -223,7 +223,7 @@ def features(
     _check_out(out)
     spec = _spec(
         threads, normalize, width, nets, model, max_faces, preset=preset,
-        openings_dark=openings_dark,
+        two_sided=two_sided,
     )  # fmt: skip
     scorer = _scorer(spec)
     with _exit_on(MeshError):
@@ -306,7 +306,7 @@ def batch(
     reduction: Reduction = None,
     symmetric: Symmetric = False,
     solid_weight: SolidWeight = None,
-    openings_dark: OpeningsDark = False,
+    two_sided: TwoSided = False,
     width: Width = None,
     nets: Nets = None,
     model: Model = None,
@@ -344,7 +344,7 @@ def batch(
     spec = _spec(
         threads, normalize, width, nets, model, max_faces, preset=preset, matching=matching,
         window=window, direction=direction, reduction=reduction, symmetric=symmetric,
-        solid_weight=solid_weight, openings_dark=openings_dark,
+        solid_weight=solid_weight, two_sided=two_sided,
     )  # fmt: skip
     # checks the model and config here, before any worker starts; the progress bar says the rest
     scorer = _scorer(spec, progress=False)

@@ -10,7 +10,7 @@ import numpy as np
 
 from drkfs_onnx.contract import match_rules
 from drkfs_onnx.contract.array_ops import NUMPY_OPS
-from drkfs_onnx.contract.config import PipelineConfig
+from drkfs_onnx.contract.config import TWO_SIDED, PipelineConfig
 from drkfs_onnx.contract.solid_change import solid_reaches, view_solid_changes
 
 from .features import MeshFeatures
@@ -85,8 +85,16 @@ def check_features(
     another feature graph than ``model`` (a sha256) or under another normalisation."""
     made, asked = features.config.features_part(), config.features_part()
     if made != asked:
+        light = {name: getattr(made, name) for name in TWO_SIDED}
+        hint = (
+            "; it was described under two-sided light, the default's before openings were seen "
+            "dark: score with --two-sided, or describe it again"
+            if light == TWO_SIDED and made.replace(**TWO_SIDED) == asked.replace(**TWO_SIDED)
+            else ""
+        )
         raise ValueError(
-            f"{features.source}: features computed for another config: {made.differences(asked)}"
+            f"{features.source}: features computed for another config: "
+            f"{made.differences(asked)}{hint}"
         )
     if features.model != model:
         raise ValueError(

@@ -120,8 +120,8 @@ class NumpyRenderer:
         first = np.argsort(~over, axis=1, kind="stable")[:, : over.sum(1).max()]
         index = (first + screen.num_faces * np.arange(k)[:, None]).reshape(-1)
         listed = np.take_along_axis(over, first, 1).reshape(-1)
-        pushed = pushed_back(screen, behind, cfg, NUMPY_OPS)
-        pushed = ScreenFaces(pushed.params[:, index], listed, k, first.shape[1])
+        relisted_faces = ScreenFaces(screen.params[:, index], listed, k, first.shape[1])
+        pushed = pushed_back(relisted_faces, behind[index], cfg, NUMPY_OPS)
         again = soft_blend(*self._kept_pairs(pushed, k), shadow[index], cfg, NUMPY_OPS, 0.0)
         shade[relisted] = again[relisted]
         return shade

@@ -18,7 +18,7 @@ from drkfs_onnx.benchmark.methods import DEFAULT_NAME, DrkfsOnnx, Placed, drkfs_
 from drkfs_onnx.benchmark.run import TIER_PAIRS, run_bench, tier_accuracy
 from drkfs_onnx.benchmark.sets import STABILITY, _box_with_cavity
 from drkfs_onnx.benchmark.torch_checks import agreement, value_and_gradient
-from drkfs_onnx.contract.config import PipelineConfig
+from drkfs_onnx.contract.config import TWO_SIDED, PipelineConfig
 from drkfs_onnx.contract.mesh import frame_of, load_mesh, place
 from drkfs_onnx.runtime.render import NumpyRenderer
 from drkfs_onnx.synthetic.shapes import (
@@ -350,7 +350,7 @@ def test_views_are_shared_only_between_configs_that_render_alike():
     from behind otherwise, or pushes them back otherwise, renders its own."""
     verts, faces = assemble(FAMILIES["chair"](np.random.default_rng(0)), 1)
     placed = Placed("chair", place(verts, frame_of(verts)), faces)
-    config = PipelineConfig(num_views=2, image_size=64)
+    config = PipelineConfig(num_views=2, image_size=64, **TWO_SIDED)
     views, _ = placed.views(NumpyRenderer(config))
     assert placed.views(NumpyRenderer(config.replace(temperature=0.5)))[0] is views
     shadowed, _ = placed.views(NumpyRenderer(config.replace(back_light=0.0)))

@@ -10,7 +10,6 @@ from drkfs_onnx.contract.config import (
     FULL_PARTS,
     NETS_TRAINED_AT,
     ONE_REACH,
-    OPENINGS_DARK,
     OWN_RING_ONLY,
     TWO_SIDED,
     PipelineConfig,
@@ -151,9 +150,18 @@ def test_another_reduction_than_the_presets_counts_the_descriptors_part_in_full(
     )
 
 
-def test_openings_dark_picks_the_measured_light_on_any_preset():
+def test_the_default_sees_openings_dark_and_two_sided_picks_the_previous_light():
+    """The scoring default shades an opening's inside in the shell's shadow; the nets were
+    trained, the loss chosen and the paper preset always ran under two-sided light, and keep it;
+    --two-sided gives any preset that light."""
     from drkfs_onnx.contract.cli_options import pick_config
 
-    assert pick_config(openings_dark=True) == PipelineConfig(**OPENINGS_DARK)
-    assert pick_config("paper", openings_dark=True) == PipelineConfig.paper(**OPENINGS_DARK)
-    assert OPENINGS_DARK == {"back_light": 0.0, "back_push": 0.05}
+    default = PipelineConfig()
+    assert (default.back_light, default.back_push) == (0.0, 0.05)
+    assert PipelineConfig.structure().back_light == 0.0
+    assert TWO_SIDED == {"back_light": 1.0, "back_push": 0.0}
+    for two_sided in (PipelineConfig.paper(), PipelineConfig.training(), PipelineConfig.loss()):
+        assert (two_sided.back_light, two_sided.back_push) == (1.0, 0.0)
+    assert pick_config(two_sided=True) == PipelineConfig(**TWO_SIDED)
+    assert pick_config("structure", two_sided=True) == PipelineConfig.structure(**TWO_SIDED)
+    assert pick_config("paper", two_sided=True) == PipelineConfig.paper()

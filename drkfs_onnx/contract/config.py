@@ -30,9 +30,13 @@ NETS = ("tolerant", "metric", "correspondence")
 # them, so that drkfs train and tune-tolerant remake the shipped nets.
 # Each pairing's descriptors' part in full, as before moderate parts counted less.
 FULL_PARTS = {"moderate_slope": 1.0, "moderate_from": 0.0, "moderate_to": 0.0}
+# A face seen from behind lit as its front, as before ``back_light`` was a setting and before
+# openings were seen dark, and its shadow spread wherever it blends in (``back_push`` 0): the
+# light the nets were trained in and the loss was chosen and timed with, and the paper's.
+TWO_SIDED = {"back_light": 1.0, "back_push": 0.0}
 NETS_TRAINED_AT = {
     "num_views": 6, "image_size": 128, "temperature": 0.1, "turn_degrees": 0.0, "solid_weight": 0.0,
-    **FULL_PARTS,
+    **FULL_PARTS, **TWO_SIDED,
 }  # fmt: skip
 # Fields added after configs were first recorded (the manifest, feature graphs, features files,
 # results), with the value every record without them was made with: one ring of cameras, no
@@ -41,12 +45,6 @@ NETS_TRAINED_AT = {
 ONE_REACH = {"solid_ramp": 0, "solid_inner_drop": 0, "solid_inner_power": 1.0}
 # The own-ring pairing from its own ring alone, as before the turned ring's views joined it.
 OWN_RING_ONLY = {"turned_part_share": 0.0, "solid_both_rings": False}
-# A face seen from behind lit as its front, as before ``back_light`` was a setting, and its
-# shadow spread wherever it blends in (``back_push`` 0).
-TWO_SIDED = {"back_light": 1.0, "back_push": 0.0}
-# Openings seen dark: faces seen from behind in the shell's shadow, pushed behind the outlines
-# (docs/real_levers.md, "Openings seen dark"; not the default).
-OPENINGS_DARK = {"back_light": 0.0, "back_push": 0.05}
 ADDED_FIELDS = {
     "turn_degrees": 0.0, "solid_weight": 0.0, **ONE_REACH, **OWN_RING_ONLY, **FULL_PARTS,
     **TWO_SIDED,
@@ -124,7 +122,7 @@ class PipelineConfig:
     # side is a face's outside comes from the mesh's winding, turned by the sign of its volume
     # (``render_equations.mesh_orientation``): a mesh wound inside out as a whole renders as
     # itself, a part wound against the rest as an inside.
-    back_light: float = 1.0
+    back_light: float = 0.0
     # Where that shadow falls. Unpushed (0) it darkens a face seen from behind wherever it
     # blends into a pixel, also at every outline, where SoftRas' soft depth order mixes the
     # faces that meet there: that lost synthetic pairs and the slide check (docs/real_levers.md,
@@ -132,11 +130,12 @@ class PipelineConfig:
     # inverse depth behind the faces seen from the front, it falls only where such a face
     # still shows, an opening's inside: a closed mesh renders as under two-sided light, but
     # where a contour edge spans more depth than the push. At 0 of the light and a push of
-    # 0.05 the real tiers' held-out side meets every bar and no other pair turns and no check
-    # moves, but no pair turns on the training side or the synthetic tiers either, where the
-    # rule chooses, and a second blend (of the shadow alone) costs a new mesh up to 1.13x: the
-    # default keeps two-sided light (docs/real_levers.md, "Openings seen dark").
-    back_push: float = 0.0
+    # 0.05 (openings seen dark) the real tiers' held-out side meets every bar, where two-sided
+    # light (``TWO_SIDED``) missed surface < structural, the third and fourth sides order more
+    # pairs, and no synthetic or training pair, check or people's agreement moves; a second
+    # blend, of the shadow alone, costs a new mesh about 1.1x (docs/real_levers.md, "Openings
+    # seen dark").
+    back_push: float = 0.05
     # PoI detector: sum_n delta_n max_m (W_mn * I + b_mn); N = M = 2 with 9 x 9 filters, the
     # smallest of the training sweep's sizes within 0.01 repeatability of the best
     detector_kernel: int = 9
@@ -272,7 +271,8 @@ class PipelineConfig:
     def paper(cls, **changes: Any) -> PipelineConfig:
         """The DR-KFS paper's recipe: 25 views at 256 px, full-width HardNet trained on view-pair
         correspondences, every patch of A searches all of B's, and the best-match distances are
-        summed."""
+        summed; faces seen from behind lit as their front (``TWO_SIDED``), as this preset always
+        had them."""
         recipe = dict(
             num_views=25,
             image_size=256,
@@ -282,6 +282,7 @@ class PipelineConfig:
             turn_degrees=0.0,
             solid_weight=0.0,
             **FULL_PARTS,
+            **TWO_SIDED,
         )
         return cls(**{**recipe, "direction": "forward", "reduction": "sum", **changes})
 
