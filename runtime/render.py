@@ -85,11 +85,16 @@ class NumpyRenderer:
         image -= self._shadow(screen, behind, shadow, pairs)
         return image.reshape(k, size, size).astype(np.float32)
 
-    def _kept_pairs(self, screen: ScreenFaces, k: int) -> tuple[np.ndarray, ...]:
+    def _kept_pairs(
+        self, screen: ScreenFaces, k: int, pixels: np.ndarray | None = None
+    ) -> tuple[np.ndarray, ...]:
         """The pairs the soft blend of ``screen``'s k views keeps (pixel, face, logit) and each
-        pixel's largest logit, the background's included."""
+        pixel's largest logit, the background's included; only over ``pixels`` (a (k*S*S,)
+        mask) where given: a pixel's pairs and largest logit are its own."""
         cfg, size = self.config, self.config.image_size
         candidates = candidate_pairs(screen.params, screen.visible, k, cfg)
+        if pixels is not None:
+            candidates = select(pixels[candidates[0]], *candidates)
         pixel, face, logit = self._exact_logits(screen.params, *candidates)
         logit_max = np.full(k * size * size, background_logit(cfg))
         NUMPY_OPS.scatter_max(logit_max, pixel, logit)
@@ -112,18 +117,23 @@ class NumpyRenderer:
         # a logit's margin for the rounding of the pushed planes' depths
         if cfg.back_push / cfg.gamma > 2 * DEPTH_CULL + 1.0:
             relisted &= np.bincount(pixel[~from_behind], minlength=len(logit_max)) == 0
-        relisted = np.nonzero(relisted)[0]
         shade = np.zeros(len(logit_max))
-        if not len(relisted):
+        at = np.nonzero(relisted)[0]
+        if not len(at):
             return shade
-        over = faces_over(relisted, screen.params, screen.visible, k, cfg).reshape(k, -1)
+        over = faces_over(at, screen.params, screen.visible, k, cfg).reshape(k, -1)
         first = np.argsort(~over, axis=1, kind="stable")[:, : over.sum(1).max()]
         index = (first + screen.num_faces * np.arange(k)[:, None]).reshape(-1)
         listed = np.take_along_axis(over, first, 1).reshape(-1)
         relisted_faces = ScreenFaces(screen.params[:, index], listed, k, first.shape[1])
         pushed = pushed_back(relisted_faces, behind[index], cfg, NUMPY_OPS)
-        again = soft_blend(*self._kept_pairs(pushed, k), shadow[index], cfg, NUMPY_OPS, 0.0)
-        shade[relisted] = again[relisted]
+        # blended over the relisted pixels alone, numbered 0 .. len(at) - 1
+        pixel, face, logit, logit_max = self._kept_pairs(pushed, k, relisted)
+        local = np.cumsum(relisted) - 1
+        again = soft_blend(
+            local[pixel], face, logit, logit_max[at], shadow[index], cfg, NUMPY_OPS, 0.0
+        )
+        shade[at] = again
         return shade
 
     def _exact_logits(self, params: np.ndarray, pixel: np.ndarray, face: np.ndarray):
