@@ -141,6 +141,12 @@ def _alternating(steps: dict[str, object], repeats: int) -> dict[str, float]:
     return {name: min(values) for name, values in times.items()}
 
 
+def _new_mesh(scorer, mesh):
+    """A new mesh's features: rendered and described, none cached."""
+    scorer.cache.clear()
+    return scorer.features(mesh)
+
+
 def _light_cost(scorer, mesh, repeats: int) -> dict:
     """The default's new mesh against the same under two-sided light, the default's before
     openings were seen dark (a second blend, of the shadow alone), in turns."""
@@ -148,13 +154,11 @@ def _light_cost(scorer, mesh, repeats: int) -> dict:
     from drkfs_onnx.runtime import Scorer
 
     two_sided = Scorer(scorer.config.replace(**TWO_SIDED), threads=2)
-
-    def new_mesh(with_scorer):
-        with_scorer.cache.clear()
-        return with_scorer.features(mesh)
-
     best = _alternating(
-        {"openings_dark": lambda: new_mesh(scorer), "two_sided": lambda: new_mesh(two_sided)},
+        {
+            "openings_dark": lambda: _new_mesh(scorer, mesh),
+            "two_sided": lambda: _new_mesh(two_sided, mesh),
+        },
         3 * repeats,
     )
     return {
@@ -174,11 +178,7 @@ def run_case(path: Path, preset: str, repeats: int) -> dict:
     other = _jittered(mesh)
     scorer = Scorer(config, threads=2)
 
-    def new_mesh():
-        scorer.cache.clear()
-        return scorer.features(mesh)
-
-    new_s, reference = _best(new_mesh, repeats)
+    new_s, reference = _best(lambda: _new_mesh(scorer, mesh), repeats)
     placed = place(mesh.vertices, reference.frame)
     render_s, _ = _best(lambda: scorer.renderer.render(placed, mesh.faces), repeats)
     prediction = scorer.features(other, reference.frame)

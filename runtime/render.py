@@ -63,17 +63,24 @@ class NumpyRenderer:
         views_per_call = max(1, VIEW_FACES_PER_CALL // max(len(faces), 1))
         calls = max(min(self.threads, views), -(-views // views_per_call))
         groups = [self.cameras.select(g) for g in np.array_split(np.arange(views), calls)]
-        if self.threads == 1:
-            return np.concatenate([self._render(verts, faces, group) for group in groups])
-        with ThreadPoolExecutor(min(self.threads, calls)) as pool:
-            return np.concatenate(list(pool.map(lambda c: self._render(verts, faces, c), groups)))
+        # one per mesh, in the world frame: every group of views shares it
+        orientation = mesh_orientation(verts, faces, NUMPY_OPS)
 
-    def _render(self, verts: np.ndarray, faces: np.ndarray, cameras: Cameras) -> np.ndarray:
+        def render_group(cameras: Cameras) -> np.ndarray:
+            return self._render(verts, faces, orientation, cameras)
+
+        if self.threads == 1:
+            return np.concatenate([render_group(group) for group in groups])
+        with ThreadPoolExecutor(min(self.threads, calls)) as pool:
+            return np.concatenate(list(pool.map(render_group, groups)))
+
+    def _render(
+        self, verts: np.ndarray, faces: np.ndarray, orientation: np.ndarray, cameras: Cameras
+    ) -> np.ndarray:
         cfg, size = self.config, self.config.image_size
         k = len(cameras)
         verts_cam = cameras.world_to_camera(verts)
         screen = project_faces(verts_cam, faces, cameras.focal, cfg, NUMPY_OPS)
-        orientation = mesh_orientation(verts, faces, NUMPY_OPS)
         lit, shadow, behind = face_light(verts_cam, faces, orientation, cfg, NUMPY_OPS)
         pairs = self._kept_pairs(screen, k)
         if not pushes_back(cfg):
