@@ -5,6 +5,7 @@ with each loss at several seeds, judged on held-out shapes and views by metrics 
     python bench/single_view.py --quick                      # seconds: the tests' plan
     python bench/single_view.py --out bench/single_view      # the study (resumable)
     python bench/single_view.py --out bench/single_view --test-seeds 6000   # other test shapes
+    python bench/single_view.py --out bench/single_view --controls  # the matched controls
     python bench/single_view.py --out bench/single_view --steps 400 --seeds 0 \
         --losses "SoftRas (silhouette IoU),DR-KFS"                          # more steps
 
@@ -55,9 +56,16 @@ def single_view(
     losses: Annotated[
         str, typer.Option(help="With --steps: the losses, by name, comma-separated.")
     ] = "SoftRas (silhouette IoU),DR-KFS",
+    controls: Annotated[
+        bool,
+        typer.Option(
+            help="Train each DR-KFS recipe and its matched controls at every seed (networks "
+            "beside the study's in OUT) and judge them (writes OUT/controls.json)."
+        ),
+    ] = False,
 ) -> None:
     """Train SoftRas' shape generator with each loss and judge the reconstructions."""
-    from studies.single_view import judge_saved, run_longer, run_single_view
+    from studies.single_view import judge_saved, run_controls, run_longer, run_single_view
 
     progress = lambda line: typer.echo(line, err=True)  # noqa: E731
     out = out or RUNS / "single-view"
@@ -73,14 +81,19 @@ def single_view(
             judged = [f"{judge} {value:.4g}" for judge, value in row.items() if value is not None]
             typer.echo(f"{name}: {', '.join(judged)}")
         return
+    try:
+        seed_list = tuple(int(s) for s in seeds.split(","))
+    except ValueError:
+        message = f"--seeds: expected integers like 0,1,2; got {seeds!r}"
+        raise typer.BadParameter(message) from None
+    if controls:
+        results = run_controls(out, seed_list, quick, device, threads, progress)
+        for recipe, goal in results["goal"].items():
+            typer.echo(f"{recipe}: {goal}")
+        return
     if test_seeds is not None:
         results = judge_saved(out, test_seeds, threads, progress)
     else:
-        try:
-            seed_list = tuple(int(s) for s in seeds.split(","))
-        except ValueError:
-            message = f"--seeds: expected integers like 0,1,2; got {seeds!r}"
-            raise typer.BadParameter(message) from None
         results = run_single_view(out, quick, seed_list, device, threads, progress)
     pooled = results["shares"]["pooled"]
     for drkfs, rows in pooled.items():

@@ -26,7 +26,7 @@ import numpy as np
 import torch
 
 from drkfs_onnx.benchmark.point_metrics import sample_surface
-from drkfs_onnx.contract.config import PipelineConfig
+from drkfs_onnx.contract.config import VIEW_FIELDS, PipelineConfig
 from drkfs_onnx.contract.mesh import frame_of, place
 from drkfs_onnx.geometry import chamfer, surface_points
 from drkfs_onnx.judging.judges import HIGHER_IS_BETTER, Judge, better
@@ -83,12 +83,31 @@ COMBINATIONS = (
     Recipe("DR-KFS + 1 x silhouette IoU", ((1.0, DRKFS_SHADED), (1.0, IOU))),
     Recipe("DR-KFS + 3 x Chamfer-L2", ((1.0, DRKFS_SHADED), (3.0, CHAMFER))),
 )
+# the matched controls (--controls): each DR-KFS recipe with its DR-KFS term left out, or
+# replaced by another image term of the same weight. Every data term is divided by its first
+# value, so a term's weight is its share against SoftRas' regularisers: "DR-KFS + 3 x Chamfer"
+# gives Chamfer three times the pull it has in "Chamfer-L2", and only a control of the same
+# weights tells what DR-KFS adds from what that weight does
+RECIPE, RECIPE_IOU = COMBINATIONS[1].name, COMBINATIONS[0].name
+CONTROLS = (
+    Recipe("3 x Chamfer-L2", ((3.0, CHAMFER),)),
+    Recipe("silhouette IoU + 3 x Chamfer-L2", ((1.0, IOU), (3.0, CHAMFER))),
+    Recipe("pixel MSE + 3 x Chamfer-L2", ((1.0, PIXEL), (3.0, CHAMFER))),
+    Recipe("2 x silhouette IoU", ((2.0, IOU),)),
+    Recipe("silhouette IoU + 1 x pixel MSE", ((1.0, IOU), (1.0, PIXEL))),
+)
+MATCHED = {  # a DR-KFS recipe -> its controls, SoftRas' own loss beside each
+    DRKFS_SHADED: (SOFTRAS, PIXEL),
+    RECIPE: ("3 x Chamfer-L2", "silhouette IoU + 3 x Chamfer-L2", "pixel MSE + 3 x Chamfer-L2",
+             SOFTRAS),
+    RECIPE_IOU: (SOFTRAS, "2 x silhouette IoU", "silhouette IoU + 1 x pixel MSE"),
+}  # fmt: skip
 # trained only when asked (--steps ... --losses): the strongest attempt's other nets
 EXTRA = (Recipe(DRKFS_TUNED, ((1.0, DRKFS_TUNED),)),)
 
 
 def by_name(name: str) -> Recipe:
-    recipes = (*BASELINES, *DRKFS_RECIPES, *COMBINATIONS, *EXTRA)
+    recipes = (*BASELINES, *DRKFS_RECIPES, *COMBINATIONS, *CONTROLS, *EXTRA)
     for recipe in recipes:
         if recipe.name == name:
             return recipe
@@ -295,13 +314,22 @@ class Networks:
         self.key = f"{resume_key(plan)}; views {VIEW_CONFIG.to_json()}"
         self.folder, self.device = folder, device
 
+    def matches(self, key: str) -> bool:
+        """Whether a network saved under ``key`` was trained as this store's would be: the same
+        plan, torch and threads, and the same views (a config field added since reads as the
+        value such records were made with; fields the views do not depend on are moot)."""
+        plan, _, views = key.partition("; views ")
+        ours, _, our_views = self.key.partition("; views ")
+        saved, now = (PipelineConfig.from_json(v) for v in (views, our_views))
+        return plan == ours and all(getattr(saved, f) == getattr(now, f) for f in VIEW_FIELDS)
+
     def path(self, seed: int, name: str) -> Path:
         return self.folder / f"seed{seed}" / f"{slug(name)}.pt"
 
     def get(self, seed: int, name: str, any_key: bool = False) -> dict | None:
         path = self.path(seed, name)
         saved = torch.load(path, weights_only=True) if path.exists() else None
-        if saved is None or not (any_key or saved["key"] == self.key):
+        if saved is None or not (any_key or self.matches(saved["key"])):
             return None
         model = ShapeGenerator(CHANNELS, IMAGE_SIZE)
         model.load_state_dict({k: v.float() if v.is_floating_point() else v
@@ -658,6 +686,102 @@ def run_longer(
         },  # fmt: skip
     }
     (out / f"longer-{steps}-steps.json").write_text(json.dumps(results, indent=1))
+    return results
+
+
+def controls_goal(tables: list[dict], chamfer_l1: dict[str, float | None], recipe: str) -> dict:
+    """The issue's bar for one DR-KFS recipe: closer than each of its matched controls and than
+    SoftRas' loss by LFD and by unseen-view silhouette IoU on >= 75% of the test cells pooled
+    over seeds, at a Chamfer-L1 (``chamfer_l1``: loss -> pooled mean) no worse than the best
+    control's."""
+    found: dict = {}
+    for against in MATCHED[recipe]:
+        won = shares(tables, recipe, against)
+        found[f"beats {against}"] = {m: won[m]["share"] for m in ("LFD", "silhouette IoU")}
+    best = min(chamfer_l1[c] for c in MATCHED[recipe])
+    found["chamfer_l1_over_best_control"] = chamfer_l1[recipe] / best
+    shares_met = all(
+        v is not None and v >= 0.75 for k, row in found.items() if k.startswith("beats")
+        for v in row.values()
+    )  # fmt: skip
+    found["met"] = shares_met and found["chamfer_l1_over_best_control"] <= 1.0
+    return found
+
+
+def summarise_controls(tables: dict[int, dict], test_set: list[Shape]) -> dict:
+    """Means of every recipe and control; each DR-KFS recipe's shares against each of its
+    controls, per seed and pooled; the goal per DR-KFS recipe."""
+    names = list(dict.fromkeys(n for d, cs in MATCHED.items() for n in (d, *cs)))
+    pooled = list(tables.values())
+    pooled_means = means(pooled, test_set, names)
+    chamfer_l1 = {n: pooled_means["mean"][n]["Chamfer-L1"] for n in names}
+    per = {"pooled": pooled, **{f"seed {s}": [t] for s, t in tables.items()}}
+    return {
+        "means": {"pooled": pooled_means,
+                  **{f"seed {s}": means([t], test_set, names) for s, t in tables.items()}},
+        "shares": {key: {d: {c: shares(ts, d, c) for c in cs} for d, cs in MATCHED.items()}
+                   for key, ts in per.items()},
+        "goal": {d: controls_goal(pooled, chamfer_l1, d) for d in MATCHED},
+    }  # fmt: skip
+
+
+def run_controls(
+    out: Path,
+    seeds: tuple[int, ...] = (0, 1, 2),
+    quick: bool = False,
+    device: str = "cpu",
+    threads: int = 2,
+    progress=print,
+) -> dict:
+    """Each DR-KFS recipe and its matched controls (``MATCHED``) trained at every seed for the
+    study's steps (OUT/networks beside the study's, resumable) and judged on its test shapes ->
+    OUT/controls.json."""
+    start = time.perf_counter()
+    plan = QUICK if quick else FULL
+    dev = torch.device(device)
+    train_set, _, test_set = study_sets(plan)
+    cache, renderer = out / "data" / "views.pt", ViewRenderer()
+    views = {name: views_of(shapes, cache, renderer)
+             for name, shapes in (("train", train_set), ("test", test_set))}  # fmt: skip
+    networks = Networks(out / "networks", plan, dev)
+    terms = Terms(train_set, views["train"], ShapeGenerator(CHANNELS, IMAGE_SIZE).faces.to(dev), 0)
+    names = list(dict.fromkeys(n for d, cs in MATCHED.items() for n in (d, *cs)))
+    seconds: dict = {}
+    for seed in seeds:
+        for name in names:
+            if networks.get(seed, name) is None:
+                trained = train(plan, by_name(name), seed, views["train"], terms, progress)
+                networks.put(seed, name, trained)
+            seconds.setdefault(name, {})[f"seed {seed}"] = networks.get(seed, name)[
+                "seconds_per_step"
+            ]
+    judge = Judge(PipelineConfig(), threads, plan.unseen_views, plan.lfd, image_judges=False)
+    truths: dict = {}
+    try:
+        tables = {
+            seed: judge_all(judge, {n: networks.get(seed, n)["model"] for n in names}, test_set,
+                            views["test"], truths, progress)
+            for seed in seeds
+        }  # fmt: skip
+    finally:
+        judge.close()
+    results = {
+        "command": f"python bench/single_view.py{' --quick' if quick else ''} --controls "
+        f"--seeds {','.join(map(str, seeds))} --device {device} --out {out}",
+        **machine(),
+        "device": device if dev.type == "cpu" else torch.cuda.get_device_name(dev),
+        "lfd": judge.lfd_note,
+        "seeds": list(seeds),
+        "steps": plan.steps,
+        "matched": {d: list(cs) for d, cs in MATCHED.items()},
+        "recipes": {n: [list(t) for t in by_name(n).terms] for n in names},
+        "tables": {f"seed {s}": t for s, t in tables.items()},
+        **summarise_controls(tables, test_set),
+        "seconds_per_step": seconds,
+        "seconds_total": time.perf_counter() - start,
+    }
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "controls.json").write_text(json.dumps(results, indent=1))
     return results
 
 
