@@ -13,6 +13,7 @@ import typer
 from .contract.cli_options import (
     Direction,
     Matching,
+    Metric,
     Normalize,
     Preset,
     Reduction,
@@ -24,6 +25,7 @@ from .contract.cli_options import (
 )
 from .contract.config import PipelineConfig
 from .contract.mesh import MeshError, load_mesh
+from .contract.versions import metric_name
 from .synthetic.examples import REFERENCE, example_meshes, write_examples
 
 app = typer.Typer(help="DR-KFS visual similarity of 3D meshes (torch path).", no_args_is_help=True)
@@ -75,6 +77,7 @@ def score(
     mesh_b: Annotated[Path, typer.Argument(help="The reference (ground truth).")],
     normalize: Normalize = "joint",
     preset: Preset = "default",
+    metric: Metric = None,
     matching: Matching = None,
     window: Window = None,
     direction: Direction = None,
@@ -87,21 +90,30 @@ def score(
     """Score MESH_A against the reference MESH_B (0 for identical meshes)."""
     try:
         config = pick_config(
-            preset, matching, window, direction, reduction, symmetric, solid_weight, two_sided
+            preset,
+            metric,
+            matching,
+            window,
+            direction,
+            reduction,
+            symmetric,
+            solid_weight,
+            two_sided,
         )
     except ValueError as exc:
         typer.echo(f"error: {exc}", err=True)
         raise typer.Exit(2) from exc
-    metric = _metric(config, normalize)
+    scorer = _metric(config, normalize)
     start = time.perf_counter()
     try:
-        value = _score(metric, mesh_a, mesh_b)
+        value = _score(scorer, mesh_a, mesh_b)
     except MeshError as exc:
         typer.echo(f"error: {exc}", err=True)
         raise typer.Exit(2) from exc
     seconds = time.perf_counter() - start
     if as_json:
-        typer.echo(json.dumps({"score": value, "seconds": seconds}))
+        report = {"score": value, "seconds": seconds, "metric": metric_name(config)}
+        typer.echo(json.dumps(report))
     else:
         typer.echo(f"{value:.6g}")
 

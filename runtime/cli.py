@@ -15,6 +15,7 @@ import typer
 from drkfs_onnx.contract.cli_options import (
     Direction,
     Matching,
+    Metric,
     Normalize,
     Preset,
     Reduction,
@@ -66,8 +67,12 @@ MaxFaces = Annotated[
 ]
 
 BATCH_COLUMNS = [
-    "row", "mesh_a", "mesh_b", "score", "seconds", "error", "settings", "model_version", "content",
+    "row", "mesh_a", "mesh_b", "score", "metric", "seconds", "error", "settings", "model_version",
+    "content",
 ]  # fmt: skip
+# a results file written before scores named their metric version resumes (its records read as
+# of no named version until this run's settings rescore or adopt them)
+UNNAMED_COLUMNS = [c for c in BATCH_COLUMNS if c != "metric"]
 
 
 @contextmanager
@@ -121,6 +126,7 @@ def pair(
     threads: Threads = None,
     normalize: Normalize = "joint",
     preset: Preset = "default",
+    metric: Metric = None,
     matching: Matching = None,
     window: Window = None,
     direction: Direction = None,
@@ -135,16 +141,17 @@ def pair(
 ) -> None:
     """Score MESH_A against the reference MESH_B (0 for identical meshes)."""
     scorer = _scorer(_spec(
-        threads, normalize, width, nets, model, max_faces, preset=preset, matching=matching,
-        window=window, direction=direction, reduction=reduction, symmetric=symmetric,
-        solid_weight=solid_weight, two_sided=two_sided,
+        threads, normalize, width, nets, model, max_faces, preset=preset, metric=metric,
+        matching=matching, window=window, direction=direction, reduction=reduction,
+        symmetric=symmetric, solid_weight=solid_weight, two_sided=two_sided,
     ))  # fmt: skip
     start = time.perf_counter()
     with _exit_on(MeshError, ValueError):
         value = scorer.score(mesh_a, reference_of(mesh_b))
     seconds = time.perf_counter() - start
     if as_json:
-        report = {"score": value, "seconds": seconds, "model_version": scorer.model_version}
+        report = {"score": value, "metric": scorer.metric, "seconds": seconds}
+        report.update(model_version=scorer.model_version)
         report.update(mesh_a=str(mesh_a), mesh_b=str(mesh_b), normalize=normalize)
         report.update(config=scorer.config.to_dict())
         typer.echo(json.dumps(report))
@@ -164,6 +171,7 @@ def explain(
     threads: Threads = None,
     normalize: Normalize = "joint",
     preset: Preset = "default",
+    metric: Metric = None,
     matching: Matching = None,
     window: Window = None,
     direction: Direction = None,
@@ -187,9 +195,9 @@ def explain(
 
     _check_out(out)
     scorer = _scorer(_spec(
-        threads, normalize, width, nets, model, max_faces, preset=preset, matching=matching,
-        window=window, direction=direction, reduction=reduction, symmetric=symmetric,
-        solid_weight=solid_weight, two_sided=two_sided,
+        threads, normalize, width, nets, model, max_faces, preset=preset, metric=metric,
+        matching=matching, window=window, direction=direction, reduction=reduction,
+        symmetric=symmetric, solid_weight=solid_weight, two_sided=two_sided,
     ))  # fmt: skip
     with _exit_on(MeshError, ValueError):
         explanation = explain_pair(scorer, mesh_a, mesh_b)
@@ -212,6 +220,7 @@ def features(
     threads: Threads = None,
     normalize: ReferenceNormalize = "joint",
     preset: Preset = "default",
+    metric: Metric = None,
     two_sided: TwoSided = False,
     width: Width = None,
     nets: Nets = None,
@@ -222,7 +231,7 @@ def features(
     out = out if out.suffix == ".npz" else out.with_name(out.name + ".npz")  # numpy adds it
     _check_out(out)
     spec = _spec(
-        threads, normalize, width, nets, model, max_faces, preset=preset,
+        threads, normalize, width, nets, model, max_faces, preset=preset, metric=metric,
         two_sided=two_sided,
     )  # fmt: skip
     scorer = _scorer(spec)
@@ -233,7 +242,7 @@ def features(
     typer.echo(f"{out}: {len(result.descriptors)} patch descriptors, {result.empty} empty patches")
 
 
-def _write_in_input_order(out, earlier, todo, contents, settings, done, fresh) -> None:
+def _write_in_input_order(out, earlier, todo, contents, settings, metric, done, fresh) -> None:
     """OUT rewritten whole: the records of other settings as they were, then one record per
     row of ``todo`` in input order (a row done earlier keeps its score under this run's row
     number and paths). At these settings OUT holds this CSV's rows and no others: a record of
@@ -241,7 +250,7 @@ def _write_in_input_order(out, earlier, todo, contents, settings, done, fresh) -
     rows = []
     for index, (a, b) in enumerate(todo):
         record = fresh.get(index) or done[(contents[index], settings)]
-        rows.append({**record, "row": index, "mesh_a": a, "mesh_b": b})
+        rows.append({**record, "row": index, "mesh_a": a, "mesh_b": b, "metric": metric})
     others = [r for r in earlier if r["settings"] != settings]
     partial = out.with_name(out.name + ".partial")
     with open(partial, "w", newline="") as handle:
@@ -259,7 +268,7 @@ def _finished(out: Path) -> list[dict]:
     text = out.read_text()
     text = text[: text.rfind("\n") + 1]  # a kill can cut the last line
     reader = csv.DictReader(text.splitlines())
-    if reader.fieldnames != BATCH_COLUMNS:
+    if reader.fieldnames not in (BATCH_COLUMNS, UNNAMED_COLUMNS):
         raise ValueError(
             f"{out}: not a results file of this drkfs-score (columns {reader.fieldnames}); "
             "write to a new --out"
@@ -300,6 +309,7 @@ def batch(
     ] = None,
     normalize: Normalize = "joint",
     preset: Preset = "default",
+    metric: Metric = None,
     matching: Matching = None,
     window: Window = None,
     direction: Direction = None,
@@ -342,9 +352,9 @@ def batch(
     if ray is not None and threads is None:
         threads = 1
     spec = _spec(
-        threads, normalize, width, nets, model, max_faces, preset=preset, matching=matching,
-        window=window, direction=direction, reduction=reduction, symmetric=symmetric,
-        solid_weight=solid_weight, two_sided=two_sided,
+        threads, normalize, width, nets, model, max_faces, preset=preset, metric=metric,
+        matching=matching, window=window, direction=direction, reduction=reduction,
+        symmetric=symmetric, solid_weight=solid_weight, two_sided=two_sided,
     )  # fmt: skip
     # checks the model and config here, before any worker starts; the progress bar says the rest
     scorer = _scorer(spec, progress=False)
@@ -398,6 +408,7 @@ def _score_rows(
             for index, result in stream:
                 record = {"row": index, "mesh_a": todo[index][0], "mesh_b": todo[index][1]}
                 record.update(score="" if result.score is None else repr(result.score))
+                record.update(metric=scorer.metric)
                 record.update(error=result.error, seconds=f"{result.seconds:.4f}")
                 record.update(settings=settings, model_version=version, content=contents[index])
                 writer.writerow(record)  # flushed row by row: a kill loses no finished row
@@ -406,7 +417,7 @@ def _score_rows(
                 if result.error:
                     failed.append(index)
     with _exit_on(OSError):
-        _write_in_input_order(out, earlier, todo, contents, settings, done, fresh)
+        _write_in_input_order(out, earlier, todo, contents, settings, scorer.metric, done, fresh)
     scored, skipped = len(rows) - len(failed), len(todo) - len(rows)
     typer.echo(
         f"{scored} scored, {len(failed)} failed, {skipped} already done; results in {out}",

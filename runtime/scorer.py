@@ -26,6 +26,7 @@ from drkfs_onnx.contract.mesh import (
     place,
 )
 from drkfs_onnx.contract.patch_grid import nonempty_patches
+from drkfs_onnx.contract.versions import LATEST, metric_config, metric_name
 
 from .features import MeshFeatures
 from .match import check_features, match
@@ -58,7 +59,9 @@ class Scorer:
 
     Args:
         config: the score's settings; the feature graph must have been exported for them
-            (``ModelMismatch`` otherwise).
+            (``ModelMismatch`` otherwise). None: ``metric``'s.
+        metric: a named version (``contract.versions``: ``drkfs-1.0``, ``drkfs-paper``, ...)
+            whose frozen config to score with, when ``config`` is None; None: the newest.
         model: a feature graph's path; None for the shipped one of ``config``.
         threads: onnxruntime intra-op threads and renderer threads (None: all cores); the
             match's BLAS threads follow OPENBLAS_NUM_THREADS.
@@ -84,6 +87,7 @@ class Scorer:
         self,
         config: PipelineConfig | None = None,
         model: str | Path | None = None,
+        metric: str | None = None,
         threads: int | None = None,
         normalization: str = "joint",
         view_batch: int = 1,
@@ -91,7 +95,9 @@ class Scorer:
         max_faces: int | None = None,
         progress: Callable[[str], None] | None = None,
     ):
-        self.config = config or PipelineConfig()
+        if config is not None and metric is not None:
+            raise ValueError("give a config or a metric version, not both")
+        self.config = config or metric_config(metric or LATEST)
         self.normalization = check_normalization(normalization)
         self.view_batch = view_batch
         self.features_graph = open_features(self.config, model, threads)
@@ -103,6 +109,11 @@ class Scorer:
             np.full((1, self.config.image_size, self.config.image_size), self.config.background),
             np.array([0]),
         )[0]
+
+    @property
+    def metric(self) -> str:
+        """The named version this scorer's config is (``CUSTOM`` where a setting differs)."""
+        return metric_name(self.config)
 
     @property
     def model_version(self) -> str:

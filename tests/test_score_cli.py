@@ -15,6 +15,7 @@ from typer.testing import CliRunner
 
 from drkfs_onnx import PipelineConfig, load_mesh
 from drkfs_onnx.contract.model_files import features_file
+from drkfs_onnx.contract.versions import LATEST, metric_config
 from drkfs_onnx.runtime.cli import app
 from drkfs_onnx.runtime.output_lock import lock_path
 
@@ -204,6 +205,22 @@ def test_batch_resume_is_keyed_by_the_pair_and_the_settings_not_the_row(tmp_path
     assert len(settings) == 2
 
 
+def test_batch_records_the_metric_version_and_resumes_a_file_from_before_it_named_one(tmp_path):
+    pairs, out = tmp_path / "pairs.csv", tmp_path / "scores.csv"
+    pairs.write_text(f"mesh_a,mesh_b\n{NO_LEG},{CHAIR}\n")
+    assert _run("batch", pairs, "--out", out).exit_code == 0
+    (record,) = _record_list(out)
+    assert record["metric"] == LATEST
+    unnamed = [{k: v for k, v in record.items() if k != "metric"}]
+    with open(out, "w", newline="") as handle:  # as a results file without the column
+        writer = csv.DictWriter(handle, list(unnamed[0]))
+        writer.writeheader()
+        writer.writerows(unnamed)
+    again = _run("batch", pairs, "--out", out)
+    assert "0 scored, 0 failed, 1 already done" in again.output
+    assert _record_list(out) == [record]
+
+
 def test_batch_refuses_to_write_over_its_input_or_an_old_results_file(tmp_path):
     pairs = tmp_path / "pairs.csv"
     pairs.write_text(f"mesh_a,mesh_b\n{CHAIR},{CHAIR}\n")
@@ -319,6 +336,9 @@ def test_options_are_accepted_and_a_mesh_scores_zero_against_itself(option):
      (["--symmetric", "--direction", "forward"], "--symmetric searches both directions"),
      (["--preset", "paper", "--window", "1"], "the paper preset matches globally: add "
       "--matching window"),
+     (["--matching", "global", "--window", "2"], "--matching global has none: drop --window"),
+     (["--metric", "drkfs-0.9"], "unknown metric 'drkfs-0.9'; use one of drkfs-1.0"),
+     (["--metric", "drkfs-1.0", "--preset", "paper"], "both name a metric: give one"),
      (["--no-symmetric"], "No such option: --no-symmetric"),
      (["--nets", "mystery"], "unknown nets 'mystery'")],
 )  # fmt: skip
@@ -368,10 +388,24 @@ def test_json_report_carries_the_config_it_scored_with():
     assert config == PipelineConfig.paper(descriptor_width=0.25)
 
 
+def test_a_score_names_its_metric_version_and_an_older_one_is_reproduced_by_name():
+    latest = json.loads(_run("pair", NO_LEG, CHAIR, "--json").stdout)
+    assert latest["metric"] == LATEST
+    paper = json.loads(_run("pair", NO_LEG, CHAIR, "--json", "--metric", "drkfs-paper").stdout)
+    assert paper["metric"] == "drkfs-paper"
+    assert PipelineConfig.from_dict(paper["config"]) == metric_config("drkfs-paper")
+    preset = json.loads(_run("pair", NO_LEG, CHAIR, "--json", "--preset", "paper").stdout)
+    assert paper["score"] == preset["score"]
+    overridden = json.loads(_run("pair", NO_LEG, CHAIR, "--json", *FAST).stdout)
+    assert overridden["metric"] == "custom"  # a setting changed: no named version
+
+
 def test_a_features_file_for_another_preset_is_refused_naming_the_settings(tmp_path):
     assert _run("features", CHAIR, "--out", tmp_path / "chair.npz").exit_code == 0
     result = _run("pair", NO_LEG, tmp_path / "chair.npz", "--preset", "paper")
     assert result.exit_code == 2
+    said = " ".join(result.output.split())
+    assert f"described for {LATEST}'s views, scoring asks drkfs-paper's" in said
     default = PipelineConfig()
     assert f"num_views {default.num_views} (asked 25)" in result.output
     assert f"image_size {default.image_size} (asked 256)" in result.output

@@ -16,12 +16,9 @@ from .config import (
     TWO_SIDED,
     PipelineConfig,
 )
+from .versions import LATEST, VERSIONS, metric_config
 
-PRESETS = {
-    "default": PipelineConfig,
-    "paper": PipelineConfig.paper,
-    "structure": PipelineConfig.structure,
-}
+PRESETS = {"default": LATEST, "paper": "drkfs-paper", "structure": "drkfs-structure-1.0"}
 
 Normalize = Annotated[
     str, typer.Option(help=f"Frame of the two meshes: {', '.join(NORMALIZATIONS)}.")
@@ -39,9 +36,17 @@ ReferenceNormalize = Annotated[
 Preset = Annotated[
     str,
     typer.Option(
-        help="default (chosen by the benchmark), paper (25 views, 256 px, global sum) or "
-        "structure (the default's nets, cameras and solid change, global match, power mean of "
-        "order 8)."
+        help=f"default ({LATEST}, chosen by the benchmark), paper (drkfs-paper: 25 views, 256 "
+        "px, global sum) or structure (drkfs-structure-1.0: the default's nets, cameras and "
+        "solid change, global match, power mean of order 8)."
+    ),
+]
+Metric = Annotated[
+    str | None,
+    typer.Option(
+        help=f"A named metric version, to reproduce scores quoted by name: {', '.join(VERSIONS)}"
+        " (CHANGELOG.md). Replaces --preset.",
+        show_default=False,
     ),
 ]
 Matching = Annotated[
@@ -91,6 +96,7 @@ TwoSided = Annotated[
 
 def pick_config(
     preset: str = "default",
+    metric: str | None = None,
     matching: str | None = None,
     window: int | None = None,
     direction: str | None = None,
@@ -100,9 +106,12 @@ def pick_config(
     two_sided: bool = False,
     **changes,
 ) -> PipelineConfig:
-    """The preset's config with the given overrides; ValueError names a bad value."""
+    """The named version's config (``metric``, else the preset's) with the given overrides;
+    ValueError names a bad value."""
     if preset not in PRESETS:
         raise ValueError(f"unknown preset {preset!r}; use one of {', '.join(PRESETS)}")
+    if metric is not None and preset != "default":
+        raise ValueError(f"--metric {metric} and --preset {preset} both name a metric: give one")
     if symmetric:
         if direction not in (None, "both"):
             raise ValueError(f"--symmetric searches both directions, not {direction!r}")
@@ -114,14 +123,20 @@ def pick_config(
     changes.update({key: value for key, value in picked.items() if value is not None})
     if two_sided:
         changes = {**TWO_SIDED, **changes}
-    base = PRESETS[preset]()
+    base = metric_config(metric or PRESETS[preset])
     if reduction is not None and reduction != base.reduction:
         # the window on the descriptors' part is in the preset reduction's units
         changes = {**FULL_PARTS, **changes}
     config = base.replace(**changes)
     if window is not None and config.matching != "window":
+        if matching is not None:
+            raise ValueError(
+                f"--window {window} sets the window match's radius; --matching {matching} has "
+                "none: drop --window"
+            )
+        named = metric or f"the {preset} preset"
         raise ValueError(
-            f"--window {window} sets the window match's radius, but the {preset} preset "
-            f"matches {config.matching}ly: add --matching window"
+            f"--window {window} sets the window match's radius, but {named} matches "
+            f"{config.matching}ly: add --matching window"
         )
     return config
