@@ -6,6 +6,7 @@ with each loss at several seeds, judged on held-out shapes and views by metrics 
     python bench/single_view.py --out bench/single_view      # the study (resumable)
     python bench/single_view.py --out bench/single_view --test-seeds 6000   # other test shapes
     python bench/single_view.py --out bench/single_view --controls  # the matched controls
+    python bench/single_view.py --out bench/single_view --curve --until 2000   # learning curve
     python bench/single_view.py --out bench/single_view --steps 400 --seeds 0 \
         --losses "SoftRas (silhouette IoU),DR-KFS"                          # more steps
 
@@ -56,6 +57,23 @@ def single_view(
     losses: Annotated[
         str, typer.Option(help="With --steps: the losses, by name, comma-separated.")
     ] = "SoftRas (silhouette IoU),DR-KFS",
+    curve: Annotated[
+        bool,
+        typer.Option(
+            help="The learning curve: the main losses trained at the first of --seeds and "
+            "judged at 200, 500, 1,000 and 2,000 steps up to --until (writes OUT/curve.json "
+            "and OUT/curve.png; resumes from --state)."
+        ),
+    ] = False,
+    until: Annotated[int, typer.Option(help="With --curve: the last step judged.")] = 2000,
+    state: Annotated[
+        Path | None,
+        typer.Option(
+            help="With --curve: where training states and networks are kept between runs "
+            "(outside the repository; default ~/.cache/drkfs-onnx/single-view-curve).",
+            show_default=False,
+        ),
+    ] = None,
     controls: Annotated[
         bool,
         typer.Option(
@@ -65,7 +83,14 @@ def single_view(
     ] = False,
 ) -> None:
     """Train SoftRas' shape generator with each loss and judge the reconstructions."""
-    from studies.single_view import judge_saved, run_controls, run_longer, run_single_view
+    from studies.single_view import (
+        CURVE_STATE,
+        judge_saved,
+        run_controls,
+        run_curve,
+        run_longer,
+        run_single_view,
+    )
 
     progress = lambda line: typer.echo(line, err=True)  # noqa: E731
     out = out or RUNS / "single-view"
@@ -86,6 +111,14 @@ def single_view(
     except ValueError:
         message = f"--seeds: expected integers like 0,1,2; got {seeds!r}"
         raise typer.BadParameter(message) from None
+    if curve:
+        results = run_curve(
+            out, until, seed_list[0], state or CURVE_STATE, quick, device, threads, progress
+        )
+        for point, row in results["points"].items():
+            lfd = {n: v["LFD"] for n, v in row["means"].items()}
+            typer.echo(f"{point} steps, LFD: {lfd}")
+        return
     if controls:
         results = run_controls(out, seed_list, quick, device, threads, progress)
         for recipe, goal in results["goal"].items():

@@ -24,6 +24,7 @@ from studies.single_view import (
     DRKFS_RECIPES,
     HELD_OUT_AZIMUTHS,
     JUDGED,
+    MATCHED,
     QUICK,
     TEST_SEED,
     TRAIN_AZIMUTHS,
@@ -31,10 +32,15 @@ from studies.single_view import (
     VALIDATION_SEED,
     Networks,
     SilhouetteDRKFS,
+    Terms,
+    by_name,
     draw_batch,
     iou_loss,
     shares,
+    study_sets,
+    train,
     validation_choice,
+    views_of,
 )
 from studies.views import AZIMUTHS, CHANNELS, ELEVATION, IMAGE_SIZE, VIEW_CONFIG, ViewRenderer
 from typer.testing import CliRunner
@@ -235,3 +241,35 @@ def test_more_steps_train_beside_the_studys_networks_and_are_judged_with_them(qu
     )
     unknown = CliRunner().invoke(app, [*args, "--losses", "IoU"])
     assert unknown.exit_code != 0 and "no loss 'IoU'" in unknown.output
+
+
+def test_a_training_stopped_and_resumed_ends_where_a_straight_one_does(tmp_path):
+    plan = replace(QUICK, steps=4)
+    train_set, _, _ = study_sets(plan)
+    views = views_of(train_set, tmp_path / "views.pt", ViewRenderer())
+    faces = ShapeGenerator(CHANNELS, IMAGE_SIZE).faces
+    terms = Terms(train_set, views, faces, 0)
+    recipe = by_name("silhouette IoU + 3 x Chamfer-L2")  # the Chamfer term draws random points
+    straight = train(plan, recipe, 0, views, terms, print)
+    half = train(plan, recipe, 0, views, terms, print, until=2)
+    resumed = train(plan, recipe, 0, views, terms, print, resume=half["state"])
+    assert resumed["history"] == straight["history"] and len(half["history"]) == 2
+    for name, value in straight["model"].state_dict().items():
+        assert torch.equal(value, resumed["model"].state_dict()[name]), name
+
+
+@pytest.mark.slow
+def test_the_controls_and_the_curve_judge_each_recipe_beside_its_controls(tmp_path):
+    out, state = tmp_path / "out", tmp_path / "state"
+    result = CliRunner().invoke(app, ["--quick", "--controls", "--seeds", "0", "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    controls = json.loads((out / "controls.json").read_text())
+    for recipe, against in MATCHED.items():
+        assert set(controls["shares"]["pooled"][recipe]) == set(against)
+        assert controls["goal"][recipe]["met"] in (True, False)
+    args = ["--quick", "--curve", "--seeds", "0", "--out", str(out), "--state", str(state)]
+    assert CliRunner().invoke(app, args).exit_code == 0
+    curve = json.loads((out / "curve.json").read_text())
+    assert list(curve["points"]) == ["1", "2"] and (out / "curve.png").stat().st_size > 0
+    again = CliRunner().invoke(app, args)  # every point trained and judged: nothing to do
+    assert again.exit_code == 0 and json.loads((out / "curve.json").read_text()) == curve

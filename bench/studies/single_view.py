@@ -102,6 +102,12 @@ MATCHED = {  # a DR-KFS recipe -> its controls, SoftRas' own loss beside each
              SOFTRAS),
     RECIPE_IOU: (SOFTRAS, "2 x silhouette IoU", "silhouette IoU + 1 x pixel MSE"),
 }  # fmt: skip
+# the learning curve (--curve): one run of each to the last point at seed 0, judged at every
+# point; the recipe's best control is read from OUT/controls.json (by pooled LFD), else this
+CURVE_POINTS = (200, 500, 1000, 2000)
+CURVE_RECIPES = (SOFTRAS, PIXEL, "3 x Chamfer-L2", DRKFS_SHADED, RECIPE)
+CURVE_CONTROL = "silhouette IoU + 3 x Chamfer-L2"
+CURVE_STATE = Path.home() / ".cache" / "drkfs-onnx" / "single-view-curve"
 # trained only when asked (--steps ... --losses): the strongest attempt's other nets
 EXTRA = (Recipe(DRKFS_TUNED, ((1.0, DRKFS_TUNED),)),)
 
@@ -271,10 +277,20 @@ def tuned_nets() -> DRKFS:
 
 @deterministic_kernels()
 def train(
-    plan: Plan, recipe: Recipe, seed: int, views: torch.Tensor, terms: Terms, progress
+    plan: Plan,
+    recipe: Recipe,
+    seed: int,
+    views: torch.Tensor,
+    terms: Terms,
+    progress,
+    resume: dict | None = None,
+    until: int | None = None,
 ) -> dict:
-    """One generator trained with ``recipe`` -> {"model", "history", "seconds_per_step"}. Every
-    recipe at a seed starts from the same weights and sees the same batches."""
+    """One generator trained with ``recipe`` -> {"model", "history", "seconds_per_step",
+    "state"}. Every recipe at a seed starts from the same weights and sees the same batches.
+    ``until`` stops at that step (default: the plan's last), with the staged loss's progress
+    still counted against the plan's steps; ``resume`` goes on from an earlier call's "state"
+    as if the two calls were one."""
     device = terms.faces.device
     torch.manual_seed(seed)
     model = ShapeGenerator(CHANNELS, IMAGE_SIZE).to(device)
@@ -283,9 +299,17 @@ def train(
     rng = np.random.default_rng(seed)
     terms.generator.manual_seed(seed)
     optimizer = torch.optim.Adam(model.parameters(), lr=plan.learning_rate)
-    scales, history = None, []
+    scales, history, first, seconds = None, [], 0, 0.0
+    if resume is not None:
+        model.load_state_dict(resume["model"])
+        optimizer.load_state_dict(resume["optimizer"])
+        rng.bit_generator.state = resume["rng"]
+        terms.generator.set_state(resume["generator"])
+        scales, history = resume["scales"], list(resume["history"])
+        first, seconds = len(history), resume["seconds"]
+    last = plan.steps if until is None else until
     start = time.perf_counter()
-    for step in range(plan.steps):
+    for step in range(first, last):
         batch = draw_batch(rng, len(views), plan.batch)
         verts = model(views[batch.shapes, batch.inputs].to(device))
         values = torch.stack(
@@ -300,8 +324,12 @@ def train(
         history.append(float(objective.detach()))
         if step % max(1, plan.steps // 10) == 0:
             progress(f"seed {seed}, {recipe.name}: step {step} objective {history[-1]:.4f}")
-    seconds = (time.perf_counter() - start) / max(plan.steps, 1)
-    return {"model": model.eval(), "history": history, "seconds_per_step": seconds}
+    seconds += time.perf_counter() - start
+    state = {"model": model.state_dict(), "optimizer": optimizer.state_dict(),
+             "rng": rng.bit_generator.state, "generator": terms.generator.get_state(),
+             "scales": scales, "history": history, "seconds": seconds}  # fmt: skip
+    return {"model": model.eval(), "history": history,
+            "seconds_per_step": seconds / max(len(history), 1), "state": state}  # fmt: skip
 
 
 class Networks:
@@ -783,6 +811,119 @@ def run_controls(
     out.mkdir(parents=True, exist_ok=True)
     (out / "controls.json").write_text(json.dumps(results, indent=1))
     return results
+
+
+def curve_control(out: Path) -> str:
+    """The recipe's matched control closest by pooled LFD in OUT/controls.json, else
+    ``CURVE_CONTROL``."""
+    path = out / "controls.json"
+    if not path.is_file():
+        return CURVE_CONTROL
+    pooled = json.loads(path.read_text())["means"]["pooled"]["mean"]
+    controls = [c for c in MATCHED[RECIPE] if c != SOFTRAS and pooled[c]["LFD"] is not None]
+    return min(controls, key=lambda c: pooled[c]["LFD"]) if controls else CURVE_CONTROL
+
+
+def run_curve(
+    out: Path,
+    until: int = CURVE_POINTS[-1],
+    seed: int = 0,
+    state: Path = CURVE_STATE,
+    quick: bool = False,
+    device: str = "cpu",
+    threads: int = 2,
+    progress=print,
+) -> dict:
+    """The learning curve: each of ``CURVE_RECIPES`` and the recipe's best control trained in
+    one run to the last of ``CURVE_POINTS`` (at most ``until``), judged on the study's test
+    shapes at each point -> OUT/curve.json and OUT/curve.png, rewritten after every point. Each
+    run's training state and its network at each point are kept in ``state`` (outside the
+    repository: 15 MB a state), so a stopped curve goes on where it stopped, bit for bit as a
+    straight run, in this session or a later one on the same machine."""
+    study_plan = QUICK if quick else FULL
+    points = [p for p in CURVE_POINTS if p <= until] if not quick else [1, 2]
+    plan = replace(study_plan, steps=points[-1] if quick else CURVE_POINTS[-1])
+    train_set, _, test_set = study_sets(plan)
+    cache, renderer = out / "data" / "views.pt", ViewRenderer()
+    views = {name: views_of(shapes, cache, renderer)
+             for name, shapes in (("train", train_set), ("test", test_set))}  # fmt: skip
+    dev = torch.device(device)
+    terms = Terms(train_set, views["train"], ShapeGenerator(CHANNELS, IMAGE_SIZE).faces.to(dev), 0)
+    names = [*CURVE_RECIPES, curve_control(out)]
+    key = f"{resume_key(plan)}; views {VIEW_CONFIG.to_json()}"
+    judge = Judge(PipelineConfig(), threads, plan.unseen_views, plan.lfd, image_judges=False)
+    path = out / "curve.json"
+    done = json.loads(path.read_text()) if path.is_file() else {}
+    rows = done.get("points", {}) if done.get("key") == key else {}
+    truths: dict = {}
+    try:
+        for point in points:
+            networks = Networks(state / f"networks-{point}-steps", plan, dev)
+            for name in names:
+                if networks.get(seed, name) is None:
+                    saved = state / "states" / f"seed{seed}" / f"{slug(name)}.pt"
+                    resume = torch.load(saved, weights_only=False) if saved.is_file() else None
+                    if resume is not None and (
+                        resume["key"] != key or len(resume["history"]) > point
+                    ):
+                        resume = None  # another plan's, or past this point: train afresh
+                    trained = train(plan, by_name(name), seed, views["train"], terms, progress,
+                                    resume, until=point)  # fmt: skip
+                    saved.parent.mkdir(parents=True, exist_ok=True)
+                    torch.save({**trained["state"], "key": key}, saved.with_suffix(".tmp"))
+                    saved.with_suffix(".tmp").replace(saved)
+                    networks.put(seed, name, trained)
+            if str(point) in rows and set(rows[str(point)]["means"]) >= set(names):
+                continue
+            models = {n: networks.get(seed, n)["model"] for n in names}
+            table = judge_all(judge, models, test_set, views["test"], truths, progress)
+            rows[str(point)] = {
+                "table": table,
+                "means": means([table], test_set, names)["mean"],
+                "seconds_per_step": {n: networks.get(seed, n)["seconds_per_step"] for n in names},
+            }
+            results = {
+                "command": f"python bench/single_view.py{' --quick' if quick else ''} --curve "
+                f"--until {until} --seeds {seed} --device {device} --out {out}",
+                **machine(),
+                "device": device if dev.type == "cpu" else torch.cuda.get_device_name(dev),
+                "lfd": judge.lfd_note,
+                "key": key,
+                "seed": seed,
+                "losses": names,
+                "schedule": f"one run of {plan.steps} steps, judged at each point; the staged "
+                "DR-KFS loss's progress is the step over the run's steps",
+                "points": dict(sorted(rows.items(), key=lambda kv: int(kv[0]))),
+            }
+            out.mkdir(parents=True, exist_ok=True)
+            path.write_text(json.dumps(results, indent=1))
+            draw_curve(out / "curve.png", results)
+    finally:
+        judge.close()
+    return json.loads(path.read_text())
+
+
+def draw_curve(path: Path, results: dict) -> None:
+    """Each judge against steps (log scale), one line per loss."""
+    from matplotlib.figure import Figure
+
+    judges = ("LFD", "silhouette IoU", "Chamfer-L1", "F-score 1%")
+    figure = Figure(figsize=(14, 3.6))
+    steps = [int(p) for p in results["points"]]
+    for i, metric in enumerate(judges):
+        axes = figure.add_subplot(1, len(judges), i + 1)
+        for name in results["losses"]:
+            values = [results["points"][str(p)]["means"][name][metric] for p in steps]
+            if any(v is not None for v in values):
+                axes.plot(steps, values, marker="o", label=name)
+        axes.set_xscale("log")
+        axes.set_xlabel("training steps")
+        title = "unseen silhouette IoU" if metric == "silhouette IoU" else metric
+        arrow = "higher is better" if metric in HIGHER_IS_BETTER else "lower is better"
+        axes.set_title(f"{title} ({arrow})", fontsize=9)
+    figure.axes[0].legend(fontsize=7)
+    figure.tight_layout()
+    figure.savefig(path, dpi=90)
 
 
 def draw_gallery(out, plan, networks, seed, names, test_set, views) -> None:
