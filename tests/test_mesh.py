@@ -69,7 +69,9 @@ def test_a_file_without_faces_says_what_it_holds(tmp_path):
 def test_nan_and_inf_vertices(tmp_path):
     path = tmp_path / "nan.obj"
     path.write_text("v 0 0 0\nv 1 0 0\nv nan 1 0\nv 0 inf 1\nf 1 2 3\nf 1 2 4\n")
-    assert "NaN or infinite" in _error(path).reason
+    assert _error(path).reason.startswith("2 vertices are NaN or infinite (first: vertex 2)")
+    path.write_text("v 0 0 0\nv 1 0 0\nv nan 1 0\nv 0 1 1\nf 1 2 3\nf 1 2 4\n")
+    assert _error(path).reason.startswith("1 vertex is NaN or infinite (first: vertex 2)")
 
 
 def test_all_degenerate_faces(tmp_path):

@@ -201,7 +201,13 @@ def check_mesh(vertices: np.ndarray, faces: np.ndarray, source: str = "<array>")
         raise MeshError(source, f"face indices out of range for {len(vertices)} vertices")
     bad = ~np.isfinite(vertices).all(axis=1)
     if bad.any():
-        raise MeshError(source, f"{int(bad.sum())} vertices are NaN or infinite")
+        count = int(bad.sum())
+        which = "1 vertex is" if count == 1 else f"{count} vertices are"
+        raise MeshError(
+            source,
+            f"{which} NaN or infinite (first: vertex {int(np.flatnonzero(bad)[0])}); "
+            "fix or drop it in the file",
+        )
     # areas relative to the mesh's own size, in units of its box: a mesh in other units (1e-100
     # or 1e100) is the same shape, and its squared coordinates would under- or overflow
     area_ok = has_area(vertices[faces], np.asarray(np.ptp(vertices, axis=0).max()))
