@@ -28,7 +28,11 @@ from .contract.mesh import MeshError, load_mesh
 from .contract.versions import metric_name
 from .synthetic.examples import REFERENCE, example_meshes, write_examples
 
-app = typer.Typer(help="DR-KFS visual similarity of 3D meshes (torch path).", no_args_is_help=True)
+app = typer.Typer(
+    help="DR-KFS visual similarity of 3D meshes (torch path).",
+    no_args_is_help=True,
+    rich_markup_mode=None,  # plain help: flags without <bool>, paragraphs rewrapped
+)
 # Where train, export and bench write unless --out says otherwise: never the shipped models/
 # or the committed bench/ results, which only an explicit --out replaces.
 RUNS = Path("runs")
@@ -317,7 +321,8 @@ def _fmt(value: float | None) -> str:
 
 @app.command()
 def examples(folder: Annotated[Path, typer.Argument()] = Path("examples")) -> None:
-    """Write the bundled example meshes (a chair and its variants) to FOLDER."""
+    """Write the bundled example meshes (a chair and its variants) and pairs.csv, which scores
+    each against the chair (drkfs-score batch FOLDER/pairs.csv --out scores.csv), to FOLDER."""
     for path in write_examples(folder):
         typer.echo(path)
 
@@ -329,9 +334,9 @@ def demo(
     ] = Path("examples"),
 ) -> None:
     """Score every example mesh against the reference chair and print a table."""
+    metric = _metric(PipelineConfig())  # needs torch: said before anything is written
     if not (folder / REFERENCE).is_file():
         write_examples(folder)
-    metric = _metric(PipelineConfig())
     typer.echo(f"{'mesh':28} {'DR-KFS':>10} {'seconds':>8}  change")
     for name, (change, _) in example_meshes().items():
         start = time.perf_counter()

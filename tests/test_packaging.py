@@ -52,11 +52,26 @@ def test_no_bare_export_or_runtime_module_is_installed(tmp_path):
     assert result.stdout.strip() == "[True, True] [False, False]", result.stderr
 
 
-def test_bundled_examples_are_what_the_code_generates():
+def test_bundled_examples_are_what_the_code_generates(tmp_path):
     for name, (_, mesh) in example_meshes().items():
         shipped = trimesh.load(ROOT / "examples" / name, force="mesh", process=False)
         assert np.allclose(shipped.vertices, mesh.vertices, atol=1e-7), name
         assert np.array_equal(shipped.faces, mesh.faces), name
+    # drkfs examples DIR writes the pairs file too: the README's main job runs outside a clone
+    written = CliRunner().invoke(app, ["examples", str(tmp_path)])
+    assert written.exit_code == 0, written.output
+    assert (tmp_path / "pairs.csv").read_text() == (ROOT / "examples" / "pairs.csv").read_text()
+
+
+def test_demo_without_torch_says_so_before_it_writes_anything(tmp_path):
+    code = (
+        "import sys; sys.modules['torch'] = None\n"
+        "from drkfs_onnx.cli import main; sys.argv = ['drkfs', 'demo', '--folder', 'ex']; main()"
+    )
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                            cwd=tmp_path)  # fmt: skip
+    assert result.returncode == 2 and "needs torch" in result.stderr, result.stderr
+    assert not (tmp_path / "ex").exists()
 
 
 def test_cli_scores_a_pair_as_json():

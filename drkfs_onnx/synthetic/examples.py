@@ -1,4 +1,5 @@
-"""The bundled example meshes: a chair and its mild and structural variants, made by code."""
+"""The bundled example meshes: a chair and its invisible and structural variants, made by code,
+and the pairs file that scores each against the chair (``drkfs-score batch``)."""
 
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ from .shapes import assemble, chair
 from .variants import shifted, without
 
 REFERENCE = "chair.obj"
+PAIRS = "pairs.csv"
 
 
 def example_meshes() -> dict[str, tuple[str, trimesh.Trimesh]]:
@@ -21,9 +23,9 @@ def example_meshes() -> dict[str, tuple[str, trimesh.Trimesh]]:
 
     return {
         REFERENCE: ("reference", mesh(base)),
-        "chair_retessellated.obj": ("mild: same surface, 4x the triangles", mesh(base, 2)),
+        "chair_retessellated.obj": ("invisible: the same surface, 4x the triangles", mesh(base, 2)),
         "chair_leg_shifted.obj": (
-            "mild: one leg shifted by 2% of the chair's size",
+            "invisible: one leg shifted by 2% of the chair's size",
             mesh(shifted(base, "leg_3", (0.02, 0.0, 0.0))),
         ),
         "chair_no_leg.obj": ("structural: one leg removed", mesh(without(base, "leg_3"))),
@@ -32,6 +34,7 @@ def example_meshes() -> dict[str, tuple[str, trimesh.Trimesh]]:
 
 
 def write_examples(folder: str | Path) -> list[Path]:
+    """The example meshes and PAIRS written to ``folder`` -> their paths."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     paths = []
@@ -39,4 +42,6 @@ def write_examples(folder: str | Path) -> list[Path]:
         path = folder / name
         mesh.export(path)
         paths.append(path)
-    return paths
+    rows = "".join(f"{name},{REFERENCE}\n" for name in example_meshes())
+    (folder / PAIRS).write_text("mesh_a,mesh_b\n" + rows)
+    return [*paths, folder / PAIRS]
