@@ -107,6 +107,8 @@ def ray_results(
 ) -> Iterator[tuple[int, RowResult]]:
     """The rows scored by ``workers`` Ray actors (one Scorer with ``spec.threads`` threads
     each; default: as many as the cluster's CPUs hold), yielded in input order as they finish.
+    Ray is joined here, before any result is asked for: a cluster that cannot be reached is a
+    ConnectionError before the batch writes anything.
 
     address: ``local`` starts a Ray instance on this machine (``workers`` x threads CPUs, or
     all cores); ``auto`` joins the cluster this machine belongs to; anything else is a cluster
@@ -114,7 +116,7 @@ def ray_results(
     worker, and reaches the others through Ray's object store.
     """
     if not rows:
-        return
+        return iter(())
     import ray
 
     threads = spec.threads or 1
@@ -125,7 +127,13 @@ def ray_results(
         try:
             ray.init(address=address, logging_level="ERROR")
         except ConnectionError as exc:
-            raise ConnectionError(f"--ray {address}: {exc}") from exc
+            why = (
+                "this machine has joined no Ray cluster: start one (ray start --head) or use "
+                "--ray local"
+                if address == "auto"
+                else f"no Ray cluster answered there ({exc})"
+            )
+            raise ConnectionError(f"--ray {address}: {why}") from exc
     try:
         if address != "local":
             check_workers(ray, address)
@@ -136,6 +144,14 @@ def ray_results(
                 f"{workers} workers x {threads} threads need {workers * threads} CPUs; "
                 f"the Ray cluster has {available}"
             )
+    except BaseException:
+        ray.shutdown()
+        raise
+    return _ray_stream(ray, rows, spec, workers, threads)
+
+
+def _ray_stream(ray, rows, spec, workers, threads) -> Iterator[tuple[int, RowResult]]:
+    try:
         yield from _schedule(ray, rows, spec, workers, threads)
     finally:
         ray.shutdown()

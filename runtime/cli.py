@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import hashlib
 import json
+import sys
 import time
 from contextlib import contextmanager
 from pathlib import Path
@@ -24,6 +25,7 @@ from drkfs_onnx.contract.cli_options import (
     Symmetric,
     TwoSided,
     Window,
+    choices,
     pick_config,
 )
 from drkfs_onnx.contract.config import NETS
@@ -36,7 +38,9 @@ from .scorer import MAX_FACES, Scorer, reference_of
 from .sessions import ModelMismatch
 
 app = typer.Typer(
-    help="DR-KFS visual similarity of 3D meshes, scored with onnxruntime.", no_args_is_help=True
+    help="DR-KFS visual similarity of 3D meshes, scored with onnxruntime.",
+    no_args_is_help=True,
+    rich_markup_mode=None,  # plain help: flags without <bool>, paragraphs rewrapped
 )
 
 Threads = Annotated[
@@ -50,8 +54,9 @@ Width = Annotated[
 Nets = Annotated[
     str | None,
     typer.Option(
-        help=f"Override the preset's nets: {', '.join(NETS)}. The tolerant nets (the default's) "
-        "come at width 0.5, the metric and correspondence nets at 1, 0.5 and 0.25."
+        metavar=choices(NETS),
+        help="Override the preset's nets. The tolerant nets (the default's) "
+        "come at width 0.5, the metric and correspondence nets at 1, 0.5 and 0.25.",
     ),
 ]
 Model = Annotated[
@@ -73,6 +78,9 @@ BATCH_COLUMNS = [
 # a results file written before scores named their metric version resumes (its records read as
 # of no named version until this run's settings rescore or adopt them)
 UNNAMED_COLUMNS = [c for c in BATCH_COLUMNS if c != "metric"]
+
+
+PICTURES = (".png", ".pdf", ".svg")  # explain's formats, by the --out suffix
 
 
 @contextmanager
@@ -163,7 +171,9 @@ def pair(
 def explain(
     mesh_a: Path,
     mesh_b: Annotated[Path, typer.Argument(help="The reference (ground truth) mesh.")],
-    out: Annotated[Path, typer.Option(help="The picture to write (PNG).")],
+    out: Annotated[
+        Path, typer.Option(help="The picture to write: .png (the default suffix), .pdf or .svg.")
+    ],
     as_json: Annotated[
         bool, typer.Option("--json", help="Print the score and the top patches as JSON.")
     ] = False,
@@ -193,6 +203,10 @@ def explain(
         raise typer.Exit(2) from None
     from .explain import explain as explain_pair
 
+    out = out if out.suffix else out.with_suffix(".png")
+    if out.suffix.lower() not in PICTURES:
+        typer.echo(f"error: --out {out}: write a {', '.join(PICTURES)} picture", err=True)
+        raise typer.Exit(2)
     _check_out(out)
     scorer = _scorer(_spec(
         threads, normalize, width, nets, model, max_faces, preset=preset, metric=metric,
@@ -204,8 +218,8 @@ def explain(
     with _exit_on(OSError, ValueError):
         write_explanation(out, explanation, top)
     if as_json:
-        report = {"score": explanation.score, "mesh_a": str(mesh_a), "mesh_b": str(mesh_b)}
-        report["solid_change"] = explanation.solid_change
+        report = {"score": explanation.score, "metric": scorer.metric, "mesh_a": str(mesh_a)}
+        report.update(mesh_b=str(mesh_b), solid_change=explanation.solid_change)
         report.update(picture=str(out), top_patches=explanation.top_patches(top))
         report.update(normalize=normalize, config=scorer.config.to_dict())
         typer.echo(json.dumps(report))
@@ -287,6 +301,7 @@ RayAddress = Annotated[
     str | None,
     typer.Option(
         "--ray",
+        metavar="[local|auto|ADDRESS]",
         help="Score on Ray workers: local (a Ray instance on this machine), auto (the cluster this "
         "machine joined) or a cluster address (ray://head:10001). Needs the ray extra.",
     ),
@@ -359,7 +374,7 @@ def batch(
     # checks the model and config here, before any worker starts; the progress bar says the rest
     scorer = _scorer(spec, progress=False)
     with _exit_on(OutputLocked, OSError), output_lock(out):  # before _finished rewrites OUT
-        _score_rows(out, todo, scorer, spec, ray, workers)
+        _score_rows(out, todo, pairs_file.written, scorer, spec, ray, workers)
 
 
 def _content(path: str) -> str:
@@ -374,6 +389,7 @@ def _content(path: str) -> str:
 def _score_rows(
     out: Path,
     todo: list[tuple[str, str]],
+    written: list[tuple[str, str]],
     scorer: Scorer,
     spec: ScorerSpec,
     ray: str | None,
@@ -398,15 +414,17 @@ def _score_rows(
         except ImportError:
             typer.echo('error: --ray needs the ray extra: pip install "drkfs-onnx[ray]"', err=True)
             raise typer.Exit(2) from None
-        results = ray_results(rows, spec, ray, workers)
+        with _exit_on(ConnectionError, ValueError):
+            results = ray_results(rows, spec, ray, workers)
     failed, fresh = [], {}
     with _exit_on(OSError, ValueError), open(out, "a", newline="") as handle:
         writer = csv.DictWriter(handle, BATCH_COLUMNS)
         if handle.tell() == 0:
             writer.writeheader()
-        with typer.progressbar(results, length=len(rows), label="scoring", file=None) as stream:
+        bar = typer.progressbar(results, length=len(rows), label="scoring", file=sys.stderr)
+        with bar as stream:
             for index, result in stream:
-                record = {"row": index, "mesh_a": todo[index][0], "mesh_b": todo[index][1]}
+                record = {"row": index, "mesh_a": written[index][0], "mesh_b": written[index][1]}
                 record.update(score="" if result.score is None else repr(result.score))
                 record.update(metric=scorer.metric)
                 record.update(error=result.error, seconds=f"{result.seconds:.4f}")
@@ -417,7 +435,7 @@ def _score_rows(
                 if result.error:
                     failed.append(index)
     with _exit_on(OSError):
-        _write_in_input_order(out, earlier, todo, contents, settings, scorer.metric, done, fresh)
+        _write_in_input_order(out, earlier, written, contents, settings, scorer.metric, done, fresh)
     scored, skipped = len(rows) - len(failed), len(todo) - len(rows)
     typer.echo(
         f"{scored} scored, {len(failed)} failed, {skipped} already done; results in {out}",

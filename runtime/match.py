@@ -88,8 +88,7 @@ def check_features(
     if made != asked:
         light = {name: getattr(made, name) for name in TWO_SIDED}
         hint = (
-            "; it was described under two-sided light, the default's before openings were seen "
-            "dark: score with --two-sided, or describe it again"
+            "; it was described under two-sided light: score with --two-sided, or describe it again"
             if light == TWO_SIDED and made.replace(**TWO_SIDED) == asked.replace(**TWO_SIDED)
             else ""
         )

@@ -4,7 +4,8 @@
   A first row that is neither is refused (a header with other names, ``pred,gt``, would
   otherwise be scored as a pair).
 - A relative path is relative to the CSV's folder, so a CSV and its meshes move together and
-  the batch runs from any directory; absolute paths stay as they are.
+  the batch runs from any directory; absolute paths stay as they are; ``~`` is the home
+  folder. Results name each mesh as the CSV wrote it.
 - Blank rows (``,`` included) are skipped and their line numbers reported; a row with one path
   is kept and fails as that row.
 - Other columns are ignored and named in a warning, and so are a row's fields beyond the
@@ -23,9 +24,11 @@ COLUMNS = ("mesh_a", "mesh_b")
 
 @dataclass
 class PairsFile:
-    """The pairs to score, as paths to open, and warnings about the rows not read as pairs."""
+    """The pairs to score, as absolute paths to open and as the CSV wrote them, and warnings
+    about the rows not read as pairs."""
 
     pairs: list[tuple[str, str]]
+    written: list[tuple[str, str]]
     warnings: list[str] = field(default_factory=list)
 
 
@@ -62,7 +65,7 @@ def read_pairs(path: Path) -> PairsFile:
             )
         if not rows:
             raise ValueError(f"{path}: no pairs below the header mesh_a,mesh_b")
-    elif all((folder / cell).exists() for cell in header[:2]) and len(header) >= 2:
+    elif all(Path(_path(folder, cell)).exists() for cell in header[:2]) and len(header) >= 2:
         a, b = 0, 1
         wide = [number for number, row in rows if len(row) > 2 and any(row[2:])]
         if wide:
@@ -75,7 +78,9 @@ def read_pairs(path: Path) -> PairsFile:
             "two existing files (relative paths are read from the CSV's folder); name the "
             "columns mesh_a and mesh_b"
         )
-    return PairsFile([(_path(folder, row, a), _path(folder, row, b)) for _, row in rows], warnings)
+    cells = [(_cell(row, a), _cell(row, b)) for _, row in rows]
+    opened = [(_path(folder, cell_a), _path(folder, cell_b)) for cell_a, cell_b in cells]
+    return PairsFile(opened, cells, warnings)
 
 
 def _rows(path: Path) -> list[tuple[int, list[str]]]:
@@ -93,11 +98,16 @@ def _rows(path: Path) -> list[tuple[int, list[str]]]:
         raise ValueError(f"{path}: not a readable CSV ({exc})") from exc
 
 
-def _path(folder: Path, row: list[str], column: int) -> str:
-    """The cell as a path from the CSV's folder; an empty or missing cell stays empty (the row
-    then fails as needing two meshes)."""
-    cell = row[column] if column < len(row) else ""
-    return str(folder / cell) if cell else ""
+def _cell(row: list[str], column: int) -> str:
+    """The row's cell in ``column``; a missing cell is empty (the row then fails as needing two
+    meshes)."""
+    return row[column] if column < len(row) else ""
+
+
+def _path(folder: Path, cell: str) -> str:
+    """The cell as an absolute path from the CSV's folder (an error then names the folder it
+    looked in); an empty cell stays empty."""
+    return str((folder / Path(cell).expanduser()).absolute()) if cell else ""
 
 
 def _numbers(lines: list[int], shown: int = 10) -> str:

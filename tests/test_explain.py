@@ -1,6 +1,7 @@
 """Where a score comes from: per-patch distances, their shares of the score, and the torch
 method a training loop logs them with."""
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -110,3 +111,17 @@ def test_torch_patch_distances_are_the_runtimes(no_leg):
         config = metric.config
         assert grid.shape == (config.num_views, config.patches_per_side, config.patches_per_side)
         assert np.allclose(grid.numpy(), no_leg.distances[side], atol=2e-3)
+
+
+def test_explain_out_names_the_picture_it_wrote_and_refuses_an_unknown_format(tmp_path):
+    from typer.testing import CliRunner
+
+    from drkfs_onnx.runtime.cli import app
+
+    pair = [str(EXAMPLES / "chair_no_leg.obj"), str(EXAMPLES / "chair.obj")]
+    result = CliRunner().invoke(app, ["explain", *pair, "--out", str(tmp_path / "ex"), "--json"])
+    assert result.exit_code == 0, result.output
+    assert json.loads(result.stdout)["picture"] == str(tmp_path / "ex.png")
+    assert (tmp_path / "ex.png").stat().st_size > 0
+    refused = CliRunner().invoke(app, ["explain", *pair, "--out", str(tmp_path / "ex.foo")])
+    assert refused.exit_code == 2 and "write a .png, .pdf, .svg picture" in refused.output

@@ -72,6 +72,16 @@ def test_ray_options_name_what_is_missing(tmp_path, monkeypatch):
     assert result.exit_code == 2 and 'pip install "drkfs-onnx[ray]"' in result.output
 
 
+def test_ray_auto_without_a_cluster_is_one_line_and_writes_no_results_file(tmp_path):
+    pairs = tmp_path / "pairs.csv"
+    pairs.write_text(f"mesh_a,mesh_b\n{EXAMPLES / 'chair.obj'},{EXAMPLES / 'chair.obj'}\n")
+    out = tmp_path / "scores.csv"
+    result = _run("batch", pairs, "--out", out, "--ray", "auto", *FAST)
+    assert result.exit_code == 2 and "Traceback" not in result.output
+    assert "--ray auto: this machine has joined no Ray cluster" in result.output
+    assert "--address" not in result.output and not out.exists()
+
+
 class _RayWhoseWorkersCannotImport:
     """Stands in for a Ray instance another program started: its workers lack the package."""
 

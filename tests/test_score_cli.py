@@ -221,6 +221,25 @@ def test_batch_records_the_metric_version_and_resumes_a_file_from_before_it_name
     assert _record_list(out) == [record]
 
 
+def test_batch_names_meshes_as_its_csv_wrote_them_from_any_folder(tmp_path, monkeypatch):
+    folder = tmp_path / "data"
+    folder.mkdir()
+    shutil.copy(CHAIR, folder / "chair.obj")
+    (folder / "pairs.csv").write_text("mesh_a,mesh_b\nchair.obj,chair.obj\n~/no.obj,chair.obj\n")
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))
+    monkeypatch.chdir(tmp_path)
+    result = subprocess.run(
+        ["drkfs-score", "batch", "data/pairs.csv", "--out", "scores.csv", *FAST],
+        capture_output=True, text=True,
+    )  # fmt: skip
+    assert result.returncode == 1 and result.stdout == ""  # the progress bar is on stderr
+    rows = _record_list(tmp_path / "scores.csv")
+    assert [(r["mesh_a"], r["mesh_b"]) for r in rows] == [
+        ("chair.obj", "chair.obj"), ("~/no.obj", "chair.obj")
+    ]  # fmt: skip
+    assert f"{tmp_path / 'home' / 'no.obj'}: no such file" in rows[1]["error"]
+
+
 def test_batch_refuses_to_write_over_its_input_or_an_old_results_file(tmp_path):
     pairs = tmp_path / "pairs.csv"
     pairs.write_text(f"mesh_a,mesh_b\n{CHAIR},{CHAIR}\n")
@@ -530,3 +549,11 @@ def test_after_a_resume_with_retried_rows_the_results_are_in_input_order(tmp_pat
     assert [r["row"] for r in records] == ["0", "1", "2"]
     assert [r["mesh_a"] for r in records] == [str(late), str(NO_LEG), str(NO_BACK)]
     assert all(r["error"] == "" for r in records)
+
+
+@pytest.mark.parametrize("command", ["pair", "explain", "features", "batch"])
+def test_help_shows_flags_without_a_value_and_the_values_a_choice_takes(command):
+    said = _run(command, "--help").output
+    assert "<bool>" not in said and "<str>" not in said.split("Options:")[1]
+    assert "--normalize [joint|each|none]" in said
+    assert "[drkfs-1.0|drkfs-structure-1.0|drkfs-paper]" in said

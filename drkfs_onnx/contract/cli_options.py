@@ -20,14 +20,26 @@ from .versions import LATEST, VERSIONS, metric_config
 
 PRESETS = {"default": LATEST, "paper": "drkfs-paper", "structure": "drkfs-structure-1.0"}
 
+
+def choices(values) -> str:
+    """An option's metavar listing the values it takes: help shows them, not <str>."""
+    return "[" + "|".join(values) + "]"
+
+
 Normalize = Annotated[
-    str, typer.Option(help=f"Frame of the two meshes: {', '.join(NORMALIZATIONS)}.")
+    str,
+    typer.Option(
+        metavar=choices(NORMALIZATIONS),
+        help="Frame of the two meshes: joint (both in the reference's box), each (each in its "
+        "own) or none.",
+    ),
 ]
 # drkfs-score features describes one mesh: the frame is the one its later pairs will use
 ReferenceNormalize = Annotated[
     str,
     typer.Option(
         "--normalize",
+        metavar=choices(NORMALIZATIONS),
         help="The frame of the pairs this reference will be scored in: joint (predictions "
         "placed in its frame), each (every mesh in its own) or none; a pair refuses a features "
         "file made for another.",
@@ -36,31 +48,40 @@ ReferenceNormalize = Annotated[
 Preset = Annotated[
     str,
     typer.Option(
+        metavar=choices(PRESETS),
         help=f"default ({LATEST}, chosen by the benchmark), paper (drkfs-paper: 25 views, 256 "
         "px, global sum) or structure (drkfs-structure-1.0: the default's nets, cameras and "
-        "solid change, global match, power mean of order 8)."
+        "solid change, global match, power mean of order 8).",
     ),
 ]
 Metric = Annotated[
     str | None,
     typer.Option(
+        metavar=choices(VERSIONS),
         help=f"A named metric version, to reproduce scores quoted by name: {', '.join(VERSIONS)}"
         " (CHANGELOG.md). Replaces --preset.",
         show_default=False,
     ),
 ]
 Matching = Annotated[
-    str | None, typer.Option(help=f"Override the preset's matching: {', '.join(MATCHINGS)}.")
+    str | None,
+    typer.Option(metavar=choices(MATCHINGS), help="Override the preset's matching."),
 ]
 Window = Annotated[int | None, typer.Option(help="Override the window matching's grid radius.")]
 Direction = Annotated[
-    str | None, typer.Option(help=f"Override the searched direction: {', '.join(DIRECTIONS)}.")
+    str | None,
+    typer.Option(
+        metavar=choices(DIRECTIONS),
+        help="Override the searched direction (moot where the window is 0: each patch meets "
+        "the one at its own place either way).",
+    ),
 ]
 Reduction = Annotated[
     str | None,
     typer.Option(
-        help=f"Override the reduction: {', '.join(REDUCTIONS)} (another than the preset's "
-        "counts the descriptors' part in full: the default's window is in its units)."
+        metavar=choices(REDUCTIONS),
+        help="Override the reduction (another than the preset's "
+        "counts the descriptors' part in full: the default's window is in its units).",
     ),
 ]
 SolidWeight = Annotated[
@@ -86,10 +107,9 @@ TwoSided = Annotated[
     bool,
     typer.Option(
         "--two-sided",
-        help="Light faces seen from behind as their front (back_light 1, back_push 0), as the "
-        "default did before openings were seen dark: an opening's inside then reads as lit "
-        "surface (docs/real_levers.md). For features files made that way, which the default "
-        "refuses, and the other way round.",
+        help="Light faces seen from behind as their front (back_light 1, back_push 0), as "
+        "drkfs-paper does: an opening's inside then reads as lit surface. A features file is "
+        "described under one light and refused under the other.",
     ),
 ]
 
