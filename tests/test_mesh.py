@@ -1,10 +1,14 @@
 """Mesh input: every format trimesh reads, clear errors naming file and reason, normalisation."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 import trimesh
 
-from drkfs_onnx.contract.mesh import MeshError, check_mesh, load_mesh, normalize_pair
+from drkfs_onnx.contract.mesh import Mesh, MeshError, check_mesh, load_mesh, normalize_pair
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 
 
 @pytest.mark.parametrize("ext", ["obj", "ply", "stl", "off", "glb"])
@@ -115,3 +119,14 @@ def test_textured_multi_part_obj_loads_geometry_without_pillow(real_meshes):
     """beast.obj references textures (trimesh would need Pillow) and has 20 parts."""
     mesh = load_mesh(real_meshes / "beast.obj")
     assert mesh.faces.shape == (64618, 3)
+
+
+def test_a_mesh_in_other_units_and_off_the_origin_is_placed_in_the_unit_sphere():
+    chair = load_mesh(EXAMPLES / "chair.obj")
+    far = Mesh(chair.vertices * 40.0 + (100.0, -7.0, 3.0), chair.faces, "far.obj")
+    placed = far.in_unit_sphere()
+    np.testing.assert_allclose(placed.vertices, chair.in_unit_sphere().vertices, atol=1e-12)
+    box = placed.vertices.min(0) + placed.vertices.max(0)
+    np.testing.assert_allclose(box, 0.0, atol=1e-12)  # the box's centre at the origin
+    assert np.linalg.norm(placed.vertices, axis=1).max() == pytest.approx(1.0)
+    assert placed.faces is far.faces and placed.source == "far.obj"

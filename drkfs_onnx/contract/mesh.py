@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import io
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -39,6 +39,12 @@ class Mesh:
     vertices: np.ndarray
     faces: np.ndarray
     source: str = "<array>"
+
+    def in_unit_sphere(self) -> Mesh:
+        """This mesh placed in the metric's frame (its bounding box centred, fitting the unit
+        sphere): where a training loop's template sits, so a target loaded from a file in
+        other units or off the origin is one the template can reach."""
+        return replace(self, vertices=place(self.vertices, frame_of(self.vertices)))
 
 
 def load_mesh(path: str | Path) -> Mesh:
