@@ -47,7 +47,7 @@ COARSE_TO_FINE = (
 @dataclass(frozen=True)
 class SoftMatch:
     """A soft best match whose temperature falls geometrically from ``start`` to ``end`` over
-    training (``matching.soft_match_distances``)."""
+    training (``match.soft_match_distances``)."""
 
     start: float = 0.1
     end: float = 0.01

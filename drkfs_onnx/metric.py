@@ -341,13 +341,6 @@ class DRKFS(nn.Module):
             found[side] = distances.reshape(*distances.shape[:-1], *grid)
         return found
 
-    @_without_autocast
-    def features_to(self, verts, faces, target: Target) -> torch.Tensor:
-        """(K * T * P, D) descriptors of mesh A, (V, 3), (F, 3), placed as the reference
-        ``target`` asks (its frame under 'joint'); a batch -> (B, K * T * P, D)."""
-        meshes = self._meshes(verts, faces)
-        return meshes.unbatch(self._described_to(meshes, target)[0])
-
     def _described_to(
         self, meshes: MeshBatch, target: Target
     ) -> tuple[torch.Tensor, torch.Tensor | None]:

@@ -25,26 +25,24 @@ REDUCTIONS = ("sum", "mean", "tail", "power", "softmax")
 # tolerance to small turns and shifts and for simplifications, ``training.tolerance``; the
 # default's and ``PipelineConfig.structure()``'s)
 NETS = ("tolerant", "metric", "correspondence")
-# The cameras, view size and softmax temperature the shipped nets were trained at and the loss
-# was chosen and timed with: the default's before it moved to 5 views of 144 px. Training keeps
-# them, so that drkfs train and tune-tolerant remake the shipped nets.
-# Each pairing's descriptors' part in full, as before moderate parts counted less.
+# Each pairing's descriptors' part in full (no moderated window).
 FULL_PARTS = {"moderate_slope": 1.0, "moderate_from": 0.0, "moderate_to": 0.0}
-# A face seen from behind lit as its front, as before ``back_light`` was a setting and before
-# openings were seen dark, and its shadow spread wherever it blends in (``back_push`` 0): the
-# light the nets were trained in and the loss was chosen and timed with, and the paper's.
+# A face seen from behind lit as its front, its shadow nowhere (``back_push`` 0): the light the
+# nets were trained in and the loss was chosen and timed with, and the paper's.
 TWO_SIDED = {"back_light": 1.0, "back_push": 0.0}
+# The cameras, view size, softmax temperature, match and light the shipped nets were trained at
+# and the loss was chosen and timed with. Training keeps them, so that drkfs train and
+# tune-tolerant remake the shipped nets.
 NETS_TRAINED_AT = {
     "num_views": 6, "image_size": 128, "temperature": 0.1, "turn_degrees": 0.0, "solid_weight": 0.0,
     **FULL_PARTS, **TWO_SIDED,
 }  # fmt: skip
-# Fields added after configs were first recorded (the manifest, feature graphs, features files,
-# results), with the value every record without them was made with: one ring of cameras, no
-# solid change.
-# The solid change at one reach everywhere, as before its ramp (``contract.solid_change``).
+# The solid change at one reach everywhere (``contract.solid_change``).
 ONE_REACH = {"solid_ramp": 0, "solid_inner_drop": 0, "solid_inner_power": 1.0}
-# The own-ring pairing from its own ring alone, as before the turned ring's views joined it.
+# The own-ring pairing from its own ring alone.
 OWN_RING_ONLY = {"turned_part_share": 0.0, "solid_both_rings": False}
+# Fields added after configs were first recorded (the manifest, feature graphs, features files,
+# results), with the value every record without them was made with.
 ADDED_FIELDS = {
     "turn_degrees": 0.0, "solid_weight": 0.0, **ONE_REACH, **OWN_RING_ONLY, **FULL_PARTS,
     **TWO_SIDED,
