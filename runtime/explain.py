@@ -14,7 +14,7 @@ from drkfs_onnx.contract import match_rules
 from drkfs_onnx.contract.config import PipelineConfig
 from drkfs_onnx.contract.mesh import Mesh
 
-from .match import check_features, pairing_part, pairing_solid, patch_distances
+from .match import best_pairing, check_features, patch_distances
 from .scorer import Scorer
 
 SIDES = ("a", "b")
@@ -69,23 +69,13 @@ def explain(scorer: Scorer, mesh_a: Mesh | str | Path, mesh_b: Mesh | str | Path
     b = scorer.load(mesh_b)
     reference = scorer.features(b)
     check_features(reference, scorer.config, scorer.features_graph.sha256, scorer.normalization)
-    meshes = {"a": a, "b": b}
     features = {
         "a": scorer.features(a, reference.frame if scorer.normalization == "joint" else None),
         "b": reference,
     }
     config, one = scorer.config, scorer.config.one_ring()
-    # each pairing of rings' score; the least is the score, and its rings are explained
-    solids = {
-        (i, j): pairing_solid(features["a"], features["b"], i, j, config)
-        for i, j in match_rules.ring_pairings(config)
-    }
-    scores = {
-        (i, j): pairing_part(features["a"], features["b"], i, j, config) + solid
-        for (i, j), solid in solids.items()
-    }
-    rings = min(scores, key=scores.get)
-    ring = {side: features[side].ring(r) for side, r in zip(SIDES, rings, strict=True)}
+    best = best_pairing(features["a"], features["b"], config)  # its rings are explained
+    ring = {side: features[side].ring(r) for side, r in zip(SIDES, best.rings, strict=True)}
     grid = (config.num_views, config.patches_per_side, config.patches_per_side)
     found = {}  # side -> its patches' distances, their shares of its direction, its score
     pairs = match_rules.directions(ring["a"], ring["b"], one)
@@ -93,25 +83,18 @@ def explain(scorer: Scorer, mesh_a: Mesh | str | Path, mesh_b: Mesh | str | Path
         distances, shares = patch_distances(queries, targets, one)
         score = float(match_rules.reduce(distances, np.ones_like(distances), one))
         found[side] = (distances.reshape(grid), shares.reshape(grid), score)
-    views = {
-        side: scorer.views(meshes[side], features[side].frame)[
-            ring_index * config.num_views : (ring_index + 1) * config.num_views
-        ]
-        for side, ring_index in zip(SIDES, rings, strict=True)
-    }
     total = sum(score for _, _, score in found.values())  # each direction's part of the mean
-    solid = solids[rings]
-    patches_part = 1.0 - solid / scores[rings] if scores[rings] else 1.0
+    patches_part = 1.0 - best.solid / best.score if best.score else 1.0
     return Explanation(
-        score=scores[rings],
+        score=best.score,
         config=config,
         names={"a": a.source, "b": b.source},
-        views=views,
-        rings=dict(zip(SIDES, rings, strict=True)),
+        views={side: ring[side].views for side in SIDES},  # the views the features were made of
+        rings=dict(zip(SIDES, best.rings, strict=True)),
         distances={side: d for side, (d, _, _) in found.items()},
         shares={
             side: s * patches_part * score / total if total else s
             for side, (_, s, score) in found.items()
         },
-        solid_change=solid,
+        solid_change=best.solid,
     )

@@ -5,6 +5,7 @@ score by the shared contract (``drkfs_onnx.contract.match_rules``), plus the vie
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
@@ -115,22 +116,38 @@ def check_features(
         )
 
 
+class Pairing(NamedTuple):
+    """The ring pairing whose score counts: score = part + solid, rings = (A's, B's)."""
+
+    score: float
+    rings: tuple[int, int]
+    solid: float
+
+
 def match(a: MeshFeatures, b: MeshFeatures, config: PipelineConfig) -> float:
-    """DR-KFS of A against B from their features: each direction the config searches, its
-    best-match distances reduced (``match_rules.reduce``), averaged over the directions, plus
-    the views' solid change times ``solid_weight`` (``contract.solid_change``); with a turned
-    ring of cameras, the least such score over ``match_rules.ring_pairings``, each pairing's
-    parts as ``match_rules.pairing_part`` and ``pairing_solid`` make them."""
+    """DR-KFS of A against B from their features (``best_pairing``'s score), each checked to
+    have been described for ``config``."""
     for features in (a, b):
         check_features(features, config, a.model, a.normalization)
+    return best_pairing(a, b, config).score
+
+
+def best_pairing(a: MeshFeatures, b: MeshFeatures, config: PipelineConfig) -> Pairing:
+    """The one assembly of the score: for each ring pairing (``match_rules.ring_pairings``) the
+    descriptors' part (each direction the config searches, its best-match distances reduced by
+    ``match_rules.reduce``, averaged over the directions; ``match_rules.pairing_part``) plus
+    ``solid_weight`` times the views' solid change (``match_rules.pairing_solid``); the least
+    such sum is the score."""
     parts = sorted(
         (pairing_part(a, b, i, j, config), (i, j)) for i, j in match_rules.ring_pairings(config)
     )
-    best = math.inf
-    for part, (i, j) in parts:
-        if part >= best:  # the solid change only adds: this pairing cannot score less
+    best = Pairing(math.inf, parts[0][1], 0.0)
+    for part, rings in parts:
+        if part >= best.score:  # the solid change only adds: this pairing cannot score less
             break
-        best = min(best, part + pairing_solid(a, b, i, j, config))
+        solid = pairing_solid(a, b, *rings, config)
+        if part + solid < best.score:
+            best = Pairing(part + solid, rings, solid)
     return best
 
 

@@ -125,3 +125,15 @@ def test_explain_out_names_the_picture_it_wrote_and_refuses_an_unknown_format(tm
     assert (tmp_path / "ex.png").stat().st_size > 0
     refused = CliRunner().invoke(app, ["explain", *pair, "--out", str(tmp_path / "ex.foo")])
     assert refused.exit_code == 2 and "write a .png, .pdf, .svg picture" in refused.output
+
+
+def test_explain_shows_the_views_the_score_compared_and_scores_as_the_scorer(no_leg):
+    scorer = Scorer(threads=2)
+    chair, leg = (load_mesh(EXAMPLES / n) for n in ("chair.obj", "chair_no_leg.obj"))
+    frame = scorer.features(chair).frame
+    k = no_leg.config.num_views
+    for side, mesh in (("a", leg), ("b", chair)):
+        ring = no_leg.rings[side]
+        rendered = scorer.views(mesh, frame)[ring * k : (ring + 1) * k]
+        np.testing.assert_array_equal(no_leg.views[side], rendered)
+    assert no_leg.score == scorer.score(leg, chair)
