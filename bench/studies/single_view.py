@@ -445,17 +445,33 @@ def goal(tables: list[dict], chamfer_l1: dict[str, float | None]) -> dict:
     """The issue's bar: DR-KFS's network closer than SoftRas' and pixel MSE's by LFD and by
     unseen-view silhouette IoU on >= 75% of test shapes pooled over seeds, at a Chamfer-L1
     (``chamfer_l1``: loss -> pooled mean) no worse than 1.1 x the best baseline's."""
+    baselines = [b.name for b in BASELINES]
+    return bar(tables, DRKFS_SHADED, (SOFTRAS, PIXEL), chamfer_l1, baselines, "baseline", 1.1)
+
+
+def bar(
+    tables: list[dict],
+    challenger: str,
+    against: tuple[str, ...],
+    chamfer_l1: dict[str, float | None],
+    pool: list[str],
+    pooled_as: str,
+    ceiling: float,
+) -> dict:
+    """``challenger`` closer than each of ``against`` by LFD and by unseen-view silhouette IoU
+    on >= 75% of the cells of ``tables``, at a pooled Chamfer-L1 no more than ``ceiling`` times
+    the best of ``pool``'s -> each share, the ratio and whether all held ("met")."""
     found: dict = {}
-    for against in (SOFTRAS, PIXEL):
-        won = shares(tables, DRKFS_SHADED, against)
-        found[f"beats {against}"] = {m: won[m]["share"] for m in ("LFD", "silhouette IoU")}
-    best = min(chamfer_l1[b.name] for b in BASELINES)
-    found["chamfer_l1_over_best_baseline"] = chamfer_l1[DRKFS_SHADED] / best
+    for other in against:
+        won = shares(tables, challenger, other)
+        found[f"beats {other}"] = {m: won[m]["share"] for m in ("LFD", "silhouette IoU")}
+    ratio = f"chamfer_l1_over_best_{pooled_as}"
+    found[ratio] = chamfer_l1[challenger] / min(chamfer_l1[n] for n in pool)
     shares_met = all(
         v is not None and v >= 0.75 for k, row in found.items() if k.startswith("beats")
         for v in row.values()
     )  # fmt: skip
-    found["met"] = shares_met and found["chamfer_l1_over_best_baseline"] <= 1.1
+    found["met"] = shares_met and found[ratio] <= ceiling
     return found
 
 
@@ -722,18 +738,8 @@ def controls_goal(tables: list[dict], chamfer_l1: dict[str, float | None], recip
     SoftRas' loss by LFD and by unseen-view silhouette IoU on >= 75% of the test cells pooled
     over seeds, at a Chamfer-L1 (``chamfer_l1``: loss -> pooled mean) no worse than the best
     control's."""
-    found: dict = {}
-    for against in MATCHED[recipe]:
-        won = shares(tables, recipe, against)
-        found[f"beats {against}"] = {m: won[m]["share"] for m in ("LFD", "silhouette IoU")}
-    best = min(chamfer_l1[c] for c in MATCHED[recipe])
-    found["chamfer_l1_over_best_control"] = chamfer_l1[recipe] / best
-    shares_met = all(
-        v is not None and v >= 0.75 for k, row in found.items() if k.startswith("beats")
-        for v in row.values()
-    )  # fmt: skip
-    found["met"] = shares_met and found["chamfer_l1_over_best_control"] <= 1.0
-    return found
+    controls = MATCHED[recipe]
+    return bar(tables, recipe, controls, chamfer_l1, list(controls), "control", 1.0)
 
 
 def summarise_controls(tables: dict[int, dict], test_set: list[Shape]) -> dict:
@@ -994,3 +1000,47 @@ def markdown(results: dict) -> str:
             share_lines.append(f"| {drkfs} | {baseline} | {cells} |")
     blocks.append("\n".join(share_lines))
     return "\n\n".join(blocks) + "\n"
+
+
+def controls_markdown(results: dict) -> str:
+    """docs/single_view.md's tables of the matched controls (OUT/controls.json): each recipe's
+    and control's pooled means; each DR-KFS recipe's test cells closer than each of its
+    controls, pooled and (LFD, unseen silhouettes) per seed; the goal (bench/check_results.py
+    checks the docs hold them)."""
+    names = list(results["recipes"])
+    pooled = results["means"]["pooled"]["mean"]
+    lines = ["| loss | " + " | ".join(c[1] for c in COLUMNS) + " |",
+             "|---|" + "---:|" * len(COLUMNS)]  # fmt: skip
+    for name in names:
+        lines.append(f"| {name} | " + " | ".join(_cell(pooled[name][m], s, d)
+                                                   for m, _, s, d in COLUMNS) + " |")  # fmt: skip
+    judged = ("LFD", "silhouette IoU", "Chamfer-L1", "F-score 1%")
+    seeds = [k for k in results["shares"] if k != "pooled"]
+    wins = ["| DR-KFS recipe | against | " + " | ".join(judged) + " | LFD by seed | unseen sil."
+            " by seed |", "|---|---|" + "---:|" * (len(judged) + 2)]  # fmt: skip
+    for recipe, against in results["shares"]["pooled"].items():
+        for control, row in against.items():
+            cells = " | ".join(f"{row[m]['wins']}/{row[m]['cells']}" for m in judged)
+            by_seed = [" / ".join(str(results["shares"][k][recipe][control][m]["wins"])
+                                  for k in seeds) for m in judged[:2]]  # fmt: skip
+            wins.append(f"| {recipe} | {control} | {cells} | {' | '.join(by_seed)} |")
+    goal = ["| DR-KFS recipe | Chamfer-L1 over the best control's | goal met |", "|---|---:|---|"]
+    for recipe, found in results["goal"].items():
+        ratio = found["chamfer_l1_over_best_control"]
+        goal.append(f"| {recipe} | {ratio:.3f} | {'yes' if found['met'] else 'no'} |")
+    return "\n\n".join("\n".join(block) for block in (lines, wins, goal)) + "\n"
+
+
+def curve_markdown(results: dict) -> str:
+    """docs/single_view.md's learning-curve table (OUT/curve.json): each loss's pooled LFD,
+    unseen silhouette IoU, Chamfer-L1 and F-score at every judged point."""
+    judged = (("LFD", 1.0, 0), ("silhouette IoU", 1.0, 3), ("Chamfer-L1", 100.0, 2),
+              ("F-score 1%", 100.0, 1))  # fmt: skip
+    points = list(results["points"])
+    head = " | ".join(f"{m} @ {p}" for m, *_ in judged for p in points)
+    lines = [f"| loss | {head} |", "|---|" + "---:|" * (len(judged) * len(points))]
+    for name in results["losses"]:
+        cells = " | ".join(_cell(results["points"][p]["means"][name][m], s, d)
+                           for m, s, d in judged for p in points)  # fmt: skip
+        lines.append(f"| {name} | {cells} |")
+    return "\n".join(lines) + "\n"
