@@ -22,7 +22,7 @@ from drkfs_onnx.contract.render_equations import (
     ScreenFaces,
     background_logit,
     face_light,
-    mesh_orientation,
+    outward_signs,
     pair_logit,
     pair_terms,
     pixel_centre,
@@ -64,7 +64,7 @@ class NumpyRenderer:
         calls = max(min(self.threads, views), -(-views // views_per_call))
         groups = [self.cameras.select(g) for g in np.array_split(np.arange(views), calls)]
         # one per mesh, in the world frame: every group of views shares it
-        orientation = mesh_orientation(verts, faces, NUMPY_OPS)
+        orientation = outward_signs(verts, faces, self.cameras.eyes, self.config)
 
         def render_group(cameras: Cameras) -> np.ndarray:
             return self._render(verts, faces, orientation, cameras)

@@ -87,7 +87,7 @@ def open_features(
     if CONFIG_KEY not in graph.metadata:
         raise ModelMismatch(f"{graph.source}: no {CONFIG_KEY} metadata; not a DR-KFS feature graph")
     built = PipelineConfig.from_json(graph.metadata[CONFIG_KEY])
-    lit = ("num_views", "turn_degrees", "back_light", "back_push")
+    lit = ("num_views", "turn_degrees", "back_light", "back_push", "winding")
     views = {name: getattr(config, name) for name in lit}
     built = built.features_part().replace(**views)
     if built != config.features_part():

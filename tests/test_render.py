@@ -10,13 +10,14 @@ from dense_reference import dense_render
 
 from drkfs_onnx.contract.cameras import make_cameras
 from drkfs_onnx.contract.config import TWO_SIDED, PipelineConfig
-from drkfs_onnx.contract.render_equations import mesh_orientation
+from drkfs_onnx.contract.render_equations import face_orientation, mesh_orientation
 from drkfs_onnx.render.renderer import Renderer
 from drkfs_onnx.render.torch_ops import TORCH_OPS
 from drkfs_onnx.synthetic.shapes import assemble, chair
 
 # two-sided light, as the dense reference lights; the tests of faces seen from behind move it
 SMALL = PipelineConfig(turn_degrees=0.0, num_views=3, image_size=40, **TWO_SIDED)
+EYES = make_cameras(PipelineConfig()).eyes
 
 
 def _tensors(verts, faces, dtype=torch.float64):
@@ -405,3 +406,47 @@ def test_a_cpu_training_step_compiles_its_equations_and_agrees_with_eager(compil
     torch.testing.assert_close(compiled[0], eager[0], rtol=1e-6, atol=1e-6)
     gradients = torch.stack([eager[1].flatten(), compiled[1].flatten()])
     assert float(torch.nn.functional.cosine_similarity(*gradients, dim=0)) > 0.99999
+
+
+def test_each_face_is_oriented_by_its_surface_not_by_how_the_file_winds_it():
+    """``winding='geometry'``: faces flipped at random, a part wound against the rest, a mesh
+    wound inside out, an unwelded soup and double-sided copies each read outward; a flat relief
+    has no volume to tell its outside by and shows the cameras above the side they see."""
+    rng = np.random.default_rng(0)
+    verts, faces = _chair()
+    assert (face_orientation(verts, faces, EYES) == 1.0).all()
+    flipped = rng.random(len(faces)) < 0.5
+    wound = np.where(flipped[:, None], faces[:, ::-1], faces)
+    np.testing.assert_array_equal(
+        face_orientation(verts, wound, EYES), np.where(flipped, -1.0, 1.0)
+    )
+    np.testing.assert_array_equal(face_orientation(verts, faces[:, ::-1], EYES), -1.0)
+    soup = verts[wound].reshape(-1, 3)  # every face its own three vertices
+    np.testing.assert_array_equal(
+        face_orientation(soup, np.arange(len(soup)).reshape(-1, 3), EYES),
+        np.where(flipped, -1.0, 1.0),
+    )
+    both = np.concatenate([faces, faces[:, ::-1]])  # double-sided: each face and its reverse
+    np.testing.assert_array_equal(
+        face_orientation(verts, both, EYES), np.r_[np.ones(len(faces)), -np.ones(len(faces))]
+    )
+    grid = np.stack(np.meshgrid(np.linspace(-0.7, 0.7, 8), np.linspace(-0.7, 0.7, 8)), -1)
+    flat = np.concatenate([grid.reshape(-1, 2), np.zeros((64, 1))], 1)
+    corner = np.array([8 * r + c for r in range(7) for c in range(7)])[:, None]
+    cells = np.concatenate([corner + [0, 1, 9], corner + [0, 9, 8]])
+    # a relief has no volume to tell its outside by: the side the cameras above see is
+    relief = flat[:, [0, 2, 1]]  # lying under the cameras, through the origin
+    for winding in (cells, cells[:, ::-1]):
+        edges = (relief[winding[:, k]] - relief[winding[:, 0]] for k in (1, 2))
+        up = np.sign(np.cross(*edges)[:, 1])
+        np.testing.assert_array_equal(face_orientation(relief, winding, EYES), up)
+
+
+def test_under_the_surfaces_orientation_a_files_winding_does_not_change_the_views():
+    verts, faces = _tensors(*_chair())
+    flipped = torch.as_tensor(np.random.default_rng(1).random(len(faces)) < 0.5)
+    wound = torch.where(flipped[:, None], faces.flip(1), faces)
+    for winding, same in (("geometry", True), ("file", False)):
+        renderer = Renderer(SMALL.replace(back_light=0.0, back_push=0.05, winding=winding))
+        front = renderer.render(verts, faces)
+        assert torch.allclose(renderer.render(verts, wound), front, atol=1e-9) == same

@@ -7,12 +7,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
+import trimesh
 
 from drkfs_onnx import DRKFS, PipelineConfig, load_mesh
+from drkfs_onnx.benchmark import sets
 from drkfs_onnx.contract.cameras import rotation_y
 from drkfs_onnx.contract.config import TWO_SIDED
 from drkfs_onnx.contract.mesh import Mesh, frame_of, place
 from drkfs_onnx.contract.model_files import features_file, models_dir
+from drkfs_onnx.contract.versions import metric_config
 from drkfs_onnx.runtime import MeshFeatures, ModelMismatch, Scorer
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
@@ -111,23 +114,51 @@ def test_a_model_for_another_config_is_refused_with_the_difference():
     Scorer(paper, model=shipped)
 
 
-def test_below_two_sided_light_the_score_reads_a_part_wound_against_the_rest(scorer):
-    """Two-sided light ignores which way the faces wind. In the shadow a mesh wound inside out
-    as a whole is turned outward by its signed volume and scores as itself, pushed back or not;
-    a part wound against the rest (the example chair's first leg) renders as an inside and,
-    unpushed, scores above the leg moved."""
+def test_a_part_wound_against_the_rest_reads_as_an_inside_only_where_the_file_orients():
+    """Two-sided light ignores which way the faces wind. In the shadow, with each face oriented
+    by its surface (``winding='geometry'``), neither a mesh wound inside out nor a part wound
+    against the rest (the example chair's first leg) moves the score; with the file's winding
+    turned as a whole (drkfs-1.0's 'file') the inside-out mesh scores as itself but the part
+    renders as an inside and, unpushed, scores above the leg moved."""
     chair = load_mesh(EXAMPLES / "chair.obj")
     flipped = Mesh(chair.vertices, chair.faces[:, ::-1].copy(), "flipped")
     leg_flipped = chair.faces.copy()
     leg_flipped[:12] = leg_flipped[:12, ::-1]
     leg = Mesh(chair.vertices, leg_flipped, "leg flipped")
-    two_sided = Scorer(scorer.config.replace(**TWO_SIDED), threads=2)
-    assert two_sided.score(flipped, chair) < 1e-6 and two_sided.score(leg, chair) < 1e-6
-    shadowed = Scorer(scorer.config.replace(back_light=0.0, back_push=0.0), threads=2)
-    assert shadowed.score(leg, chair) > shadowed.score(EXAMPLES / "chair_leg_shifted.obj", chair)
-    for push in (0.0, 0.05):
-        shadowed = Scorer(scorer.config.replace(back_light=0.0, back_push=push), threads=2)
-        assert shadowed.score(flipped, chair) < 1e-6
+    shifted = EXAMPLES / "chair_leg_shifted.obj"
+    for winding in ("geometry", "file"):
+        config = metric_config("drkfs-1.0").replace(winding=winding)
+        two_sided = Scorer(config.replace(**TWO_SIDED), threads=2)
+        assert two_sided.score(flipped, chair) < 1e-6 and two_sided.score(leg, chair) < 1e-6
+        for push in (0.0, 0.05):
+            shadowed = Scorer(config.replace(back_light=0.0, back_push=push), threads=2)
+            assert shadowed.score(flipped, chair) < 1e-6
+            if winding == "geometry":
+                assert shadowed.score(leg, chair) < 1e-6
+            elif push == 0.0:
+                assert shadowed.score(leg, chair) > shadowed.score(shifted, chair)
+
+
+@pytest.mark.parametrize("name", ["chair", "cow", "woody", "beetle"])
+def test_no_winding_of_a_files_faces_scores_above_its_subdivision(name):
+    """With each face's outside read from the surface (``winding='geometry'``) no winding of a
+    file's faces matters: every face flipped at random, the whole mesh flipped and double-sided
+    copies of its faces score below the mesh against its own subdivision (the same surface, 4x
+    the faces) + 0.005, either way round."""
+    path = EXAMPLES / "chair.obj" if name == "chair" else sets.real_mesh(name)
+    mesh = load_mesh(path)
+    scorer = Scorer(PipelineConfig(winding="geometry"), threads=2)
+    subdivided = Mesh(*trimesh.remesh.subdivide(mesh.vertices, mesh.faces), "subdivided")
+    bar = max(scorer.score(subdivided, mesh), scorer.score(mesh, subdivided)) + 0.005
+    flips = np.random.default_rng(0).random(len(mesh.faces)) < 0.5
+    rewound = {
+        "half flipped": np.where(flips[:, None], mesh.faces[:, ::-1], mesh.faces),
+        "all flipped": mesh.faces[:, ::-1],
+        "double-sided": np.concatenate([mesh.faces, mesh.faces[:, ::-1]]),
+    }
+    for how, faces in rewound.items():
+        other = Mesh(mesh.vertices, np.ascontiguousarray(faces), how)
+        assert max(scorer.score(other, mesh), scorer.score(mesh, other)) < bar, how
 
 
 def test_features_made_under_another_light_are_refused_with_the_difference(scorer, tmp_path):

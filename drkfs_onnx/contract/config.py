@@ -18,6 +18,7 @@ NORMALIZATIONS = ("joint", "each", "none")
 MATCHINGS = ("global", "window")
 DIRECTIONS = ("forward", "backward", "both")
 REDUCTIONS = ("sum", "mean", "tail", "power", "softmax")
+WINDINGS = ("geometry", "file")
 # what the detector and HardNet were trained for: 'correspondence' (the paper's way: the same
 # surface point in views 5-30 degrees apart, ``training.net_losses``; the paper preset's and the
 # loss's), 'metric' (then fine-tuned to rank the metric's own structural edits above its mild
@@ -28,8 +29,9 @@ NETS = ("tolerant", "metric", "correspondence")
 # Each pairing's descriptors' part in full (no moderated window).
 FULL_PARTS = {"moderate_slope": 1.0, "moderate_from": 0.0, "moderate_to": 0.0}
 # A face seen from behind lit as its front, its shadow nowhere (``back_push`` 0): the light the
-# nets were trained in and the loss was chosen and timed with, and the paper's.
-TWO_SIDED = {"back_light": 1.0, "back_push": 0.0}
+# nets were trained in and the loss was chosen and timed with, and the paper's. Which side is a
+# face's outside is then moot: the file's winding, which costs nothing to read.
+TWO_SIDED = {"back_light": 1.0, "back_push": 0.0, "winding": "file"}
 # The cameras, view size, softmax temperature, match and light the shipped nets were trained at
 # and the loss was chosen and timed with. Training keeps them, so that drkfs train and
 # tune-tolerant remake the shipped nets.
@@ -52,7 +54,7 @@ ADDED_FIELDS = {
 VIEW_FIELDS = (
     "num_views", "turn_degrees", "image_size", "fov_degrees", "camera_distance", "sigma", "gamma",
     "coverage_eps", "background_eps", "background", "light_direction", "ambient", "diffuse",
-    "back_light", "back_push",
+    "back_light", "back_push", "winding",
 )  # fmt: skip
 # The settings that shape only the match of two meshes' descriptors and views, not the
 # descriptors: a feature graph or features file serves every value of these (a features file
@@ -117,9 +119,7 @@ class PipelineConfig:
     # The share of the diffuse light a face seen from behind receives: 1 lights it as its front
     # (two-sided), 0 leaves it the ambient light alone, as the inside of a shell lies in the
     # shell's shadow, so that a cut hole or a removed part's opening shows a dark inside. Which
-    # side is a face's outside comes from the mesh's winding, turned by the sign of its volume
-    # (``render_equations.mesh_orientation``): a mesh wound inside out as a whole renders as
-    # itself, a part wound against the rest as an inside.
+    # side is a face's outside: ``winding`` below.
     back_light: float = 0.0
     # Where that shadow falls. Unpushed (0) it darkens a face seen from behind wherever it
     # blends into a pixel, also at every outline, where SoftRas' soft depth order mixes the
@@ -134,6 +134,14 @@ class PipelineConfig:
     # blend, of the shadow alone, costs a new mesh about 1.1x (docs/real_levers.md, "Openings
     # seen dark").
     back_push: float = 0.05
+    # Which side of a face is its outside, for the shadow above: 'file' takes the file's
+    # winding, turned as a whole by the mesh's volume (``render_equations.mesh_orientation``),
+    # so half the example chair's faces flipped at random score 1.03 against the chair;
+    # 'geometry' reads it from the surface (``render_equations.face_orientation``: faces
+    # sharing an edge wound alike, each piece turned outward by its volume or towards the
+    # cameras), so the file's winding moves no score (0 for that chair). Measured as a lever
+    # (bench/results/real_levers_winding.json), not yet the default.
+    winding: str = "file"
     # PoI detector: sum_n delta_n max_m (W_mn * I + b_mn); N = M = 2 with 9 x 9 filters, the
     # smallest of the training sweep's sizes within 0.01 repeatability of the best
     detector_kernel: int = 9
@@ -227,7 +235,7 @@ class PipelineConfig:
             raise ValueError("descriptor_width must be positive")
         for name, allowed in (
             ("matching", MATCHINGS), ("direction", DIRECTIONS), ("reduction", REDUCTIONS),
-            ("nets", NETS),
+            ("nets", NETS), ("winding", WINDINGS),
         ):  # fmt: skip
             if getattr(self, name) not in allowed:
                 raise ValueError(

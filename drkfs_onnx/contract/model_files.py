@@ -55,6 +55,7 @@ def shipped_weights() -> list[dict]:
 # another light on faces seen from behind reuses the weights.
 RENDER_FIELDS = (
     "num_views", "turn_degrees", "image_size", "sigma", "gamma", "back_light", "back_push",
+    "winding",
 )  # fmt: skip
 
 

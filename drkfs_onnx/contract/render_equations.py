@@ -18,6 +18,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from .array_ops import NUMPY_OPS
 from .config import PipelineConfig
 
 TINY = 1e-12
@@ -352,9 +353,126 @@ def mesh_orientation(verts, faces, ops):
     return ops.where(tetra.sum(-1) < -clear, -1.0, 1.0)
 
 
+def outward_signs(
+    verts: np.ndarray, faces: np.ndarray, eyes: np.ndarray, config: PipelineConfig
+) -> np.ndarray:
+    """(V, 3) world vertices and (F, 3) faces, or a batch (B, V, 3) and (B, F, 3), and the
+    cameras' (K, 3) world positions -> (B, F), or (B, 1) for every face alike: +1.0 where a
+    face's winding points outward, -1.0 where it is turned, by ``config.winding``: 'file' turns
+    the mesh's winding as a whole by the sign of its volume (``mesh_orientation``), 'geometry'
+    orients each face by the surface it belongs to (``face_orientation``). Moot under
+    two-sided light, where no face is in the shadow."""
+    verts, faces = np.asarray(verts, dtype=np.float64), np.asarray(faces)
+    if faces.ndim == 2:
+        verts, faces = verts[None], faces[None]
+    if config.back_light >= 1.0:
+        return np.ones((len(faces), 1))
+    if config.winding == "file":
+        return mesh_orientation(verts, faces, NUMPY_OPS)[:, None]
+    return np.stack([face_orientation(v, f, eyes) for v, f in zip(verts, faces, strict=True)])
+
+
+def face_orientation(verts: np.ndarray, faces: np.ndarray, eyes: np.ndarray) -> np.ndarray:
+    """(V, 3) world vertices, (F, 3) faces and the cameras' (K, 3) positions -> (F,) +1.0 where
+    a face's winding points outward, -1.0 where it points inward, read from the geometry and
+    not from how the file happens to wind it. Faces that share an edge with no third face
+    (vertices joined by position, so an unwelded soup is joined too; a face's copies,
+    double-sided or repeated, count once) lie on one piece of surface and are wound alike
+    (where a neighbour runs the shared edge the same way, one of the two is turned); each piece
+    is then turned as a whole by the sign of its volume: a closed piece's own, an open one's
+    about the origin where it is a clear share (the rule of ``mesh_orientation``); an open piece
+    whose volume is no clear share (a relief, a sheet) shows its outside to the cameras, the side
+    more of its area faces. A face that shares no edge takes
+    the whole mesh's ``mesh_orientation``, and a piece that cannot be wound alike (a Moebius
+    band) the file's winding face by face. So faces flipped at random, a part wound against the
+    rest, a mesh wound inside out or double-sided render as one surface wound outward."""
+    count = len(faces)
+    if count == 0:
+        return np.ones(0)
+    _, welded = np.unique(verts, axis=0, return_inverse=True)
+    corners = welded.reshape(-1)[faces]
+    # a face's copies (the same three vertices, either way round) stand on its first's side
+    ordered = np.sort(corners, axis=1)
+    _, first_of, copy_of = np.unique(ordered, axis=0, return_index=True, return_inverse=True)
+    copy_of = first_of[copy_of.reshape(-1)]
+    parity = _cyclic_parity(corners)
+    unique = first_of
+    signs = np.ones(count)
+    signs[unique] = _piece_signs(verts, faces[unique], corners[unique], eyes)
+    whole = mesh_orientation(verts, faces, NUMPY_OPS)[0]
+    signs[unique] = np.where(signs[unique] == 0.0, whole, signs[unique])
+    return signs[copy_of] * np.where(parity == parity[copy_of], 1.0, -1.0)
+
+
+def _cyclic_parity(corners: np.ndarray) -> np.ndarray:
+    """(F,) whether each face's corners run as their sorted order does (True) or against it."""
+    a, b, c = corners[:, 0], corners[:, 1], corners[:, 2]
+    return ((a < b) & (b < c)) | ((b < c) & (c < a)) | ((c < a) & (a < b))
+
+
+def _piece_signs(
+    verts: np.ndarray, faces: np.ndarray, corners: np.ndarray, eyes: np.ndarray
+) -> np.ndarray:
+    """(F,) of distinct faces: +1.0 or -1.0 per ``face_orientation``'s pieces, 0.0 for a face
+    that shares no edge."""
+    count = len(faces)
+    start, end = corners.reshape(-1), corners[:, [1, 2, 0]].reshape(-1)
+    face = np.repeat(np.arange(count), 3)
+    real = start != end
+    start, end, face = start[real], end[real], face[real]
+    key = np.minimum(start, end) * (int(corners.max()) + 1) + np.maximum(start, end)
+    order = np.argsort(key, kind="stable")
+    key, forward, face = key[order], (start < end)[order], face[order]
+    edge_start = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
+    uses = np.diff(np.r_[edge_start, len(key)])
+    first = edge_start[uses == 2]  # an edge exactly two faces share
+    f, g = face[first], face[first + 1]
+    alike = forward[first] == forward[first + 1]  # run the same way: wound against each other
+    # node f is face f as wound, node f + count the face turned: joining f to g (or to g turned
+    # where the two are wound against each other) and their turned selves, each component of
+    # the nodes is one piece of surface wound one way
+    turned_g = g + count * alike
+    label = _components(2 * count, np.r_[f, f + count], np.r_[turned_g, g + count * ~alike])
+    as_wound, turned = label[:count], label[count:]
+    relative = np.where(as_wound > turned, -1.0, 1.0)  # the class of the lesser label: as wound
+    piece = np.minimum(as_wound, turned)
+    x0, x1, x2 = (verts[faces[:, k]] for k in range(3))
+    tetra = np.einsum("ij,ij->i", x0, np.cross(x1, x2)) * relative
+    volume = np.bincount(piece, tetra, minlength=2 * count)
+    clear = ORIENTED_SHARE * np.bincount(piece, abs(tetra), minlength=2 * count) + 6 * FLAT_VOLUME
+    # where the volume is no clear share: the side the cameras see more of, area by area
+    normal = np.cross(x1 - x0, x2 - x0) * relative[:, None]
+    seen = np.sign(normal @ eyes.T - np.einsum("ij,ij->i", normal, x0)[:, None]).sum(1)
+    facing = np.bincount(piece, seen * np.linalg.norm(normal, axis=1), minlength=2 * count)
+    # a closed piece (no edge of it borders nothing or a third face) has its true volume
+    loose = np.bincount(piece[face[np.repeat(uses != 2, uses)]], minlength=2 * count) > 0
+    clear = np.where(loose, clear, 6 * FLAT_VOLUME)
+    sign = np.where(abs(volume) > clear, np.sign(volume), np.where(facing < 0, -1.0, 1.0))
+    joined = np.bincount(np.r_[f, g], minlength=count) > 0
+    return np.where(joined, relative * sign[piece], 0.0)
+
+
+def _components(count: int, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """(count,) a label per node, the same across each connected component of the edges
+    (u, v): each root hooked under the least root it meets, then every node pointed at its
+    root, until no edge joins two roots."""
+    parent = np.arange(count)
+    while True:
+        pu, pv = parent[u], parent[v]
+        apart = pu != pv
+        if not apart.any():
+            return parent
+        np.minimum.at(parent, np.maximum(pu, pv)[apart], np.minimum(pu, pv)[apart])
+        while True:
+            up = parent[parent]
+            if np.array_equal(up, parent):
+                break
+            parent = up
+
+
 def face_light(verts_cam, faces, orientation, config: PipelineConfig, ops):
     """(K, V, 3) camera-frame vertices, (F, 3) faces, or a batch (B, K, V, 3), (B, F, 3), and
-    the meshes' (B,) ``mesh_orientation`` -> (lit, shadow, behind), (B*K*F,) each.
+    the faces' (B, F) or (B, 1) ``outward_signs`` -> (lit, shadow, behind), (B*K*F,) each.
 
     lit: flat Lambertian grey, a face seen from behind lit as if its normal faced the camera
     (two-sided); shadow: the diffuse light the shell's shadow takes from a face seen from behind,
@@ -378,7 +496,7 @@ def face_light(verts_cam, faces, orientation, config: PipelineConfig, ops):
     light = np.asarray(config.light_direction, dtype=np.float64)
     lx, ly, lz = (float(v) for v in light / np.linalg.norm(light))
     lambert = ops.clip((nx * lx + ny * ly + nz * lz) * towards, 0.0, None)
-    behind = ops.where(outward * orientation[:, None, None] > 0, 1.0, 0.0)
+    behind = ops.where(outward * orientation[:, None, :] > 0, 1.0, 0.0)
     lit = config.ambient + config.diffuse * lambert
     # the light times (1 - share) itself, not a precomputed factor: a share float32 cannot hold
     # takes the same rounding on both paths

@@ -21,7 +21,7 @@ _DRKFS_1_0 = {
     "tail_fraction": 0.05, "power": 8.0, "temperature": 0.05, "solid_weight": 1.2,
     "solid_shift": 3, "solid_block": 3, "solid_ramp": 1, "solid_inner_drop": 1,
     "solid_inner_power": 1.5, "turned_part_share": 0.2, "solid_both_rings": True,
-    "moderate_slope": 0.6, "moderate_from": 0.04, "moderate_to": 0.18,
+    "moderate_slope": 0.6, "moderate_from": 0.04, "moderate_to": 0.18, "winding": "file",
 }  # fmt: skip
 _PARTS_IN_FULL = {"moderate_slope": 1.0, "moderate_from": 0.0, "moderate_to": 0.0}
 

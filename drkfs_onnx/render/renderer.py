@@ -72,7 +72,8 @@ class Renderer(nn.Module):
         pairs = kept_pairs(plan, screen.params, mode == "shaded")
         if mode == "silhouette":
             return silhouette(pairs, screen.params)
-        lit, shadow, behind = face_light(meshes.verts, verts_cam, meshes.faces, self.config)
+        eyes = self.cameras.eyes
+        lit, shadow, behind = face_light(meshes.verts, verts_cam, meshes.faces, eyes, self.config)
         if not pushes_back(self.config):
             return shaded_images(pairs, screen.params, lit - shadow)
         # lit from both sides, less the shadow where faces seen from behind still show pushed

@@ -4,6 +4,7 @@ renderer; the pairs' sums and their backward are ``pixel_sums``'."""
 
 from __future__ import annotations
 
+import numpy as np
 import torch
 
 from ..contract import render_equations
@@ -16,13 +17,20 @@ SATURATED = 1.0 - 1e-6
 
 
 def face_light(
-    verts: torch.Tensor, verts_cam: torch.Tensor, faces: torch.Tensor, config: PipelineConfig
+    verts: torch.Tensor,
+    verts_cam: torch.Tensor,
+    faces: torch.Tensor,
+    eyes: np.ndarray,
+    config: PipelineConfig,
 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-    """(B, V, 3) world and (B, K, V, 3) camera-frame vertices, (B, F, 3) faces -> (lit, shadow,
-    behind), (B*K*F,) each (``render_equations.face_light``, the meshes oriented by
-    ``mesh_orientation``)."""
-    orientation = render_equations.mesh_orientation(verts, faces, TORCH_OPS)
-    return render_equations.face_light(verts_cam, faces, orientation, config, TORCH_OPS)
+    """(B, V, 3) world and (B, K, V, 3) camera-frame vertices, (B, F, 3) faces and the cameras'
+    (K, 3) world positions -> (lit, shadow, behind), (B*K*F,) each
+    (``render_equations.face_light``, the faces oriented by ``outward_signs``: a sign, no
+    gradient)."""
+    world = verts.detach().cpu().numpy()
+    found = render_equations.outward_signs(world, faces.cpu().numpy(), eyes, config)
+    signs = torch.as_tensor(found, dtype=verts_cam.dtype, device=verts_cam.device)
+    return render_equations.face_light(verts_cam, faces, signs, config, TORCH_OPS)
 
 
 class Blend(Shader):
