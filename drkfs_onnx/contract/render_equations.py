@@ -389,19 +389,28 @@ def face_orientation(verts: np.ndarray, faces: np.ndarray, eyes: np.ndarray) -> 
     count = len(faces)
     if count == 0:
         return np.ones(0)
-    _, welded = np.unique(verts, axis=0, return_inverse=True)
-    corners = welded.reshape(-1)[faces]
+    corners = _same_rows(verts)[faces]
     # a face's copies (the same three vertices, either way round) stand on its first's side
-    ordered = np.sort(corners, axis=1)
-    _, first_of, copy_of = np.unique(ordered, axis=0, return_index=True, return_inverse=True)
-    copy_of = first_of[copy_of.reshape(-1)]
+    copy_of = _same_rows(np.sort(corners, axis=1))
     parity = _cyclic_parity(corners)
-    unique = first_of
+    unique = np.flatnonzero(copy_of == np.arange(count))
     signs = np.ones(count)
     signs[unique] = _piece_signs(verts, faces[unique], corners[unique], eyes)
     whole = mesh_orientation(verts, faces, NUMPY_OPS)[0]
     signs[unique] = np.where(signs[unique] == 0.0, whole, signs[unique])
     return signs[copy_of] * np.where(parity == parity[copy_of], 1.0, -1.0)
+
+
+def _same_rows(rows: np.ndarray) -> np.ndarray:
+    """(N,) for each row of (N, 3) the index of the first row equal to it."""
+    order = np.lexsort(rows.T[::-1])
+    ordered = rows[order]
+    new = np.r_[True, (ordered[1:] != ordered[:-1]).any(axis=1)]
+    group = np.cumsum(new) - 1
+    first = np.minimum.reduceat(order, np.flatnonzero(new))  # the group's earliest row
+    found = np.empty(len(rows), dtype=np.int64)
+    found[order] = first[group]
+    return found
 
 
 def _cyclic_parity(corners: np.ndarray) -> np.ndarray:
@@ -421,7 +430,7 @@ def _piece_signs(
     real = start != end
     start, end, face = start[real], end[real], face[real]
     key = np.minimum(start, end) * (int(corners.max()) + 1) + np.maximum(start, end)
-    order = np.argsort(key, kind="stable")
+    order = np.argsort(key)  # an edge's two faces join alike in either order
     key, forward, face = key[order], (start < end)[order], face[order]
     edge_start = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
     uses = np.diff(np.r_[edge_start, len(key)])
@@ -440,14 +449,18 @@ def _piece_signs(
     tetra = np.einsum("ij,ij->i", x0, np.cross(x1, x2)) * relative
     volume = np.bincount(piece, tetra, minlength=2 * count)
     clear = ORIENTED_SHARE * np.bincount(piece, abs(tetra), minlength=2 * count) + 6 * FLAT_VOLUME
-    # where the volume is no clear share: the side the cameras see more of, area by area
-    normal = np.cross(x1 - x0, x2 - x0) * relative[:, None]
-    seen = np.sign(normal @ eyes.T - np.einsum("ij,ij->i", normal, x0)[:, None]).sum(1)
-    facing = np.bincount(piece, seen * np.linalg.norm(normal, axis=1), minlength=2 * count)
     # a closed piece (no edge of it borders nothing or a third face) has its true volume
     loose = np.bincount(piece[face[np.repeat(uses != 2, uses)]], minlength=2 * count) > 0
     clear = np.where(loose, clear, 6 * FLAT_VOLUME)
-    sign = np.where(abs(volume) > clear, np.sign(volume), np.where(facing < 0, -1.0, 1.0))
+    sign = np.where(volume < 0, -1.0, 1.0)
+    vague = np.flatnonzero((abs(volume) <= clear)[piece])
+    if len(vague):  # no clear volume: the side the cameras see more of, area by area
+        a, b, c = x0[vague], x1[vague], x2[vague]
+        normal = np.cross(b - a, c - a) * relative[vague, None]
+        seen = np.sign(normal @ eyes.T - np.einsum("ij,ij->i", normal, a)[:, None]).sum(1)
+        area = seen * np.linalg.norm(normal, axis=1)
+        facing = np.bincount(piece[vague], area, minlength=2 * count)
+        sign[abs(volume) <= clear] = np.where(facing < 0, -1.0, 1.0)[abs(volume) <= clear]
     joined = np.bincount(np.r_[f, g], minlength=count) > 0
     return np.where(joined, relative * sign[piece], 0.0)
 
