@@ -85,6 +85,8 @@ def single_view(
     """Train SoftRas' shape generator with each loss and judge the reconstructions."""
     from studies.single_view import (
         CURVE_STATE,
+        controls_markdown,
+        curve_markdown,
         judge_saved,
         run_controls,
         run_curve,
@@ -115,14 +117,11 @@ def single_view(
         results = run_curve(
             out, until, seed_list[0], state or CURVE_STATE, quick, device, threads, progress
         )
-        for point, row in results["points"].items():
-            lfd = {n: v["LFD"] for n, v in row["means"].items()}
-            typer.echo(f"{point} steps, LFD: {lfd}")
+        typer.echo(curve_markdown(results))  # docs/single_view.md's table
         return
     if controls:
         results = run_controls(out, seed_list, quick, device, threads, progress)
-        for recipe, goal in results["goal"].items():
-            typer.echo(f"{recipe}: {goal}")
+        typer.echo(controls_markdown(results))  # docs/single_view.md's tables
         return
     if test_seeds is not None:
         results = judge_saved(out, test_seeds, threads, progress)
