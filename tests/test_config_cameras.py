@@ -159,7 +159,7 @@ def test_the_default_sees_openings_dark_and_two_sided_picks_the_previous_light()
     default = PipelineConfig()
     assert (default.back_light, default.back_push) == (0.0, 0.05)
     assert PipelineConfig.structure().back_light == 0.0
-    assert TWO_SIDED == {"back_light": 1.0, "back_push": 0.0}
+    assert TWO_SIDED == {"back_light": 1.0, "back_push": 0.0, "winding": "file"}  # winding moot
     for two_sided in (PipelineConfig.paper(), PipelineConfig.training(), PipelineConfig.loss()):
         assert (two_sided.back_light, two_sided.back_push) == (1.0, 0.0)
     assert pick_config(two_sided=True) == PipelineConfig(**TWO_SIDED)
