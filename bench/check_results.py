@@ -21,7 +21,13 @@ from pathlib import Path
 from score_scale import markdown, scale
 from studies.losses import CHAMFER, FORMS, PIXEL, SHIPPED, with_chamfer
 from studies.network import FULL, choose_loss
-from studies.single_view import Shape, summarise, validation_choice
+from studies.single_view import (
+    Shape,
+    controls_markdown,
+    summarise,
+    summarise_controls,
+    validation_choice,
+)
 from studies.single_view import markdown as single_view_tables
 
 from drkfs_onnx.judging.judges import VISUAL
@@ -150,6 +156,23 @@ def single_view_study_recomputes_and_the_doc_holds_its_tables(root: Path) -> Non
     assert single_view_tables(results) in doc, "docs/single_view.md's tables differ"
 
 
+def _test_set(table: dict) -> list[Shape]:
+    """The test shapes of a table keyed by their names ("chair 5500")."""
+    return [Shape(n, n.split()[0], None, None) for n in table]
+
+
+def single_view_controls_recompute_and_the_doc_holds_them(root: Path) -> None:
+    """The matched controls' means, shares and goal recompute from their per-seed tables, and
+    docs/single_view.md holds their tables."""
+    results = _json(root, "bench/single_view/controls.json")
+    tables = {int(seed.split()[1]): table for seed, table in results["tables"].items()}
+    again = summarise_controls(tables, _test_set(next(iter(tables.values()))))
+    for key in ("means", "shares", "goal"):
+        assert again[key] == results[key], f"controls.json's {key} do not recompute"
+    doc = (root / "docs/single_view.md").read_text()
+    assert controls_markdown(results) in doc, "docs/single_view.md's controls tables differ"
+
+
 def readme_score_scale_is_the_benchmarks(root: Path) -> None:
     """The README's table of what a score means is bench/score_scale.py's, from the committed
     benchmark."""
@@ -165,6 +188,7 @@ CHECKS: list[Callable[[Path], str | None]] = [
     candidates_stand_beside_their_studies,
     network_studies_shares_recompute,
     single_view_study_recomputes_and_the_doc_holds_its_tables,
+    single_view_controls_recompute_and_the_doc_holds_them,
     readme_score_scale_is_the_benchmarks,
 ]
 
