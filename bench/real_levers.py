@@ -251,7 +251,10 @@ LEVERS = {
     # surface rather than from the file's winding (``PipelineConfig.winding``)
     f"faces oriented by the surface, openings seen dark (faces seen from behind at 0 of the "
     f"light, pushed back 0.05), {WINDOW_LEVER}": {
-        **WINDOW_SETTINGS, "back_light": 0.0, "back_push": 0.05, "winding": "geometry",
+        **WINDOW_SETTINGS,
+        "back_light": 0.0,
+        "back_push": 0.05,
+        "winding": "geometry",
     },  # fmt: skip
     # the default's match from 6 cameras of 128 px, which saw the bunny's hole (0.023) before
     # the own-ring pairing read both rings
