@@ -667,6 +667,17 @@ def judge_saved(out: Path, test_seed: int, threads: int = 2, progress=print) -> 
     return results
 
 
+def training_data(out: Path, plan: Plan, device: torch.device):
+    """The plan's test shapes, the train and test shapes' views (cached in OUT/data) and the
+    loss terms on the training shapes -> (test_set, views, terms)."""
+    train_set, _, test_set = study_sets(plan)
+    cache, renderer = out / "data" / "views.pt", ViewRenderer()
+    views = {name: views_of(shapes, cache, renderer)
+             for name, shapes in (("train", train_set), ("test", test_set))}  # fmt: skip
+    faces = ShapeGenerator(CHANNELS, IMAGE_SIZE).faces.to(device)
+    return test_set, views, Terms(train_set, views["train"], faces, 0)
+
+
 def run_longer(
     out: Path,
     steps: int,
@@ -683,14 +694,10 @@ def run_longer(
     losses and of SoftRas' and DR-KFS' (OUT/networks) -> OUT/longer-<steps>-steps.json."""
     study_plan = QUICK if quick else FULL
     plan = replace(study_plan, steps=steps)
-    train_set, _, test_set = study_sets(plan)
-    cache, renderer = out / "data" / "views.pt", ViewRenderer()
-    views = {name: views_of(shapes, cache, renderer)
-             for name, shapes in (("train", train_set), ("test", test_set))}  # fmt: skip
     dev = torch.device(device)
+    test_set, views, terms = training_data(out, plan, dev)
     longer = Networks(out / f"networks-{steps}-steps", plan, dev)
     study = Networks(out / "networks", study_plan, dev)
-    terms = Terms(train_set, views["train"], ShapeGenerator(CHANNELS, IMAGE_SIZE).faces.to(dev), 0)
     models, seconds = {}, {}
     for name in names:
         if longer.get(seed, name) is None:
@@ -773,12 +780,8 @@ def run_controls(
     start = time.perf_counter()
     plan = QUICK if quick else FULL
     dev = torch.device(device)
-    train_set, _, test_set = study_sets(plan)
-    cache, renderer = out / "data" / "views.pt", ViewRenderer()
-    views = {name: views_of(shapes, cache, renderer)
-             for name, shapes in (("train", train_set), ("test", test_set))}  # fmt: skip
+    test_set, views, terms = training_data(out, plan, dev)
     networks = Networks(out / "networks", plan, dev)
-    terms = Terms(train_set, views["train"], ShapeGenerator(CHANNELS, IMAGE_SIZE).faces.to(dev), 0)
     names = list(dict.fromkeys(n for d, cs in MATCHED.items() for n in (d, *cs)))
     seconds: dict = {}
     for seed in seeds:
@@ -849,12 +852,8 @@ def run_curve(
     study_plan = QUICK if quick else FULL
     points = [p for p in CURVE_POINTS if p <= until] if not quick else [1, 2]
     plan = replace(study_plan, steps=points[-1] if quick else CURVE_POINTS[-1])
-    train_set, _, test_set = study_sets(plan)
-    cache, renderer = out / "data" / "views.pt", ViewRenderer()
-    views = {name: views_of(shapes, cache, renderer)
-             for name, shapes in (("train", train_set), ("test", test_set))}  # fmt: skip
     dev = torch.device(device)
-    terms = Terms(train_set, views["train"], ShapeGenerator(CHANNELS, IMAGE_SIZE).faces.to(dev), 0)
+    test_set, views, terms = training_data(out, plan, dev)
     names = [*CURVE_RECIPES, curve_control(out)]
     key = f"{resume_key(plan)}; views {VIEW_CONFIG.to_json()}"
     judge = Judge(PipelineConfig(), threads, plan.unseen_views, plan.lfd, image_judges=False)
