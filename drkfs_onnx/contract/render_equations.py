@@ -382,10 +382,10 @@ def face_orientation(verts: np.ndarray, faces: np.ndarray, eyes: np.ndarray) -> 
     is then turned as a whole by the sign of its volume: a closed piece's own, an open one's
     about the origin where it is a clear share (the rule of ``mesh_orientation``); an open piece
     whose volume is no clear share (a relief, a sheet) shows its outside to the cameras, the side
-    more of its area faces. A face that shares no edge takes
-    the whole mesh's ``mesh_orientation``, and a piece that cannot be wound alike (a Moebius
-    band) the file's winding face by face. So faces flipped at random, a part wound against the
-    rest, a mesh wound inside out or double-sided render as one surface wound outward."""
+    more of its area faces. A face that shares no edge takes the whole mesh's
+    ``mesh_orientation``; a piece that cannot be wound alike (a Moebius band) keeps the file's
+    winding, turned as a whole. So faces flipped at random, a part wound against the rest, a
+    mesh wound inside out or double-sided render as one surface wound outward."""
     count = len(faces)
     if count == 0:
         return np.ones(0)
@@ -396,8 +396,9 @@ def face_orientation(verts: np.ndarray, faces: np.ndarray, eyes: np.ndarray) -> 
     unique = np.flatnonzero(copy_of == np.arange(count))
     signs = np.ones(count)
     signs[unique] = _piece_signs(verts, faces[unique], corners[unique], eyes)
-    whole = mesh_orientation(verts, faces, NUMPY_OPS)[0]
-    signs[unique] = np.where(signs[unique] == 0.0, whole, signs[unique])
+    alone = signs == 0.0
+    if alone.any():
+        signs[alone] = mesh_orientation(verts, faces, NUMPY_OPS)[0]
     return signs[copy_of] * np.where(parity == parity[copy_of], 1.0, -1.0)
 
 
@@ -453,14 +454,15 @@ def _piece_signs(
     loose = np.bincount(piece[face[np.repeat(uses != 2, uses)]], minlength=2 * count) > 0
     clear = np.where(loose, clear, 6 * FLAT_VOLUME)
     sign = np.where(volume < 0, -1.0, 1.0)
-    vague = np.flatnonzero((abs(volume) <= clear)[piece])
+    unclear = abs(volume) <= clear
+    vague = np.flatnonzero(unclear[piece])
     if len(vague):  # no clear volume: the side the cameras see more of, area by area
         a, b, c = x0[vague], x1[vague], x2[vague]
         normal = np.cross(b - a, c - a) * relative[vague, None]
         seen = np.sign(normal @ eyes.T - np.einsum("ij,ij->i", normal, a)[:, None]).sum(1)
         area = seen * np.linalg.norm(normal, axis=1)
         facing = np.bincount(piece[vague], area, minlength=2 * count)
-        sign[abs(volume) <= clear] = np.where(facing < 0, -1.0, 1.0)[abs(volume) <= clear]
+        sign[unclear] = np.where(facing < 0, -1.0, 1.0)[unclear]
     joined = np.bincount(np.r_[f, g], minlength=count) > 0
     return np.where(joined, relative * sign[piece], 0.0)
 
