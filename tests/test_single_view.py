@@ -11,6 +11,7 @@ import pytest
 import torch
 import trimesh
 from single_view import app
+from studies import single_view as study
 from studies.network import TEST_SEED as NETWORK_TEST_SEED
 from studies.shape_generator import (
     FLATTEN_WEIGHT,
@@ -259,7 +260,8 @@ def test_a_training_stopped_and_resumed_ends_where_a_straight_one_does(tmp_path)
 
 
 @pytest.mark.slow
-def test_the_controls_and_the_curve_judge_each_recipe_beside_its_controls(tmp_path):
+def test_the_controls_and_the_curve_judge_each_recipe_beside_its_controls(tmp_path, monkeypatch):
+    monkeypatch.setattr(study, "CURVE_SAVE_EVERY", 1)  # a state saved after every step
     out, state = tmp_path / "out", tmp_path / "state"
     result = CliRunner().invoke(app, ["--quick", "--controls", "--seeds", "0", "--out", str(out)])
     assert result.exit_code == 0, result.output

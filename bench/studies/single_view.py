@@ -105,6 +105,7 @@ MATCHED = {  # a DR-KFS recipe -> its controls, SoftRas' own loss beside each
 # the learning curve (--curve): one run of each to the last point at seed 0, judged at every
 # point; the recipe's best control is read from OUT/controls.json (by pooled LFD), else this
 CURVE_POINTS = (200, 500, 1000, 2000)
+CURVE_SAVE_EVERY = 50  # steps between a curve run's saved training states
 CURVE_RECIPES = (SOFTRAS, PIXEL, "3 x Chamfer-L2", DRKFS_SHADED, RECIPE)
 CURVE_CONTROL = "silhouette IoU + 3 x Chamfer-L2"
 CURVE_STATE = Path.home() / ".cache" / "drkfs-onnx" / "single-view-curve"
@@ -872,11 +873,19 @@ def run_curve(
                         resume["key"] != key or len(resume["history"]) > point
                     ):
                         resume = None  # another plan's, or past this point: train afresh
-                    trained = train(plan, by_name(name), seed, views["train"], terms, progress,
-                                    resume, until=point)  # fmt: skip
-                    saved.parent.mkdir(parents=True, exist_ok=True)
-                    torch.save({**trained["state"], "key": key}, saved.with_suffix(".tmp"))
-                    saved.with_suffix(".tmp").replace(saved)
+                    # saved every CURVE_SAVE_EVERY steps: a stop loses at most that many
+                    while True:
+                        done_steps = len(resume["history"]) if resume else 0
+                        stop = min(point, done_steps + CURVE_SAVE_EVERY)
+                        recipe = by_name(name)
+                        trained = train(plan, recipe, seed, views["train"], terms, progress,
+                                        resume, until=stop)  # fmt: skip
+                        resume = {**trained["state"], "key": key}
+                        saved.parent.mkdir(parents=True, exist_ok=True)
+                        torch.save(resume, saved.with_suffix(".tmp"))
+                        saved.with_suffix(".tmp").replace(saved)
+                        if len(trained["history"]) >= point:
+                            break
                     networks.put(seed, name, trained)
             if str(point) in rows and set(rows[str(point)]["means"]) >= set(names):
                 continue
