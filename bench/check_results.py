@@ -5,7 +5,7 @@ the committed rows it came from, or holds the code's choices to the study that m
 
 Prints one line a check ("ok", or "FAILED" with the reason) and exits 1 when any failed. These
 checks read only committed files (bench/fit, bench/fit-network, bench/single_view,
-bench/results, the README, docs/single_view.md); the tests run the script
+bench/results, the README, bench/records/single_view.md); the tests run the script
 (tests/test_check_results.py).
 """
 
@@ -141,7 +141,7 @@ def network_studies_shares_recompute(root: Path) -> None:
 
 def single_view_study_recomputes_and_the_doc_holds_its_tables(root: Path) -> None:
     """The single-view study's means, shares and goal recompute from its per-seed tables, its
-    combination is validation's choice, and docs/single_view.md holds its tables."""
+    combination is validation's choice, and bench/records/single_view.md holds its tables."""
     results = _json(root, "bench/single_view/results.json")
     tables = {int(seed.split()[1]): table for seed, table in results["tables"].items()}
     # summarise reads the test shapes' names and families ("chair 5500"): the tables' own
@@ -152,8 +152,8 @@ def single_view_study_recomputes_and_the_doc_holds_its_tables(root: Path) -> Non
     validation = results["validation"]
     if validation.get("table"):
         assert validation_choice(validation["table"])["chosen"] == validation["chosen"]
-    doc = (root / "docs/single_view.md").read_text()
-    assert single_view_tables(results) in doc, "docs/single_view.md's tables differ"
+    doc = (root / "bench/records/single_view.md").read_text()
+    assert single_view_tables(results) in doc, "bench/records/single_view.md's tables differ"
 
 
 def _test_set(table: dict) -> list[Shape]:
@@ -163,14 +163,14 @@ def _test_set(table: dict) -> list[Shape]:
 
 def single_view_controls_recompute_and_the_doc_holds_them(root: Path) -> None:
     """The matched controls' means, shares and goal recompute from their per-seed tables, and
-    docs/single_view.md holds their tables."""
+    bench/records/single_view.md holds their tables."""
     results = _json(root, "bench/single_view/controls.json")
     tables = {int(seed.split()[1]): table for seed, table in results["tables"].items()}
     again = summarise_controls(tables, _test_set(next(iter(tables.values()))))
     for key in ("means", "shares", "goal"):
         assert again[key] == results[key], f"controls.json's {key} do not recompute"
-    doc = (root / "docs/single_view.md").read_text()
-    assert controls_markdown(results) in doc, "docs/single_view.md's controls tables differ"
+    doc = (root / "bench/records/single_view.md").read_text()
+    assert controls_markdown(results) in doc, "single_view.md's controls tables differ"
 
 
 def readme_score_scale_is_the_benchmarks(root: Path) -> None:

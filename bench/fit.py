@@ -1,6 +1,6 @@
-"""The fitting and network studies of docs/fitting.md, from a checkout (they are not installed
-with the package): fit templates to targets, or with --network train reconstruction networks,
-with DR-KFS, Chamfer and the others, and judge every result by metrics no loss computes.
+"""The fitting and network studies of bench/records/fitting.md, from a checkout (they are not
+installed with the package): fit templates to targets, or with --network train reconstruction
+networks, with DR-KFS, Chamfer and the others, and judge every result by metrics no loss computes.
 
     python bench/fit.py --quick                  # seconds: the tests' plan
     python bench/fit.py --network --seed 0       # the network study (about 2 hours on 2 cores)

@@ -1,7 +1,7 @@
 """The real tiers' third and fourth sides: meshes from outside the repository, never chosen on,
 written as welded OBJs into a folder for ``bench/real_tiers.py --other`` and
-``bench/real_levers.py --other`` (docs/benchmark.md, "A third side"; docs/real_levers.md,
-"Openings seen dark").
+``bench/real_levers.py --other`` (bench/records/real_tiers.md, "A third side";
+bench/records/real_levers.md, "Openings seen dark").
 
     git clone https://github.com/alecjacobson/common-3d-test-models CLONE   # commit 8a4f864
     python bench/other_meshes.py --clone CLONE --out DIR

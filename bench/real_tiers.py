@@ -1,5 +1,6 @@
 """The benchmark's real-mesh tiers alone (``drkfs bench`` runs them with everything else): each
-method's tier shares on both sides and the turn and salient-part checks (docs/benchmark.md).
+method's tier shares on both sides and the turn and salient-part checks
+(bench/records/real_tiers.md).
 
     python bench/real_tiers.py --out bench/results/real_tiers.json [--methods "DR-KFS,LFD"]
     python bench/real_tiers.py --renders bench/results/real_tiers.png   # what the labels rest on
@@ -10,7 +11,8 @@ method's tier shares on both sides and the turn and salient-part checks (docs/be
                                                   # tiers' variants of the same meshes, drawn alike
     python bench/real_tiers.py --other DIR --relabel mesh/variant=tier,... --renders ... --out ...
                                                   # the same for meshes from outside the
-                                                  # repository (docs/benchmark.md says which)
+                                                  # repository (bench/records/real_tiers.md says
+                                                  # which)
 """
 
 from __future__ import annotations

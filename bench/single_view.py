@@ -1,4 +1,4 @@
-"""The DR-KFS paper's single-view reconstruction experiment (docs/single_view.md), from a
+"""The DR-KFS paper's single-view reconstruction experiment (bench/records/single_view.md), from a
 checkout (the studies are not installed with the package): SoftRas' shape generator trained
 with each loss at several seeds, judged on held-out shapes and views by metrics no loss computes.
 
@@ -117,11 +117,11 @@ def single_view(
         results = run_curve(
             out, until, seed_list[0], state or CURVE_STATE, quick, device, threads, progress
         )
-        typer.echo(curve_markdown(results))  # docs/single_view.md's table
+        typer.echo(curve_markdown(results))  # bench/records/single_view.md's table
         return
     if controls:
         results = run_controls(out, seed_list, quick, device, threads, progress)
-        typer.echo(controls_markdown(results))  # docs/single_view.md's tables
+        typer.echo(controls_markdown(results))  # bench/records/single_view.md's tables
         return
     if test_seeds is not None:
         results = judge_saved(out, test_seeds, threads, progress)

@@ -283,7 +283,7 @@ def choose_loss_command(
     lfd: Annotated[bool, typer.Option(help="Judge with LFD too, where it is installed.")] = True,
 ) -> None:
     """Choose the loss whose reconstructions beat the baseline's on the most visual cells of
-    your held-out shapes (the network study's rule; docs/fitting.md)."""
+    your held-out shapes (the network study's rule; bench/records/fitting.md)."""
     from .judging.choice import JUDGE_CONFIG, judge_and_choose, read_reconstructions
     from .judging.judges import Judge
 

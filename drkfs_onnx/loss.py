@@ -14,7 +14,7 @@ cameras and a softer renderer, so a patch sees a larger part of the shape and a 
 reaches further; then the loss preset itself. A soft best match (``SoftMatch``: a softmin over a
 patch's candidates whose temperature falls as training goes) is an option for windows of r1 or
 more, not the preset: fitting one mesh it ranked first, training networks it did far worse than
-the preset (docs/fitting.md).
+the preset (bench/records/fitting.md).
 """
 
 from __future__ import annotations

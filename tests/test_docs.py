@@ -79,3 +79,15 @@ def test_the_usage_pages_batches_example_runs_as_written_and_its_forms_agree(tmp
     metric, gt = namespace["metric"], (namespace["gt_verts"], namespace["gt_faces"])
     ragged = metric([namespace["v0"], namespace["v1"]], [namespace["f0"], namespace["f1"]], *gt)
     assert float(metric(namespace["packed"], None, *gt)) == float(ragged) > 0
+
+
+def test_the_reference_pages_are_short_and_the_studies_live_in_the_lab():
+    # a user reads the README and docs/; how each default was chosen is the lab's
+    # (bench/records), listed in its index
+    readme = (ROOT / "README.md").read_text().splitlines()
+    pages = sum(len(p.read_text().splitlines()) for p in (ROOT / "docs").glob("*.md"))
+    assert len(readme) <= 200 and len(readme) + pages <= 1500, (len(readme), pages)
+    records = ROOT / "bench" / "records"
+    index = (records / "README.md").read_text()
+    for record in records.glob("*.md"):
+        assert record.name == "README.md" or f"]({record.name})" in index, record.name

@@ -162,7 +162,7 @@ def test_the_parts_split_each_score_into_its_two_terms_and_name_every_misordered
         # the default's score, as the real tiers' run scored it
         assert part["score"] == pytest.approx(committed["values"]["DR-KFS"][key], rel=1e-6)
     listed = {(m["below"], m["above"]) for side in misses.values() for m in side}
-    assert listed  # the default misorders some pairs (docs/benchmark.md, "Left open")
+    assert listed  # the default misorders some pairs (bench/records/real_tiers.md, "Left open")
     for upper, lower in ((u, w) for u in parts for w in parts):
         if upper.split("/")[0] != lower.split("/")[0] or parts[upper]["kind"] != "structural":
             continue

@@ -1,5 +1,5 @@
-"""The single-view study (``python bench/single_view.py``, docs/single_view.md): SoftRas' shape
-generator, its regularisers, the views it sees, the split of shapes and views, and (slow) the
+"""The single-view study (``python bench/single_view.py``, bench/records/single_view.md): SoftRas'
+shape generator, its regularisers, the views it sees, the split of shapes and views, and (slow) the
 quick plan end to end, resumed, and judged on other test seeds."""
 
 import json

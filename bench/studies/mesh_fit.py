@@ -34,7 +34,8 @@ def deterministic_kernels() -> Iterator[None]:
 
     Why: the backward of indexing a CPU tensor (``verts[faces]``) accumulates its float sums in
     an order that follows thread timing, so the same training ends elsewhere from run to run,
-    most of all on a busy machine (docs/fitting.md, "This run is the first that reproduces")."""
+    most of all on a busy machine (bench/records/fitting.md, "This run is the first that
+    reproduces")."""
     enabled = torch.are_deterministic_algorithms_enabled()
     warn_only = torch.is_deterministic_algorithms_warn_only_enabled()
     torch.use_deterministic_algorithms(True)

@@ -6,11 +6,11 @@ judged on held-out seeds by metrics no loss computes.
 Which DR-KFS form, and at which weight beside Chamfer, is the network's own choice: two fitted
 meshes cannot say what a network trained on many shapes needs (with the loss study's first form,
 DR-KFS + Chamfer beat the Chamfer network in 49 of 80 test cells; with its second, in 73;
-docs/fitting.md). So the study trains DR-KFS + w x Chamfer for each of ``NetworkPlan.forms``
-(the loss study's two best) and each of ``NetworkPlan.chamfer_weights``, keeps the pair that
-beats the Chamfer network on the most visual cells of validation shapes (seeds of their own,
-neither trained on nor tested), then trains the chosen form alone and beside pixel MSE, before
-any test shape is judged. The candidates it passed over are judged on the test shapes too
+bench/records/fitting.md). So the study trains DR-KFS + w x Chamfer for each of
+``NetworkPlan.forms`` (the loss study's two best) and each of ``NetworkPlan.chamfer_weights``, keeps
+the pair that beats the Chamfer network on the most visual cells of validation shapes (seeds of
+their own, neither trained on nor tested), then trains the chosen form alone and beside pixel MSE,
+before any test shape is judged. The candidates it passed over are judged on the test shapes too
 (``candidates_on_test``): a report of how much the choice mattered, never an input to it.
 
 The decoder deforms PRIMITIVES icospheres (AtlasNet's idea with closed patches, so the result is

@@ -55,7 +55,7 @@ IOU, PIXEL, CHAMFER, DRKFS_SHADED, DRKFS_SILHOUETTE = (
     "silhouette IoU", "pixel MSE", "Chamfer-L2", "DR-KFS", "DR-KFS on silhouettes",
 )  # fmt: skip
 DRKFS_TUNED = "DR-KFS with nets fine-tuned for the loss"
-# the loss's nets fine-tuned on graded series (docs/fitting.md), made by
+# the loss's nets fine-tuned on graded series (bench/records/fitting.md), made by
 # python bench/loss_nets.py --save-nets bench/single_view/loss_nets.pt
 TUNED_NETS = Path(__file__).resolve().parents[1] / "single_view" / "loss_nets.pt"
 SOFTRAS = "SoftRas (silhouette IoU)"
@@ -970,8 +970,8 @@ def _cell(value: float | None, scale: float, digits: int) -> str:
 
 
 def markdown(results: dict) -> str:
-    """docs/single_view.md's tables from a results.json: the paper's form pooled over seeds,
-    per family and per seed, and the shares of test shapes where each DR-KFS network is
+    """bench/records/single_view.md's tables from a results.json: the paper's form pooled over
+    seeds, per family and per seed, and the shares of test shapes where each DR-KFS network is
     closer than each baseline (bench/check_results.py checks the docs hold them)."""
     names = results["plan"]["losses"]
     header = "| loss | " + " | ".join(c[1] for c in COLUMNS) + " |"
@@ -1011,8 +1011,8 @@ def markdown(results: dict) -> str:
 
 
 def controls_markdown(results: dict) -> str:
-    """docs/single_view.md's tables of the matched controls (OUT/controls.json): each recipe's
-    and control's pooled means; each DR-KFS recipe's test cells closer than each of its
+    """bench/records/single_view.md's tables of the matched controls (OUT/controls.json): each
+    recipe's and control's pooled means; each DR-KFS recipe's test cells closer than each of its
     controls, pooled and (LFD, unseen silhouettes) per seed; the goal (bench/check_results.py
     checks the docs hold them)."""
     names = list(results["recipes"])
@@ -1040,7 +1040,7 @@ def controls_markdown(results: dict) -> str:
 
 
 def curve_markdown(results: dict) -> str:
-    """docs/single_view.md's learning-curve table (OUT/curve.json): each loss's pooled LFD,
+    """bench/records/single_view.md's learning-curve table (OUT/curve.json): each loss's pooled LFD,
     unseen silhouette IoU, Chamfer-L1 and F-score at every judged point."""
     judged = (("LFD", 1.0, 0), ("silhouette IoU", 1.0, 3), ("Chamfer-L1", 100.0, 2),
               ("F-score 1%", 100.0, 1))  # fmt: skip

@@ -75,7 +75,7 @@ TIMING_STEPS = 3  # steps timed per loss at the loss config (the first pays the 
 # kernels, one partly on one thread and one on two, swung the soft coarse-to-fine form's lead
 # over the plain one between -0.11 and +0.22. On deterministic kernels the study repeats bit for
 # bit and the lead was +0.67, beyond this: the choice is reproducible, but a change of summation
-# order alone moved the lead by 0.45 (docs/fitting.md)
+# order alone moved the lead by 0.45 (bench/records/fitting.md)
 RANK_NOISE = 0.35
 
 

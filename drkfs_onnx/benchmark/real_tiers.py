@@ -1,5 +1,5 @@
 """The benchmark's real-mesh tiers: changes to the real meshes of ``meshes/`` ranked as a viewer
-ranks them (docs/benchmark.md, "Real-mesh tiers", shows their renders).
+ranks them (bench/records/real_tiers.md shows their renders).
 
 - invisible: the surface subdivided once, quadric decimation to half the faces, a turn of 1, 2
   or 3 degrees about the vertical;

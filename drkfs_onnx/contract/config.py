@@ -72,15 +72,15 @@ class PipelineConfig:
     """Pipeline numbers. The renderer, detector and patch numbers follow the DR-KFS paper and
     SoftRas; the cameras, image size, HardNet width, nets and match were chosen on the project's
     benchmark by the rule of ``bench/match_study.py`` (the most of its goals met on the three
-    tiers of change, people's judgments, retrieval and the bars test; docs/matching.md); the
-    nets were then fine-tuned for a viewer's tolerance (``drkfs tune-tolerant``, chosen on the
-    synthetic tiers, the real tiers' training side and people's judgments; docs/real_levers.md),
-    and the cameras, view size and softmax temperature moved to 5 views of 144 px at t = 0.05
-    (``bench/real_levers.py``: a finer view for about the same pixels a mesh, chosen on the same
-    sides and kept only where the bars test, retrieval and the slide check held), and a second
-    ring of the cameras turned by 2.5° let the score forgive a turn a viewer does not see, and a
-    solid change of the views made it see a small hole or a removed tip, from both rings'
-    views where the two meshes are compared unturned (the same study and rule).
+    tiers of change, people's judgments, retrieval and the bars test; bench/records/matching.md);
+    the nets were then fine-tuned for a viewer's tolerance (``drkfs tune-tolerant``, chosen on the
+    synthetic tiers, the real tiers' training side and people's judgments;
+    bench/records/real_levers.md), and the cameras, view size and softmax temperature moved to 5
+    views of 144 px at t = 0.05 (``bench/real_levers.py``: a finer view for about the same pixels a
+    mesh, chosen on the same sides and kept only where the bars test, retrieval and the slide check
+    held), and a second ring of the cameras turned by 2.5° let the score forgive a turn a viewer
+    does not see, and a solid change of the views made it see a small hole or a removed tip, from
+    both rings' views where the two meshes are compared unturned (the same study and rule).
     ``PipelineConfig.paper()`` is the paper's recipe, ``structure()`` the same nets with the
     previous default's match, ``loss()`` the form a training loss takes.
 
@@ -92,7 +92,7 @@ class PipelineConfig:
     # Cameras: 5 views of 144 px cost a new mesh what 6 views of 128 px did (104k pixels against
     # 98k), and a small part or a surface defect covers 1.27x the pixels in each view; 4 views of
     # 192 px saw small parts better still but took a moved part for a removed one (the bars
-    # test, docs/real_levers.md)
+    # test, bench/records/real_levers.md)
     num_views: int = 5
     image_size: int = 144
     # A second ring of the same cameras turned by ``turn_degrees`` about the vertical (0: none).
@@ -100,7 +100,8 @@ class PipelineConfig:
     # one's own ring against the other's turned ring, and the least of the three scores counts:
     # a turn near this angle, which a viewer does not see, is matched away. 2.5 degrees won the
     # real tiers' training side over 1.5, 2 and 3 and matches none of the tiers' own turns
-    # (1, 2, 3 degrees) exactly (docs/real_levers.md). Twice the renders and descriptors a mesh.
+    # (1, 2, 3 degrees) exactly (bench/records/real_levers.md). Twice the renders and descriptors a
+    # mesh.
     turn_degrees: float = 2.5
     fov_degrees: float = 50.0
     camera_distance: float = 2.5
@@ -123,16 +124,16 @@ class PipelineConfig:
     back_light: float = 0.0
     # Where that shadow falls. Unpushed (0) it darkens a face seen from behind wherever it
     # blends into a pixel, also at every outline, where SoftRas' soft depth order mixes the
-    # faces that meet there: that lost synthetic pairs and the slide check (docs/real_levers.md,
-    # "Faces seen from behind in the shell's shadow"). Pushed back by this much normalised
-    # inverse depth behind the faces seen from the front, it falls only where such a face
-    # still shows, an opening's inside: a closed mesh renders as under two-sided light, but
-    # where a contour edge spans more depth than the push. At 0 of the light and a push of
+    # faces that meet there: that lost synthetic pairs and the slide check
+    # (bench/records/real_levers.md, "Faces seen from behind in the shell's shadow"). Pushed back by
+    # this much normalised inverse depth behind the faces seen from the front, it falls only where
+    # such a face still shows, an opening's inside: a closed mesh renders as under two-sided light,
+    # but where a contour edge spans more depth than the push. At 0 of the light and a push of
     # 0.05 (openings seen dark) the real tiers' held-out side meets every bar, where two-sided
     # light (``TWO_SIDED``) missed surface < structural, the third and fourth sides order more
     # pairs, and no synthetic or training pair, check or people's agreement moves; a second
-    # blend, of the shadow alone, costs a new mesh about 1.1x (docs/real_levers.md, "Openings
-    # seen dark").
+    # blend, of the shadow alone, costs a new mesh about 1.1x (bench/records/real_levers.md,
+    # "Openings seen dark").
     back_push: float = 0.05
     # Which side of a face is its outside, for the shadow above: 'file' takes the file's
     # winding, turned as a whole by the mesh's volume (``render_equations.mesh_orientation``),
@@ -186,7 +187,7 @@ class PipelineConfig:
     # moved bar for a removed one, and a single reach of 1 inside the mesh raised the chair
     # leg's slide in one step; the ramp (reaches 2-3, 1-2 inside) keeps it smooth. Chosen on the
     # synthetic tiers and the real tiers' training side with the bench's targets kept
-    # (docs/real_levers.md); the weight 1.2 with the own-ring pairing below, 0.7 before it.
+    # (bench/records/real_levers.md); the weight 1.2 with the own-ring pairing below, 0.7 before it.
     solid_weight: float = 1.2
     solid_shift: int = 3
     solid_block: int = 3
@@ -199,7 +200,7 @@ class PipelineConfig:
     # the turned ring's own comparison, and with ``solid_both_rings`` each view's solid change
     # is the larger of its camera's two rings'. Chosen with the weight above on the synthetic
     # tiers and the real tiers' training side with the bench's targets kept; a larger share
-    # lost people's far/normal (docs/real_levers.md, "The turned ring's own comparison").
+    # lost people's far/normal (bench/records/real_levers.md, "The turned ring's own comparison").
     turned_part_share: float = 0.2
     solid_both_rings: bool = True
     # Each pairing's descriptors' part counts at ``moderate_slope`` between ``moderate_from``
@@ -209,9 +210,9 @@ class PipelineConfig:
     # parts' difference (another shape) count as before. Chosen among 120 windows, each the
     # default's parts transformed, by the synthetic tiers and the real tiers' training side
     # with every synthetic pair and the bench's targets kept (``bench/part_transforms.py``,
-    # docs/real_levers.md); a window reaching above 0.18 lost a synthetic pair, one reaching
-    # 0.18 at a slope of 0.3 or less the slide check. Its ends are in this reduction's units:
-    # another reduction picked on the command line counts the part in full (``pick_config``).
+    # bench/records/real_levers.md); a window reaching above 0.18 lost a synthetic pair, one
+    # reaching 0.18 at a slope of 0.3 or less the slide check. Its ends are in this reduction's
+    # units: another reduction picked on the command line counts the part in full (``pick_config``).
     moderate_slope: float = 0.6
     moderate_from: float = 0.04
     moderate_to: float = 0.18
@@ -299,7 +300,7 @@ class PipelineConfig:
         best-match distances are reduced by their power mean of order 8, which listens to the
         few patches a missing part changes. With the tolerant nets it ranks a missing part as
         the default does, surface defects and people's judgments lower (docs/benchmark.md; with
-        the metric nets it ranked structure higher than the default, docs/matching.md)."""
+        the metric nets it ranked structure higher than the default, bench/records/matching.md)."""
         previous = dict(
             matching="global", direction="both", reduction="power", power=8.0, **FULL_PARTS
         )
@@ -311,8 +312,9 @@ class PipelineConfig:
         default's match (global, both, power mean of order 8) with a softer renderer, SoftRas'
         reconstruction sigma (1e-4) and a depth blend of gamma 0.1 instead of SoftRas' 1e-4,
         under which the nearest face takes a pixel almost outright and a step that reorders two
-        faces jumps the loss. ``loss()`` is what the loss study chose over it (docs/fitting.md).
-        Its cameras are ``NETS_TRAINED_AT``'s, those the loss was chosen and timed with."""
+        faces jumps the loss. ``loss()`` is what the loss study chose over it
+        (bench/records/fitting.md). Its cameras are ``NETS_TRAINED_AT``'s, those the loss was chosen
+        and timed with."""
         first = dict(nets="correspondence", sigma=1e-4, gamma=0.1, **NETS_TRAINED_AT)
         return cls.structure(**{**first, **changes})
 
@@ -325,7 +327,7 @@ class PipelineConfig:
         match jumps between patches and its power mean listens to the worst few.
         ``drkfs_onnx.loss.DrkfsLoss`` runs it coarse to fine. The network study chose it on its
         validation shapes over the loss study's first form, a soft match over window r1
-        (``python bench/fit.py``, docs/fitting.md)."""
+        (``python bench/fit.py``, bench/records/fitting.md)."""
         return cls.training(**{"matching": "window", "window": 0, "reduction": "mean", **changes})
 
     def features_part(self) -> PipelineConfig:

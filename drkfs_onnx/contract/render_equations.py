@@ -30,8 +30,8 @@ LOOSE_RADIUS = 1.01
 DEPTH_CULL = 30.0
 # A mesh reads inside out (``mesh_orientation``) where its signed volume lies under minus this
 # share of its tetrahedra's unsigned volumes (beyond FLAT_VOLUME): the real meshes read
-# 0.47-0.95 (the horse of docs/real_levers.md -0.67), a flat relief roughened by noise under
-# 0.01 either way, its sign noise's.
+# 0.47-0.95 (the horse of bench/records/real_levers.md -0.67), a flat relief roughened by noise
+# under 0.01 either way, its sign noise's.
 ORIENTED_SHARE = 0.05
 # Meshes render inside the unit sphere, where a flat mesh's volume rounds to about 1e-17.
 FLAT_VOLUME = 1e-9

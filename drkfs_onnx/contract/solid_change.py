@@ -14,8 +14,8 @@ mesh's inside in both views, where a moved part's outline shows the background i
 strong change of grey there counts more than a faint one, a facet's). Per view, the solid
 change is the largest change held over every pixel of a ``solid_block``-square (the change
 map's erosion): scattered changes and thin strips fall out. The term is its mean over the
-views, times ``solid_weight`` (docs/real_levers.md, "A solid change of the views"); in the own-ring
-pairing of two rings of cameras, each camera's larger change of its two rings where
+views, times ``solid_weight`` (bench/records/real_levers.md, "A solid change of the views"); in the
+own-ring pairing of two rings of cameras, each camera's larger change of its two rings where
 ``solid_both_rings`` (``match_rules.pairing_solid``).
 
 Windows are taken where they fit inside the view ("valid"): the outer ``solid_shift`` +

@@ -1,5 +1,5 @@
 """``drkfs choose-loss``: the network study's rule for choosing a loss, on your own held-out
-shapes (docs/fitting.md, "Six seeds": pooled over the seeds, choosing per run beat every
+shapes (bench/records/fitting.md, "Six seeds": pooled over the seeds, choosing per run beat every
 fixed loss).
 
 Train a network with the baseline loss (Chamfer, say) and with each candidate, reconstruct the

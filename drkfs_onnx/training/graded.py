@@ -7,7 +7,7 @@ last grade: removed), or the whole surface is roughened, at GRADES strengths, fr
 last steps leave to what its first steps face. Rendered at the loss's config, each patch's
 squared aligned descriptor distance should grow at least ELASTICITY times as fast (log over log)
 as the patch's pixel change, and the loss's score should grow from one grade to the next.
-``bench/loss_nets.py`` measures the shipped and the fine-tuned nets (docs/fitting.md).
+``bench/loss_nets.py`` measures the shipped and the fine-tuned nets (bench/records/fitting.md).
 """
 
 from __future__ import annotations

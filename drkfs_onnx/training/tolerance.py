@@ -4,10 +4,10 @@ defect (noise, smoothing), and that below a missing or added part.
 
 With the shipped nets a 1-pixel translation of every view scores 0.6-3.8 times a 2-degree turn,
 which moves the projected surface by under a pixel on average (``bench/shift_tolerance.py``,
-docs/real_levers.md): the descriptors follow every pixel of the PoI map, so the diffuse motion of a
-turn outweighs a defect that changes the shading without moving it. The data here are the
-benchmark's kind of tiers (``synthetic.tiers.part_tiers``) on bases of other seeds, with turns of
-1 and 3 degrees beside its 2 and the smallest part removed; each step also warps whole views
+bench/records/real_levers.md): the descriptors follow every pixel of the PoI map, so the diffuse
+motion of a turn outweighs a defect that changes the shading without moving it. The data here are
+the benchmark's kind of tiers (``synthetic.tiers.part_tiers``) on bases of other seeds, with turns
+of 1 and 3 degrees beside its 2 and the smallest part removed; each step also warps whole views
 slightly (``warped``: a shift, a turn in the image plane, a change of scale), of the base (an
 invisible change) and of a surface variant against itself (moving a textured view is not adding
 texture). With ``simplification`` data, each step also ranks a smoothed synthetic shape's
@@ -73,7 +73,8 @@ SIMPLIFY_MARGIN = float(np.log(1.25))
 SLIDE_SEED = 10
 SLIDE_STEPS, SLIDE_RANGE, SLIDE_EVEN = 5, 0.05, 2.0
 # the shipped tolerant nets (``ship_tolerant``): the metric nets fine-tuned with the simplification
-# series, at this softmax temperature, chosen by ``bench/real_nets.py`` (docs/real_levers.md)
+# series, at this softmax temperature, chosen by ``bench/real_nets.py``
+# (bench/records/real_levers.md)
 TUNE_STEPS, TUNE_LR, TUNE_TEMPERATURE = 400, 2e-4, 0.05
 EVAL_STEP = 100_000  # the objective before and after is measured on draws of steps from here
 EVAL_DRAWS = 12
