@@ -6,9 +6,11 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
 import tomllib
 
 from drkfs_onnx.benchmark import sets
+from drkfs_onnx.synthetic.examples import write_examples
 
 ROOT = Path(__file__).resolve().parents[1]
 QUICK_STARTS = ("Score your two meshes", "Run a server", "Train a network")
@@ -91,3 +93,32 @@ def test_the_reference_pages_are_short_and_the_studies_live_in_the_lab():
     index = (records / "README.md").read_text()
     for record in records.glob("*.md"):
         assert record.name == "README.md" or f"]({record.name})" in index, record.name
+
+
+def _python_blocks() -> list[tuple[str, str]]:
+    """(where, code) of every Python block in the README and docs/ that has no test of its own
+    (a block under an ``<!-- ... example -->`` marker has one)."""
+    blocks = []
+    for page in [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]:
+        text = page.read_text()
+        for found in re.finditer(r"(<!-- [^>]* example -->\s*)?```python\n(.*?)```", text, re.S):
+            if not found.group(1):
+                line = text[: found.start()].count("\n") + 1
+                blocks.append((f"{page.relative_to(ROOT)}:{line}", found.group(2)))
+    return blocks
+
+
+@pytest.mark.parametrize("where", ["checkout", "elsewhere"])
+def test_every_python_block_in_the_docs_runs_as_written(where, tmp_path, monkeypatch):
+    # in a checkout's root, and in another folder where `drkfs examples` wrote the examples
+    folder = ROOT if where == "checkout" else tmp_path
+    if where == "elsewhere":
+        write_examples(tmp_path / "examples")
+    before = set(folder.iterdir())
+    monkeypatch.chdir(folder)
+    try:
+        for name, code in _python_blocks():
+            exec(compile(code, name, "exec"), {})
+    finally:
+        for made in set(folder.iterdir()) - before:  # what a block wrote (gt.npz)
+            made.unlink()
