@@ -42,25 +42,31 @@ class Explanation:
     rings: dict[str, int]
 
     def top_patches(self, count: int = 5) -> list[dict]:
-        """The ``count`` patches with the largest shares: mesh, view, grid row and column (the
-        patch covers pixels [stride * row, stride * row + size) of the view), distance, share."""
-        cells = [
-            (float(share), side, index)
-            for side, grid in self.shares.items()
-            for index, share in np.ndenumerate(grid)
-        ]
-        cells.sort(key=lambda cell: -cell[0])
-        return [
-            {
+        """The ``count`` spots that carry the largest shares of the score, one entry a spot:
+        view, grid row and column (the patch covers pixels [stride * row, stride * row + size)
+        of the view), share (both meshes' patches there together), and the mesh whose patch
+        there carries more (``mesh``) with its distance; ``sides``: the meshes whose patch
+        there carries any. Patches that carry nothing are never listed (a score of 0 lists
+        none)."""
+        spots: dict[tuple, dict[str, float]] = {}
+        for side, grid in self.shares.items():
+            for index, share in np.ndenumerate(grid):
+                if share > 0:
+                    spots.setdefault(index, {})[side] = float(share)
+        ranked = sorted(spots.items(), key=lambda spot: -sum(spot[1].values()))
+        top = []
+        for (view, row, column), shares in ranked[:count]:
+            side = max(shares, key=shares.get)
+            top.append({
                 "mesh": side,
                 "view": int(view),
                 "row": int(row),
                 "column": int(column),
                 "distance": float(self.distances[side][view, row, column]),
-                "share": share,
-            }
-            for share, side, (view, row, column) in cells[:count]
-        ]
+                "share": sum(shares.values()),
+                "sides": sorted(shares),
+            })  # fmt: skip
+        return top
 
 
 def explain(scorer: Scorer, mesh_a: Mesh | str | Path, mesh_b: Mesh | str | Path) -> Explanation:

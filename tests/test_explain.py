@@ -137,3 +137,35 @@ def test_explain_shows_the_views_the_score_compared_and_scores_as_the_scorer(no_
         rendered = scorer.views(mesh, frame)[ring * k : (ring + 1) * k]
         np.testing.assert_array_equal(no_leg.views[side], rendered)
     assert no_leg.score == scorer.score(leg, chair)
+
+
+def test_the_top_patches_list_each_spot_once_and_none_where_nothing_differs(no_leg):
+    top = no_leg.top_patches(10)
+    spots = [(p["view"], p["row"], p["column"]) for p in top]
+    assert len(set(spots)) == len(spots) == 10
+    assert [p["share"] for p in top] == sorted((p["share"] for p in top), reverse=True)
+    for patch, spot in zip(top, spots, strict=True):
+        # a spot's share is both meshes' patches there; its mesh the one that carries more
+        shares = {side: float(no_leg.shares[side][spot]) for side in patch["sides"]}
+        assert patch["share"] == pytest.approx(sum(shares.values()))
+        assert patch["mesh"] == max(shares, key=shares.get)
+    same = explain(Scorer(threads=2), EXAMPLES / "chair.obj", EXAMPLES / "chair.obj")
+    assert same.top_patches() == []
+
+
+def test_the_picture_shows_each_meshs_plain_views_above_where_it_differs(no_leg):
+    pytest.importorskip("matplotlib")
+    from drkfs_onnx.runtime.explain_plot import explanation_figure
+
+    figure = explanation_figure(no_leg, top=3)
+    k = no_leg.config.num_views
+    axes = [a for a in figure.axes if a.images]  # the colour bar draws no image
+    assert len(axes) == 4 * k
+    for row, side in ((0, "a"), (2, "b")):
+        for view in range(k):
+            plain, overlaid = axes[row * k + view], axes[(row + 1) * k + view]
+            assert len(plain.images) == 1 and not plain.patches  # the render alone
+            np.testing.assert_array_equal(plain.images[0].get_array(), no_leg.views[side][view])
+            assert len(overlaid.images) == 2  # the render, and the distances over it
+    outlines = sum(len(a.patches) for a in axes)
+    assert outlines == sum(len(p["sides"]) for p in no_leg.top_patches(3))
