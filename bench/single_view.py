@@ -7,6 +7,7 @@ with each loss at several seeds, judged on held-out shapes and views by metrics 
     python bench/single_view.py --out bench/single_view --test-seeds 6000   # other test shapes
     python bench/single_view.py --out bench/single_view --controls  # the matched controls
     python bench/single_view.py --out bench/single_view --curve --until 2000   # learning curve
+    python bench/single_view.py --out bench/single_view --finetune  # the fine-tuning protocol
     python bench/single_view.py --out bench/single_view --steps 400 --seeds 0 \
         --losses "SoftRas (silhouette IoU),DR-KFS"                          # more steps
 
@@ -81,6 +82,14 @@ def single_view(
             "beside the study's in OUT) and judge them (writes OUT/controls.json)."
         ),
     ] = False,
+    finetune: Annotated[
+        bool,
+        typer.Option(
+            help="The fine-tuning protocol: SoftRas' and Chamfer's networks trained as long "
+            "again with their own loss, with DR-KFS beside it and with the matched control "
+            "beside it, at every seed (writes OUT/finetune.json)."
+        ),
+    ] = False,
 ) -> None:
     """Train SoftRas' shape generator with each loss and judge the reconstructions."""
     from studies.single_view import (
@@ -118,6 +127,12 @@ def single_view(
             out, until, seed_list[0], state or CURVE_STATE, quick, device, threads, progress
         )
         typer.echo(curve_markdown(results))  # bench/records/single_view.md's table
+        return
+    if finetune:
+        from studies.finetune import finetune_markdown, run_finetune
+
+        results = run_finetune(out, seed_list, quick, device, threads, progress)
+        typer.echo(finetune_markdown(results))  # bench/records/single_view.md's tables
         return
     if controls:
         results = run_controls(out, seed_list, quick, device, threads, progress)

@@ -12,6 +12,7 @@ import torch
 import trimesh
 from single_view import app
 from studies import single_view as study
+from studies.finetune import arm, compared, finetune_markdown
 from studies.network import TEST_SEED as NETWORK_TEST_SEED
 from studies.shape_generator import (
     FLATTEN_WEIGHT,
@@ -23,6 +24,7 @@ from studies.shape_generator import (
 from studies.single_view import (
     BASELINES,
     DRKFS_RECIPES,
+    FINETUNE,
     HELD_OUT_AZIMUTHS,
     JUDGED,
     MATCHED,
@@ -257,6 +259,12 @@ def test_a_training_stopped_and_resumed_ends_where_a_straight_one_does(tmp_path)
     assert resumed["history"] == straight["history"] and len(half["history"]) == 2
     for name, value in straight["model"].state_dict().items():
         assert torch.equal(value, resumed["model"].state_dict()[name]), name
+    # a fine-tuning starts from the weights it is given, not the seed's
+    tuned = train(
+        plan, recipe, 1, views, terms, print, until=0, start=straight["model"].state_dict()
+    )
+    for name, value in straight["model"].state_dict().items():
+        assert torch.equal(value, tuned["model"].state_dict()[name]), name
 
 
 @pytest.mark.slow
@@ -275,3 +283,21 @@ def test_the_controls_and_the_curve_judge_each_recipe_beside_its_controls(tmp_pa
     assert list(curve["points"]) == ["1", "2"] and (out / "curve.png").stat().st_size > 0
     again = CliRunner().invoke(app, args)  # every point trained and judged: nothing to do
     assert again.exit_code == 0 and json.loads((out / "curve.json").read_text()) == curve
+
+
+@pytest.mark.slow
+def test_the_finetuning_arms_start_from_one_network_and_are_judged_beside_it(tmp_path):
+    out = tmp_path / "out"
+    args = ["--quick", "--finetune", "--seeds", "0", "--out", str(out)]
+    result = CliRunner().invoke(app, args)
+    assert result.exit_code == 0, result.output
+    found = json.loads((out / "finetune.json").read_text())
+    for start, recipes in FINETUNE.items():
+        assert found["arms"][start] == [arm(start, r) for r in recipes]
+        assert {start, *found["arms"][start]} <= set(found["means"]["pooled"])
+    for challenger, against in (pair for start in FINETUNE for pair in compared(start)):
+        assert found["shares"]["pooled"][f"{challenger} | {against}"]["Chamfer-L1"]["cells"] > 0
+    assert finetune_markdown(found).count("\n|") > 2 * len(FINETUNE)
+    again = CliRunner().invoke(app, args)  # every arm saved: judged again, not retrained
+    assert again.exit_code == 0
+    assert json.loads((out / "finetune.json").read_text())["tables"] == found["tables"]

@@ -111,10 +111,21 @@ CURVE_CONTROL = "silhouette IoU + 3 x Chamfer-L2"
 CURVE_STATE = Path.home() / ".cache" / "drkfs-onnx" / "single-view-curve"
 # trained only when asked (--steps ... --losses): the strongest attempt's other nets
 EXTRA = (Recipe(DRKFS_TUNED, ((1.0, DRKFS_TUNED),)),)
+# the fine-tuning protocol (--finetune, studies/finetune.py): a network trained with SoftRas'
+# loss or Chamfer's, trained as long again with its own loss, with DR-KFS beside it, or with
+# another image term of DR-KFS's weight beside it (the matched control)
+FINETUNE = {
+    SOFTRAS: (SOFTRAS, RECIPE_IOU, "silhouette IoU + 1 x pixel MSE"),
+    CHAMFER: (CHAMFER, "DR-KFS + 1 x Chamfer-L2", "silhouette IoU + 1 x Chamfer-L2"),
+}
+FINETUNE_RECIPES = (
+    Recipe("DR-KFS + 1 x Chamfer-L2", ((1.0, DRKFS_SHADED), (1.0, CHAMFER))),
+    Recipe("silhouette IoU + 1 x Chamfer-L2", ((1.0, IOU), (1.0, CHAMFER))),
+)
 
 
 def by_name(name: str) -> Recipe:
-    recipes = (*BASELINES, *DRKFS_RECIPES, *COMBINATIONS, *CONTROLS, *EXTRA)
+    recipes = (*BASELINES, *DRKFS_RECIPES, *COMBINATIONS, *CONTROLS, *EXTRA, *FINETUNE_RECIPES)
     for recipe in recipes:
         if recipe.name == name:
             return recipe
@@ -286,15 +297,19 @@ def train(
     progress,
     resume: dict | None = None,
     until: int | None = None,
+    start: dict | None = None,
 ) -> dict:
     """One generator trained with ``recipe`` -> {"model", "history", "seconds_per_step",
     "state"}. Every recipe at a seed starts from the same weights and sees the same batches.
     ``until`` stops at that step (default: the plan's last), with the staged loss's progress
     still counted against the plan's steps; ``resume`` goes on from an earlier call's "state"
-    as if the two calls were one."""
+    as if the two calls were one; ``start``: a trained generator's weights to start from
+    instead of the seed's (a fine-tuning, with a fresh optimiser)."""
     device = terms.faces.device
     torch.manual_seed(seed)
     model = ShapeGenerator(CHANNELS, IMAGE_SIZE).to(device)
+    if start is not None:
+        model.load_state_dict(start)
     regularisers = Regularisers(model.template(), model.faces).to(device)
     weights = torch.tensor([w for w, _ in recipe.terms], device=device)
     rng = np.random.default_rng(seed)
@@ -965,7 +980,7 @@ COLUMNS = (  # the paper's table's order: CD, F-score, NC, IoU, LFD; then unseen
 )
 
 
-def _cell(value: float | None, scale: float, digits: int) -> str:
+def table_cell(value: float | None, scale: float, digits: int) -> str:
     return "n/a" if value is None else f"{value * scale:,.{digits}f}"
 
 
@@ -992,7 +1007,7 @@ def markdown(results: dict) -> str:
     ):  # fmt: skip
         lines = [f"**{title}**", "", header, rule]
         for name, row in rows:
-            cells = " | ".join(_cell(row[m], s, d) for m, _, s, d in COLUMNS)
+            cells = " | ".join(table_cell(row[m], s, d) for m, _, s, d in COLUMNS)
             lines.append(f"| {name} | {cells} |")
         blocks.append("\n".join(lines))
     share_lines = [
@@ -1020,7 +1035,7 @@ def controls_markdown(results: dict) -> str:
     lines = ["| loss | " + " | ".join(c[1] for c in COLUMNS) + " |",
              "|---|" + "---:|" * len(COLUMNS)]  # fmt: skip
     for name in names:
-        lines.append(f"| {name} | " + " | ".join(_cell(pooled[name][m], s, d)
+        lines.append(f"| {name} | " + " | ".join(table_cell(pooled[name][m], s, d)
                                                    for m, _, s, d in COLUMNS) + " |")  # fmt: skip
     judged = ("LFD", "silhouette IoU", "Chamfer-L1", "F-score 1%")
     seeds = [k for k in results["shares"] if k != "pooled"]
@@ -1048,7 +1063,7 @@ def curve_markdown(results: dict) -> str:
     head = " | ".join(f"{m} @ {p}" for m, *_ in judged for p in points)
     lines = [f"| loss | {head} |", "|---|" + "---:|" * (len(judged) * len(points))]
     for name in results["losses"]:
-        cells = " | ".join(_cell(results["points"][p]["means"][name][m], s, d)
+        cells = " | ".join(table_cell(results["points"][p]["means"][name][m], s, d)
                            for m, s, d in judged for p in points)  # fmt: skip
         lines.append(f"| {name} | {cells} |")
     return "\n".join(lines) + "\n"

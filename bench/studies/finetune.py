@@ -1,0 +1,145 @@
+"""The single-view study's fine-tuning protocol (``python bench/single_view.py --finetune``),
+the way a perceptual loss is often adopted: a network trained for the study's steps with SoftRas'
+loss (or Chamfer's) is trained as many steps again with its own loss alone, with DR-KFS beside
+it, and with another image term of DR-KFS's weight beside it (the matched control;
+``single_view.FINETUNE``). At a seed every arm starts from the same weights and sees the same
+batches, drawn afresh (seed + ``BATCH_SEED_SHIFT``); each is judged on the study's test shapes
+beside the network it started from."""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import torch
+
+from drkfs_onnx.contract.config import PipelineConfig
+from drkfs_onnx.judging.judges import Judge
+
+from .single_view import (
+    COLUMNS,
+    FINETUNE,
+    FULL,
+    QUICK,
+    Networks,
+    by_name,
+    judge_all,
+    means,
+    shares,
+    table_cell,
+    train,
+    training_data,
+)
+from .study import machine
+
+BATCH_SEED_SHIFT = 1000  # the fine-tuning's batches: none of the first training's order
+
+
+def arm(start: str, recipe: str) -> str:
+    """The name of a network trained from ``start``'s with ``recipe``."""
+    return f"{start}, then {recipe}"
+
+
+def compared(start: str) -> list[tuple[str, str]]:
+    """(challenger, against) pairs of one start's arms: DR-KFS's arm against its own loss's and
+    against the control's, and the control against its own loss's."""
+    own, drkfs, control = (arm(start, r) for r in FINETUNE[start])
+    return [(drkfs, own), (drkfs, control), (control, own)]
+
+
+def run_finetune(
+    out: Path,
+    seeds: tuple[int, ...] = (0, 1, 2),
+    quick: bool = False,
+    device: str = "cpu",
+    threads: int = 2,
+    progress=print,
+) -> dict:
+    """Every start network (OUT/networks, trained there first if missing) fine-tuned with each
+    of its arms at every seed (OUT/networks-finetuned, resumable), judged on the test shapes
+    -> OUT/finetune.json."""
+    began = time.perf_counter()
+    plan = QUICK if quick else FULL
+    dev = torch.device(device)
+    test_set, views, terms = training_data(out, plan, dev)
+    starts, tuned = (
+        Networks(out / "networks", plan, dev),
+        Networks(out / "networks-finetuned", plan, dev),
+    )
+    seconds: dict = {}
+    for seed in seeds:
+        for start, recipes in FINETUNE.items():
+            if starts.get(seed, start) is None:
+                starts.put(seed, start, train(plan, by_name(start), seed, views["train"], terms,
+                                              progress))  # fmt: skip
+            weights = starts.get(seed, start)["model"].state_dict()
+            for recipe in recipes:
+                name = arm(start, recipe)
+                if tuned.get(seed, name) is None:
+                    trained = train(plan, by_name(recipe), seed + BATCH_SEED_SHIFT,
+                                    views["train"], terms, progress, start=weights)  # fmt: skip
+                    tuned.put(seed, name, trained)
+                seconds.setdefault(name, {})[f"seed {seed}"] = tuned.get(seed, name)[
+                    "seconds_per_step"
+                ]
+    names = [
+        n for start, recipes in FINETUNE.items() for n in (start, *(arm(start, r) for r in recipes))
+    ]
+    judge = Judge(PipelineConfig(), threads, plan.unseen_views, plan.lfd, image_judges=False)
+    truths: dict = {}
+    try:
+        tables = {}
+        for seed in seeds:
+            models = {n: (tuned.get(seed, n) or starts.get(seed, n))["model"] for n in names}
+            tables[seed] = judge_all(judge, models, test_set, views["test"], truths, progress)
+    finally:
+        judge.close()
+    per = {"pooled": list(tables.values()), **{f"seed {s}": [t] for s, t in tables.items()}}
+    results = {
+        "command": f"python bench/single_view.py{' --quick' if quick else ''} --finetune "
+        f"--seeds {','.join(map(str, seeds))} --device {device} --out {out}",
+        **machine(),
+        "device": device if dev.type == "cpu" else torch.cuda.get_device_name(dev),
+        "lfd": judge.lfd_note,
+        "seeds": list(seeds),
+        "steps": {"start": plan.steps, "fine-tuning": plan.steps},
+        "arms": {start: [arm(start, r) for r in recipes] for start, recipes in FINETUNE.items()},
+        "recipes": {
+            r: [list(t) for t in by_name(r).terms] for recipes in FINETUNE.values() for r in recipes
+        },  # fmt: skip
+        "tables": {f"seed {s}": t for s, t in tables.items()},
+        "means": {key: means(ts, test_set, names)["mean"] for key, ts in per.items()},
+        "shares": {
+            key: {f"{c} | {a}": shares(ts, c, a) for start in FINETUNE for c, a in compared(start)}
+            for key, ts in per.items()
+        },  # fmt: skip
+        "seconds_per_step": seconds,
+        "seconds_total": time.perf_counter() - began,
+    }
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "finetune.json").write_text(json.dumps(results, indent=1))
+    return results
+
+
+def finetune_markdown(results: dict) -> str:
+    """bench/records/single_view.md's fine-tuning tables (OUT/finetune.json): every start's and
+    arm's pooled means, and each arm's test cells closer than another's, pooled and (LFD,
+    unseen silhouettes) per seed (bench/check_results.py checks the record holds them)."""
+    pooled = results["means"]["pooled"]
+    lines = ["| network | " + " | ".join(c[1] for c in COLUMNS) + " |",
+             "|---|" + "---:|" * len(COLUMNS)]  # fmt: skip
+    for name, row in pooled.items():
+        lines.append(f"| {name} | " + " | ".join(table_cell(row[m], s, d) for m, _, s, d in COLUMNS)
+                     + " |")  # fmt: skip
+    judged = ("LFD", "silhouette IoU", "Chamfer-L1", "F-score 1%")
+    seeds = [k for k in results["shares"] if k != "pooled"]
+    wins = ["| fine-tuned with | closer than | " + " | ".join(judged) + " | LFD by seed | "
+            "unseen sil. by seed |", "|---|---|" + "---:|" * (len(judged) + 2)]  # fmt: skip
+    for pair, row in results["shares"]["pooled"].items():
+        challenger, against = pair.split(" | ")
+        cells = " | ".join(f"{row[m]['wins']}/{row[m]['cells']}" for m in judged)
+        by_seed = [" / ".join(str(results["shares"][k][pair][m]["wins"]) for k in seeds)
+                   for m in judged[:2]]  # fmt: skip
+        wins.append(f"| {challenger} | {against} | {cells} | {' | '.join(by_seed)} |")
+    return "\n\n".join("\n".join(block) for block in (lines, wins)) + "\n"
