@@ -10,19 +10,7 @@ from typing import Annotated
 
 import typer
 
-from .contract.cli_options import (
-    Direction,
-    Matching,
-    Metric,
-    Normalize,
-    Preset,
-    Reduction,
-    SolidWeight,
-    Symmetric,
-    TwoSided,
-    Window,
-    pick_config,
-)
+from .contract.cli_options import Normalize, config_options
 from .contract.config import PipelineConfig
 from .contract.mesh import MeshError, load_mesh
 from .contract.versions import metric_name
@@ -76,37 +64,15 @@ def _score(metric, path_a: Path, path_b: Path) -> float:
 
 
 @app.command()
+@config_options()
 def score(
     mesh_a: Path,
     mesh_b: Annotated[Path, typer.Argument(help="The reference (ground truth).")],
+    config: PipelineConfig,
     normalize: Normalize = "joint",
-    preset: Preset = "default",
-    metric: Metric = None,
-    matching: Matching = None,
-    window: Window = None,
-    direction: Direction = None,
-    reduction: Reduction = None,
-    symmetric: Symmetric = False,
-    solid_weight: SolidWeight = None,
-    two_sided: TwoSided = False,
     as_json: Annotated[bool, typer.Option("--json", help="Print a JSON object.")] = False,
 ) -> None:
     """Score MESH_A against the reference MESH_B (0 for identical meshes)."""
-    try:
-        config = pick_config(
-            preset,
-            metric,
-            matching,
-            window,
-            direction,
-            reduction,
-            symmetric,
-            solid_weight,
-            two_sided,
-        )
-    except ValueError as exc:
-        typer.echo(f"error: {exc}", err=True)
-        raise typer.Exit(2) from exc
     scorer = _metric(config, normalize)
     start = time.perf_counter()
     try:

@@ -14,19 +14,13 @@ from typing import Annotated
 import typer
 
 from drkfs_onnx.contract.cli_options import (
-    Direction,
-    Matching,
-    Metric,
+    CONFIG_OPTIONS,
+    DESCRIBING_OPTIONS,
     Normalize,
-    Preset,
-    Reduction,
     ReferenceNormalize,
-    SolidWeight,
-    Symmetric,
-    TwoSided,
-    Window,
     choices,
-    pick_config,
+    config_options,
+    with_options,
 )
 from drkfs_onnx.contract.config import NETS
 from drkfs_onnx.contract.mesh import MeshError
@@ -93,13 +87,29 @@ def _exit_on(*errors: type[Exception]):
         raise typer.Exit(2) from exc
 
 
-def _spec(threads, normalize, width, nets, model, max_faces, **match) -> ScorerSpec:
-    """What builds a scorer for the preset and overrides in ``match`` (``pick_config``'s)."""
+def _spec(config, threads, normalize, width, nets, model, max_faces) -> ScorerSpec:
+    """What builds a scorer for ``config`` with the scorer options' overrides."""
     picked = {"descriptor_width": width, "nets": nets}
-    with _exit_on(ValueError):
-        config = pick_config(**match, **{k: v for k, v in picked.items() if v is not None})
+    config = config.replace(**{k: v for k, v in picked.items() if v is not None})
     model = None if model is None else str(model)
     return ScorerSpec(config, model, threads, normalize, max_faces or None)
+
+
+# the options of the scorer beside the config's: the nets, a graph of one's own, a mesh's bound
+SCORER_OPTIONS = {
+    "width": (Width, None),
+    "nets": (Nets, None),
+    "model": (Model, None),
+    "max_faces": (MaxFaces, MAX_FACES),
+}
+
+
+def scoring_options(names: tuple[str, ...] = tuple(CONFIG_OPTIONS)):
+    """A command takes the config options ``names`` and the scorer's, and is called with the
+    ``ScorerSpec`` they make as its ``spec`` argument (it has ``threads`` and ``normalize``)."""
+    needs = ("config", "threads", "normalize")
+    scorer = with_options(SCORER_OPTIONS, "spec", _spec, needs)
+    return lambda command: config_options(names)(scorer(command))
 
 
 def _scorer(spec: ScorerSpec, progress: bool = True) -> Scorer:
@@ -125,34 +135,19 @@ def _check_out(out: Path) -> None:
 
 
 @app.command()
+@scoring_options()
 def pair(
     mesh_a: Path,
     mesh_b: Annotated[
         Path, typer.Argument(help="The reference (ground truth): a mesh or a features .npz.")
     ],
+    spec: ScorerSpec,
     as_json: Annotated[bool, typer.Option("--json", help="Print a JSON object.")] = False,
     threads: Threads = None,
     normalize: Normalize = "joint",
-    preset: Preset = "default",
-    metric: Metric = None,
-    matching: Matching = None,
-    window: Window = None,
-    direction: Direction = None,
-    reduction: Reduction = None,
-    symmetric: Symmetric = False,
-    solid_weight: SolidWeight = None,
-    two_sided: TwoSided = False,
-    width: Width = None,
-    nets: Nets = None,
-    model: Model = None,
-    max_faces: MaxFaces = MAX_FACES,
 ) -> None:
     """Score MESH_A against the reference MESH_B (0 for identical meshes)."""
-    scorer = _scorer(_spec(
-        threads, normalize, width, nets, model, max_faces, preset=preset, metric=metric,
-        matching=matching, window=window, direction=direction, reduction=reduction,
-        symmetric=symmetric, solid_weight=solid_weight, two_sided=two_sided,
-    ))  # fmt: skip
+    scorer = _scorer(spec)
     start = time.perf_counter()
     with _exit_on(MeshError, ValueError):
         value = scorer.score(mesh_a, reference_of(mesh_b))
@@ -168,31 +163,20 @@ def pair(
 
 
 @app.command()
+@scoring_options()
 def explain(
     mesh_a: Path,
     mesh_b: Annotated[Path, typer.Argument(help="The reference (ground truth) mesh.")],
     out: Annotated[
         Path, typer.Option(help="The picture to write: .png (the default suffix), .pdf or .svg.")
     ],
+    spec: ScorerSpec,
     as_json: Annotated[
         bool, typer.Option("--json", help="Print the score and the top patches as JSON.")
     ] = False,
     top: Annotated[int, typer.Option(min=1, help="How many patches to outline and list.")] = 5,
     threads: Threads = None,
     normalize: Normalize = "joint",
-    preset: Preset = "default",
-    metric: Metric = None,
-    matching: Matching = None,
-    window: Window = None,
-    direction: Direction = None,
-    reduction: Reduction = None,
-    symmetric: Symmetric = False,
-    solid_weight: SolidWeight = None,
-    two_sided: TwoSided = False,
-    width: Width = None,
-    nets: Nets = None,
-    model: Model = None,
-    max_faces: MaxFaces = MAX_FACES,
 ) -> None:
     """Show where the score of MESH_A against MESH_B comes from: each view of both, every
     patch's best-match distance as a heat overlay, the patches carrying most of it outlined."""
@@ -208,11 +192,7 @@ def explain(
         typer.echo(f"error: --out {out}: write a {', '.join(PICTURES)} picture", err=True)
         raise typer.Exit(2)
     _check_out(out)
-    scorer = _scorer(_spec(
-        threads, normalize, width, nets, model, max_faces, preset=preset, metric=metric,
-        matching=matching, window=window, direction=direction, reduction=reduction,
-        symmetric=symmetric, solid_weight=solid_weight, two_sided=two_sided,
-    ))  # fmt: skip
+    scorer = _scorer(spec)
     with _exit_on(MeshError, ValueError):
         explanation = explain_pair(scorer, mesh_a, mesh_b)
     with _exit_on(OSError, ValueError):
@@ -228,26 +208,17 @@ def explain(
 
 
 @app.command()
+@scoring_options(DESCRIBING_OPTIONS)
 def features(
     mesh: Path,
     out: Annotated[Path, typer.Option(help="The .npz file to write.")],
+    spec: ScorerSpec,
     threads: Threads = None,
     normalize: ReferenceNormalize = "joint",
-    preset: Preset = "default",
-    metric: Metric = None,
-    two_sided: TwoSided = False,
-    width: Width = None,
-    nets: Nets = None,
-    model: Model = None,
-    max_faces: MaxFaces = MAX_FACES,
 ) -> None:
     """Describe a reference mesh once; pass the .npz as MESH_B to ``pair`` or in a batch CSV."""
     out = out if out.suffix == ".npz" else out.with_name(out.name + ".npz")  # numpy adds it
     _check_out(out)
-    spec = _spec(
-        threads, normalize, width, nets, model, max_faces, preset=preset, metric=metric,
-        two_sided=two_sided,
-    )  # fmt: skip
     scorer = _scorer(spec)
     with _exit_on(MeshError):
         result = scorer.features(mesh)
@@ -313,9 +284,11 @@ Workers = Annotated[
 
 
 @app.command()
+@scoring_options()
 def batch(
     pairs: Annotated[Path, typer.Argument(help="CSV with columns mesh_a, mesh_b (B: reference).")],
     out: Annotated[Path, typer.Option(help="CSV of results; rerunning resumes it.")],
+    spec: ScorerSpec,
     threads: Annotated[
         int | None,
         typer.Option(
@@ -323,21 +296,8 @@ def batch(
         ),
     ] = None,
     normalize: Normalize = "joint",
-    preset: Preset = "default",
-    metric: Metric = None,
-    matching: Matching = None,
-    window: Window = None,
-    direction: Direction = None,
-    reduction: Reduction = None,
-    symmetric: Symmetric = False,
-    solid_weight: SolidWeight = None,
-    two_sided: TwoSided = False,
-    width: Width = None,
-    nets: Nets = None,
-    model: Model = None,
     ray: RayAddress = None,
     workers: Workers = None,
-    max_faces: MaxFaces = MAX_FACES,
 ) -> None:
     """Score every row of PAIRS; results are written and flushed row by row, in input order.
 
@@ -366,11 +326,6 @@ def batch(
     todo = pairs_file.pairs
     if ray is not None and threads is None:
         threads = 1
-    spec = _spec(
-        threads, normalize, width, nets, model, max_faces, preset=preset, metric=metric,
-        matching=matching, window=window, direction=direction, reduction=reduction,
-        symmetric=symmetric, solid_weight=solid_weight, two_sided=two_sided,
-    )  # fmt: skip
     # checks the model and config here, before any worker starts; the progress bar says the rest
     scorer = _scorer(spec, progress=False)
     with _exit_on(OutputLocked, OSError), output_lock(out):  # before _finished rewrites OUT

@@ -557,3 +557,19 @@ def test_help_shows_flags_without_a_value_and_the_values_a_choice_takes(command)
     assert "<bool>" not in said and "<str>" not in said.split("Options:")[1]
     assert "--normalize [joint|each|none]" in said
     assert "[drkfs-1.0|drkfs-structure-1.0|drkfs-paper]" in said
+
+
+def test_every_scoring_command_takes_the_config_options_of_one_definition():
+    from typer.main import get_command
+
+    from drkfs_onnx.cli import app as torch_app
+    from drkfs_onnx.contract.cli_options import CONFIG_OPTIONS, DESCRIBING_OPTIONS
+
+    def options(typer_app, name: str) -> set[str]:
+        return {p.name for p in get_command(typer_app).commands[name].params}
+
+    for name in ("pair", "explain", "batch"):
+        assert set(CONFIG_OPTIONS) | {"width", "nets", "model", "max_faces"} <= options(app, name)
+    assert set(CONFIG_OPTIONS) <= options(torch_app, "score")
+    described = options(app, "features")
+    assert set(DESCRIBING_OPTIONS) <= described and "matching" not in described

@@ -3,7 +3,10 @@
 
 from __future__ import annotations
 
-from typing import Annotated
+import functools
+import inspect
+from collections.abc import Callable
+from typing import Annotated, Any
 
 import typer
 
@@ -160,3 +163,65 @@ def pick_config(
             f"{config.matching}ly: add --matching window"
         )
     return config
+
+
+# the options that pick a config: which metric (a preset or a named version) and its overrides
+CONFIG_OPTIONS = {
+    "preset": (Preset, "default"),
+    "metric": (Metric, None),
+    "matching": (Matching, None),
+    "window": (Window, None),
+    "direction": (Direction, None),
+    "reduction": (Reduction, None),
+    "symmetric": (Symmetric, False),
+    "solid_weight": (SolidWeight, None),
+    "two_sided": (TwoSided, False),
+}
+# what shapes a mesh's descriptors alone (a reference described once)
+DESCRIBING_OPTIONS = ("preset", "metric", "two_sided")
+
+
+def with_options(
+    options: dict[str, tuple[Any, Any]],
+    into: str,
+    build: Callable[..., Any],
+    needs: tuple[str, ...] = (),
+) -> Callable:
+    """A decorator for a typer command: it takes ``options`` (name -> (annotated type, default))
+    after its own and is called with ``build(**their values, **needs)`` as its ``into``
+    argument, ``needs`` naming its own arguments (or an outer decorator's) that ``build`` reads
+    too. A ValueError from ``build`` is one line, ``error: ...``, and exit status 2."""
+
+    def decorate(command: Callable) -> Callable:
+        signature = inspect.signature(command, eval_str=True)  # the real annotated types
+        own = [p for p in signature.parameters.values() if p.name != into]
+        named = {p.name for p in own}
+        keyword = inspect.Parameter.KEYWORD_ONLY
+        needed = [inspect.Parameter(n, keyword) for n in needs if n not in named]
+        added = [
+            inspect.Parameter(name, keyword, default=default, annotation=annotation)
+            for name, (annotation, default) in options.items()
+        ]
+
+        @functools.wraps(command)
+        def run(*args, **kwargs):
+            picked = {name: kwargs.pop(name) for name in options}
+            passed = {name: kwargs.pop(name) for name in needs if name not in named}
+            try:
+                built = build(**picked, **passed, **{n: kwargs[n] for n in needs if n in named})
+            except ValueError as exc:
+                typer.echo(f"error: {exc}", err=True)
+                raise typer.Exit(2) from exc
+            return command(*args, **kwargs, **{into: built})
+
+        run.__annotations__ = {p.name: p.annotation for p in own + added}
+        run.__signature__ = signature.replace(parameters=own + needed + added)
+        return run
+
+    return decorate
+
+
+def config_options(names: tuple[str, ...] = tuple(CONFIG_OPTIONS)) -> Callable:
+    """A typer command takes the options ``names`` and is called with the config they pick
+    (``pick_config``) as its ``config`` argument."""
+    return with_options({n: CONFIG_OPTIONS[n] for n in names}, "config", pick_config)
