@@ -8,7 +8,6 @@ beside the network it started from."""
 
 from __future__ import annotations
 
-import json
 import time
 from pathlib import Path
 
@@ -30,6 +29,7 @@ from .single_view import (
     table_cell,
     train,
     training_data,
+    write_json,
 )
 from .study import machine
 
@@ -117,9 +117,7 @@ def run_finetune(
         "seconds_per_step": seconds,
         "seconds_total": time.perf_counter() - began,
     }
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "finetune.json").write_text(json.dumps(results, indent=1))
-    return results
+    return write_json(out / "finetune.json", results)
 
 
 def finetune_markdown(results: dict) -> str:

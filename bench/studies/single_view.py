@@ -833,8 +833,13 @@ def run_controls(
         "seconds_per_step": seconds,
         "seconds_total": time.perf_counter() - start,
     }
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "controls.json").write_text(json.dumps(results, indent=1))
+    return write_json(out / "controls.json", results)
+
+
+def write_json(path: Path, results: dict) -> dict:
+    """``results`` written to ``path`` (its folder made), and returned."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(results, indent=1))
     return results
 
 
