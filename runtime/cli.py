@@ -7,6 +7,7 @@ import hashlib
 import json
 import sys
 import time
+import warnings
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Annotated
@@ -120,6 +121,16 @@ def _scorer(spec: ScorerSpec, progress: bool = True) -> Scorer:
 
 def _say(line: str) -> None:
     typer.echo(line, err=True)
+
+
+def _warn(message, *_) -> None:
+    """A warning (a mesh's winding, say) as one line on stderr."""
+    typer.echo(f"warning: {message}", err=True)
+
+
+@app.callback()
+def _warnings_in_one_line() -> None:
+    warnings.showwarning = _warn
 
 
 def _check_out(out: Path) -> None:

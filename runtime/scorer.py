@@ -9,6 +9,7 @@ import hashlib
 import json
 import os
 import time
+import warnings
 from collections import OrderedDict
 from collections.abc import Callable
 from pathlib import Path
@@ -26,6 +27,7 @@ from drkfs_onnx.contract.mesh import (
     place,
 )
 from drkfs_onnx.contract.patch_grid import nonempty_patches
+from drkfs_onnx.contract.render_equations import opposed_edges
 from drkfs_onnx.contract.versions import LATEST, metric_config, metric_name
 
 from .features import MeshFeatures
@@ -52,6 +54,11 @@ def reference_of(path: str | Path) -> Path | MeshFeatures:
     """A mesh path, or the features file written by ``drkfs-score features`` (a .npz), loaded."""
     path = Path(path)
     return MeshFeatures.load(path) if path.suffix == ".npz" else path
+
+
+class WindingWarning(UserWarning):
+    """A mesh whose file winds neighbouring faces against each other, scored by a config that
+    reads a face's outside from the file."""
 
 
 class Scorer:
@@ -170,7 +177,24 @@ class Scorer:
                 self._check_faces(str(mesh), declared_faces(mesh))
             mesh = load_mesh(mesh)
         self._check_faces(mesh.source, len(mesh.faces))
+        self._check_winding(mesh)
         return mesh
+
+    def _check_winding(self, mesh: Mesh) -> None:
+        """A warning (``WindingWarning``) where the config reads a face's outside from the file
+        and the file winds faces that share an edge against each other."""
+        if self.config.winding != "file" or self.config.back_light >= 1.0:
+            return  # read from the surface, or lit alike from both sides: the winding is moot
+        opposed = opposed_edges(mesh.vertices, mesh.faces)
+        if opposed:
+            warnings.warn(
+                f"{mesh.source}: {opposed:,} of its edges are run the same way by two faces "
+                "(faces wound against their neighbours), which "
+                "shade as a shell's inside here; --winding geometry (winding='geometry') reads "
+                "each face's outside from the surface",
+                WindingWarning,
+                stacklevel=2,  # one place: each file's warning is shown once
+            )
 
     def _check_faces(self, source: str, faces: int | None) -> None:
         if self.max_faces is not None and faces is not None and faces > self.max_faces:

@@ -1,6 +1,7 @@
 """The onnxruntime scorer computes the torch metric's scores (parity), skips what a scene does not
 need (empty patches, fine tessellation, repeated references) and refuses foreign models."""
 
+import warnings
 from dataclasses import replace
 from pathlib import Path
 
@@ -15,8 +16,10 @@ from drkfs_onnx.contract.cameras import rotation_y
 from drkfs_onnx.contract.config import TWO_SIDED
 from drkfs_onnx.contract.mesh import Mesh, frame_of, place
 from drkfs_onnx.contract.model_files import features_file, models_dir
+from drkfs_onnx.contract.render_equations import opposed_edges
 from drkfs_onnx.contract.versions import metric_config
 from drkfs_onnx.runtime import MeshFeatures, ModelMismatch, Scorer
+from drkfs_onnx.runtime.scorer import WindingWarning
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 VARIANTS = ["chair_retessellated.obj", "chair_leg_shifted.obj", "chair_no_leg.obj"]
@@ -137,6 +140,41 @@ def test_a_part_wound_against_the_rest_reads_as_an_inside_only_where_the_file_or
                 assert shadowed.score(leg, chair) < 1e-6
             elif push == 0.0:
                 assert shadowed.score(leg, chair) > shadowed.score(shifted, chair)
+
+
+def test_a_file_wound_against_itself_is_named_in_a_warning_where_the_winding_is_read():
+    """Where the config reads a face's outside from the file (drkfs-1.0), a mesh whose
+    neighbouring faces run an edge the same way is named in one warning; a consistent file
+    (split into a soup of its faces, or with parts meeting at an edge) is not, nor any file
+    where the winding is moot (read from the surface, or lit from both sides)."""
+    chair = load_mesh(EXAMPLES / "chair.obj")
+    flips = np.random.default_rng(0).random(len(chair.faces)) < 0.5
+    rewound = Mesh(chair.vertices, np.where(flips[:, None], chair.faces[:, ::-1], chair.faces),
+                   "half flipped")  # fmt: skip
+    corners = chair.vertices[chair.faces].reshape(-1, 3)
+    soup = Mesh(corners, np.arange(len(corners)).reshape(-1, 3), "soup")
+    assert (
+        opposed_edges(soup.vertices, soup.faces)
+        == 0
+        < opposed_edges(rewound.vertices, rewound.faces)
+    )
+    default = Scorer(threads=2)
+    with pytest.warns(
+        WindingWarning, match=r"^half flipped: \d+ of its edges .*--winding geometry"
+    ):
+        default.load(rewound)
+    quiet = [
+        (default, chair), (default, soup),
+        (Scorer(PipelineConfig(winding="geometry"), threads=2), rewound),
+        (Scorer(PipelineConfig(**TWO_SIDED), threads=2), rewound),
+    ]  # fmt: skip
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", WindingWarning)
+        for scorer, mesh in quiet:
+            scorer.load(mesh)
+    for name in sets.SHARED_MESHES:  # real meshes, wound consistently, where parts meet too
+        mesh = load_mesh(sets.real_mesh(name))
+        assert opposed_edges(mesh.vertices, mesh.faces) == 0, name
 
 
 @pytest.mark.parametrize("name", ["chair", "cow", "woody", "beetle"])

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import trimesh
 from conftest import without
 from typer.testing import CliRunner
 
@@ -573,3 +574,20 @@ def test_every_scoring_command_takes_the_config_options_of_one_definition():
     assert set(CONFIG_OPTIONS) <= options(torch_app, "score")
     described = options(app, "features")
     assert set(DESCRIBING_OPTIONS) <= described and "matching" not in described
+
+
+def test_a_file_wound_against_itself_gets_one_warning_line_and_winding_geometry_scores_it(
+    tmp_path,
+):
+    chair = trimesh.load(CHAIR, force="mesh", process=False)
+    flips = np.random.default_rng(0).random(len(chair.faces)) < 0.5
+    chair.faces = np.where(flips[:, None], chair.faces[:, ::-1], chair.faces)
+    rewound = tmp_path / "rewound.obj"
+    chair.export(rewound)
+    read = _run("pair", rewound, CHAIR)
+    warned = [line for line in read.stderr.splitlines() if line.startswith("warning:")]
+    assert read.exit_code == 0 and float(read.stdout) > 0.5  # it reads as a missing part
+    assert len(warned) == 1 and str(rewound) in warned[0] and "--winding geometry" in warned[0]
+    geometry = _run("pair", rewound, CHAIR, "--winding", "geometry")
+    assert geometry.exit_code == 0 and float(geometry.stdout) < 1e-6
+    assert "warning" not in geometry.stderr

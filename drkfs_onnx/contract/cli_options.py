@@ -17,6 +17,7 @@ from .config import (
     NORMALIZATIONS,
     REDUCTIONS,
     TWO_SIDED,
+    WINDINGS,
     PipelineConfig,
 )
 from .versions import LATEST, VERSIONS, metric_config
@@ -116,6 +117,18 @@ TwoSided = Annotated[
     ),
 ]
 
+Winding = Annotated[
+    str | None,
+    typer.Option(
+        metavar=choices(WINDINGS),
+        help="Which side of a face is its outside, where openings are seen dark: file (the "
+        "file's winding, turned as a whole by the mesh's volume: the default) or geometry (read "
+        "from the surface, so faces wound against their neighbours or doubled for both sides "
+        "move no score).",
+        show_default=False,
+    ),
+]
+
 
 def pick_config(
     preset: str = "default",
@@ -127,6 +140,7 @@ def pick_config(
     symmetric: bool = False,
     solid_weight: float | None = None,
     two_sided: bool = False,
+    winding: str | None = None,
     **changes,
 ) -> PipelineConfig:
     """The named version's config (``metric``, else the preset's) with the given overrides;
@@ -141,7 +155,7 @@ def pick_config(
         direction = "both"
     picked = dict(
         matching=matching, window=window, direction=direction, reduction=reduction,
-        solid_weight=solid_weight,
+        solid_weight=solid_weight, winding=winding,
     )  # fmt: skip
     changes.update({key: value for key, value in picked.items() if value is not None})
     if two_sided:
@@ -176,9 +190,10 @@ CONFIG_OPTIONS = {
     "symmetric": (Symmetric, False),
     "solid_weight": (SolidWeight, None),
     "two_sided": (TwoSided, False),
+    "winding": (Winding, None),
 }
 # what shapes a mesh's descriptors alone (a reference described once)
-DESCRIBING_OPTIONS = ("preset", "metric", "two_sided")
+DESCRIBING_OPTIONS = ("preset", "metric", "two_sided", "winding")
 
 
 def with_options(

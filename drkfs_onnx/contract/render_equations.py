@@ -402,6 +402,26 @@ def face_orientation(verts: np.ndarray, faces: np.ndarray, eyes: np.ndarray) -> 
     return signs[copy_of] * np.where(parity == parity[copy_of], 1.0, -1.0)
 
 
+def opposed_edges(verts: np.ndarray, faces: np.ndarray) -> int:
+    """How many edges two faces share and run the same way (vertices joined by position;
+    edges of three faces or more, where parts meet, left out): 0 for a consistently wound
+    surface; more where a face is wound against its neighbours, a part against the rest, or a
+    face doubled to be seen from both sides, which a config's ``winding`` 'file' shades as the
+    inside of a shell."""
+    corners = _same_rows(verts)[faces].astype(np.int64)
+    start, end = corners.reshape(-1), corners[:, [1, 2, 0]].reshape(-1)
+    real = start != end
+    start, end = start[real], end[real]
+    span = int(corners.max(initial=0)) + 1
+    key = np.minimum(start, end) * span + np.maximum(start, end)
+    order = np.argsort(key, kind="stable")
+    key, forward = key[order], (start < end)[order]
+    first = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
+    uses = np.diff(np.r_[first, len(key)])
+    pairs = first[uses == 2]  # an edge exactly two faces share
+    return int(np.count_nonzero(forward[pairs] == forward[pairs + 1]))
+
+
 def _same_rows(rows: np.ndarray) -> np.ndarray:
     """(N,) for each row of (N, 3) the index of the first row equal to it."""
     order = np.lexsort(rows.T[::-1])
