@@ -22,7 +22,7 @@ import numpy as np
 
 from drkfs_onnx.benchmark import sets
 from drkfs_onnx.benchmark.human import SETTINGS, add_human, human_agreement
-from drkfs_onnx.benchmark.methods import DrkfsOnnx, Method, Placed, Surface, _timed
+from drkfs_onnx.benchmark.methods import DrkfsOnnx, Method, Placed, Surface, timed_call
 from drkfs_onnx.benchmark.run import (
     bars_summary,
     retrieval_summary,
@@ -99,7 +99,7 @@ class Sweep(Method):
 
     def prepare(self, placed: Placed):
         images, render_s = placed.views(self.scorer.renderer)
-        features, seconds = _timed(self.scorer.describe, images)
+        features, seconds = timed_call(self.scorer.describe, images)
         return features, render_s + seconds
 
     def compare(self, a, b):

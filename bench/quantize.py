@@ -29,7 +29,7 @@ from onnxruntime.quantization import (
     quantize_static,
 )
 from onnxruntime.quantization.shape_inference import quant_pre_process
-from score import CASES, ROOT, _best  # bench/score.py: the same meshes and timer
+from score import CASES, ROOT, best_time  # bench/score.py: the same meshes and timer
 
 from drkfs_onnx import PipelineConfig, check_mesh, load_mesh
 from drkfs_onnx.contract.mesh import frame_of, place
@@ -92,7 +92,7 @@ def seconds_per_new_mesh(scorer: Scorer, mesh, repeats: int = 3) -> float:
         scorer.cache.clear()
         return scorer.features(mesh)
 
-    return _best(new_mesh, repeats)[0]
+    return best_time(new_mesh, repeats)[0]
 
 
 def kendall_tau(a: np.ndarray, b: np.ndarray) -> float:

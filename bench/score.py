@@ -46,7 +46,7 @@ LARGE_THREADS = (1, 2)
 LARGE_GOAL_MB = 2048
 
 
-def _best(fn, repeats: int) -> tuple[float, object]:
+def best_time(fn, repeats: int) -> tuple[float, object]:
     times, output = [], None
     for _ in range(repeats):
         start = time.perf_counter()
@@ -100,9 +100,9 @@ def _nearest_search(queries: np.ndarray, targets: np.ndarray, repeats: int) -> d
 
     graph = open_match(threads=2).session
     lifted = lift(targets)  # cached per reference mesh by the Scorer
-    numpy_s, by_numpy = _best(lambda: nearest_lifted(queries, lifted), repeats)
-    onnx_s, (by_graph,) = _best(lambda: graph.run(None, {"a": queries, "b": targets}), repeats)
-    product_s, _ = _best(lambda: queries @ targets.T, repeats)
+    numpy_s, by_numpy = best_time(lambda: nearest_lifted(queries, lifted), repeats)
+    onnx_s, (by_graph,) = best_time(lambda: graph.run(None, {"a": queries, "b": targets}), repeats)
+    product_s, _ = best_time(lambda: queries @ targets.T, repeats)
     return {
         "numpy": numpy_s,
         "blas_product": product_s,
@@ -124,9 +124,9 @@ def _chamfer(mesh, other, repeats: int) -> dict:
     def sample(m):
         return sample_surface(m.vertices, m.faces, SURFACE_SAMPLES)
 
-    new_s, samples = _best(lambda: sample(mesh), repeats)
+    new_s, samples = best_time(lambda: sample(mesh), repeats)
     others = sample(other)
-    match_s, _ = _best(lambda: surface_distances(others, samples), repeats)
+    match_s, _ = best_time(lambda: surface_distances(others, samples), repeats)
     return {"new_mesh_s": new_s, "match_s": match_s}
 
 
@@ -178,12 +178,12 @@ def run_case(path: Path, preset: str, repeats: int) -> dict:
     other = _jittered(mesh)
     scorer = Scorer(config, threads=2)
 
-    new_s, reference = _best(lambda: _new_mesh(scorer, mesh), repeats)
+    new_s, reference = best_time(lambda: _new_mesh(scorer, mesh), repeats)
     placed = place(mesh.vertices, reference.frame)
-    render_s, _ = _best(lambda: scorer.renderer.render(placed, mesh.faces), repeats)
+    render_s, _ = best_time(lambda: scorer.renderer.render(placed, mesh.faces), repeats)
     prediction = scorer.features(other, reference.frame)
     described_mb = _held_mb(reference)
-    match_s, ort_score = _best(lambda: scorer.match(prediction, reference), 5 * repeats)
+    match_s, ort_score = best_time(lambda: scorer.match(prediction, reference), 5 * repeats)
     runtime = {"new_mesh_s": new_s, "render_s": render_s, "features_s": new_s - render_s}
     runtime.update(match_s=match_s, peak_rss_mb=_rss_mb())
     # a reference's memory as described, and once its matches have made their forms
@@ -206,9 +206,9 @@ def run_case(path: Path, preset: str, repeats: int) -> dict:
     verts_other = torch.tensor(place(other.vertices, reference.frame), dtype=torch.float32)
     faces = torch.tensor(mesh.faces)
     with torch.no_grad():
-        torch_new_s, target = _best(lambda: metric.target(verts, faces), repeats)
+        torch_new_s, target = best_time(lambda: metric.target(verts, faces), repeats)
         torch_pred, pred_views = metric.described(verts_other, faces)
-        torch_match_s, torch_score = _best(
+        torch_match_s, torch_score = best_time(
             lambda: match_score(
                 torch_pred, target.features, config, None, None, pred_views, target.views
             ),
@@ -220,7 +220,7 @@ def run_case(path: Path, preset: str, repeats: int) -> dict:
         metric.score_to(leaf, faces, target).backward()
         return leaf.grad
 
-    step_s, grad = _best(training_step, repeats)
+    step_s, grad = best_time(training_step, repeats)
     torch_score = float(torch_score)
     torch_row = {
         "new_mesh_s": torch_new_s,

@@ -28,7 +28,7 @@ import torch
 
 from drkfs_onnx import PipelineConfig
 from drkfs_onnx.benchmark import sets
-from drkfs_onnx.benchmark.methods import Method, _timed
+from drkfs_onnx.benchmark.methods import Method, timed_call
 from drkfs_onnx.benchmark.real_tiers import HELDOUT_MESHES, TRAINING_MESHES
 from drkfs_onnx.benchmark.run import lever_summary, score_everything
 from drkfs_onnx.contract import match_rules
@@ -145,7 +145,7 @@ class ShiftSearch(Method):
             ])  # fmt: skip
 
     def prepare(self, placed):
-        return _timed(self._described, placed)
+        return timed_call(self._described, placed)
 
     def compare(self, a, b):
         config = self.metric.config

@@ -29,7 +29,7 @@ from drkfs_onnx.loss import DrkfsLoss
 from drkfs_onnx.render.torch_ops import TORCH_OPS
 
 sys.path.insert(0, str(Path(__file__).parent))
-from torch_metric import MESHES, _timed  # noqa: E402
+from torch_metric import MESHES, timed_call  # noqa: E402
 
 SCORED = {"5k": "cow.obj", "20k": "rocker-arm.obj"}
 
@@ -48,7 +48,7 @@ def timed(fn, device: str, repeats: int) -> tuple[float, object]:
         return output
 
     call()  # warm-up, which also leaves the device idle before the first clock
-    return _timed(call, repeats)
+    return timed_call(call, repeats)
 
 
 def loss_steps(repeats: int) -> dict:

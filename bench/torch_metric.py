@@ -34,7 +34,7 @@ CASES = {"1k": "woody.obj", "5k": "cow.obj", "20k": "rocker-arm.obj"}
 WIDTHS = (1.0, 0.5, 0.25)
 
 
-def _timed(fn, repeats: int):
+def timed_call(fn, repeats: int):
     """(best seconds over repeats, the last call's output)."""
     times = []
     for _ in range(repeats):
@@ -44,8 +44,8 @@ def _timed(fn, repeats: int):
     return min(times), output
 
 
-def _best(fn, repeats: int) -> float:
-    return _timed(fn, repeats)[0]
+def best_time(fn, repeats: int) -> float:
+    return timed_call(fn, repeats)[0]
 
 
 def _rss_mb() -> float:
@@ -91,10 +91,10 @@ def run_case(mesh_name: str, width: float, repeats: int, profile: bool) -> dict:
         "mesh": mesh_name,
         "faces": len(mesh.faces),
         "descriptor_width": width,
-        "render_forward_s": _best(render_forward, repeats),
-        "render_forward_backward_s": _best(render_backward, repeats),
-        "metric_forward_s": _best(metric_forward, repeats),
-        "metric_forward_backward_s": _best(metric_backward, repeats),
+        "render_forward_s": best_time(render_forward, repeats),
+        "render_forward_backward_s": best_time(render_backward, repeats),
+        "metric_forward_s": best_time(metric_forward, repeats),
+        "metric_forward_backward_s": best_time(metric_backward, repeats),
     }
     if profile:
         from torch.profiler import profile as torch_profile
@@ -127,7 +127,7 @@ def run_training_step(repeats: int) -> dict:
             loss_of(verts).backward()
 
         step()  # warm-up
-        return _best(step, repeats)
+        return best_time(step, repeats)
 
     loss = DrkfsLoss.pretrained()
     target = loss.target(*truth)
@@ -191,8 +191,8 @@ def run_dense_comparison(repeats: int) -> dict:
     faces = torch.tensor(sphere.faces)
     renderer = Renderer(config)
     with torch.no_grad():
-        sparse_s, sparse = _timed(lambda: renderer.render(verts, faces), repeats)
-        dense_s, dense = _timed(
+        sparse_s, sparse = timed_call(lambda: renderer.render(verts, faces), repeats)
+        dense_s, dense = timed_call(
             lambda: dense_render(verts, faces, renderer.cameras, config, "shaded"), repeats
         )
         diff = (sparse - dense).abs()

@@ -8,15 +8,42 @@ from pathlib import Path
 
 import pytest
 
-PACKAGE = Path(__file__).resolve().parents[1] / "drkfs_onnx"
-# folder -> the package's folders its modules may import (besides their own)
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGE = ROOT / "drkfs_onnx"
+# layer -> the layers its modules may import (besides their own); a folder is a layer, the
+# package's own modules (the torch metric, its match and loss) are "metric" and its command
+# line "cli". The training stage selects its nets on the benchmark's sets (which makes those
+# sets validation for the nets), so training sits above the benchmark.
 ALLOWED = {
     "contract": (),
     "render": ("contract",),
     "nets": ("contract",),
+    "synthetic": ("contract",),
     "runtime": ("contract",),
+    "metric": ("contract", "render", "nets"),
+    "export": ("contract", "nets", "metric"),
+    "benchmark": ("contract", "export", "runtime", "synthetic", "metric"),
+    "judging": ("contract", "render", "runtime", "benchmark", "metric"),
+    "training": ("contract", "render", "nets", "synthetic", "benchmark", "metric"),
+    "models": (),
 }
+ALLOWED["cli"] = tuple(ALLOWED)  # the command line: every layer
 FORBIDDEN = {"contract": ("torch", "onnx"), "runtime": ("torch", "onnx")}
+LAB = ("studies", "bench")  # the lab's packages (bench/): nothing in the library imports them
+
+
+def _layer(name: str) -> str:
+    """The layer of a module of the package, by its dotted name."""
+    part = name.split(".")[1] if "." in name else "metric"
+    if part == "cli":
+        return "cli"
+    return part if (PACKAGE / part).is_dir() else "metric"
+
+
+def _layer_modules(layer: str) -> list[Path]:
+    if layer in ("metric", "cli"):
+        return [p for p in sorted(PACKAGE.glob("*.py")) if (p.stem == "cli") == (layer == "cli")]
+    return sorted((PACKAGE / layer).glob("*.py"))
 
 
 def _imports(path: Path, package: str) -> set[str]:
@@ -40,16 +67,30 @@ def _modules(folder: str) -> list[Path]:
     return sorted((PACKAGE / folder).glob("*.py"))
 
 
-@pytest.mark.parametrize("folder", sorted(ALLOWED))
-def test_each_folder_imports_only_the_folders_below_it(folder):
-    allowed = {f"drkfs_onnx.{name}" for name in (folder, *ALLOWED[folder])}
-    for path in _modules(folder):
-        for name in _imports(path, f"drkfs_onnx.{folder}"):
-            if name.split(".")[0] == "drkfs_onnx":  # the root too: it is the metric's layer
-                top = ".".join(name.split(".")[:2])
-                assert top in allowed, f"{folder}/{path.name} imports {name}"
-            for library in FORBIDDEN.get(folder, ()):
-                assert name.split(".")[0] != library, f"{folder}/{path.name} imports {name}"
+def test_every_folder_of_the_package_is_a_layer():
+    folders = {p.name for p in PACKAGE.iterdir() if p.is_dir() and p.name != "__pycache__"}
+    assert folders <= set(ALLOWED)
+
+
+@pytest.mark.parametrize("layer", sorted(ALLOWED))
+def test_each_layer_imports_only_the_layers_below_it(layer):
+    allowed = {layer, *ALLOWED[layer]}
+    for path in _layer_modules(layer):
+        package = "drkfs_onnx" if layer in ("metric", "cli") else f"drkfs_onnx.{layer}"
+        for name in _imports(path, package):
+            top = name.split(".")[0]
+            if top == "drkfs_onnx" and name != "drkfs_onnx":
+                assert _layer(name) in allowed, f"{path.relative_to(ROOT)} imports {name}"
+            assert top not in FORBIDDEN.get(layer, ()), f"{layer}/{path.name} imports {name}"
+            assert top not in LAB, f"{path.relative_to(ROOT)} imports the lab's {name}"
+
+
+def test_no_module_takes_a_private_name_from_another():
+    for path in sorted([*PACKAGE.rglob("*.py"), *(ROOT / "bench").rglob("*.py")]):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom) and node.module != "__future__":
+                private = [a.name for a in node.names if a.name.startswith("_")]
+                assert not private, f"{path.relative_to(ROOT)} imports {private} from {node.module}"
 
 
 def test_the_contract_and_the_runtime_import_where_torch_and_onnx_cannot():

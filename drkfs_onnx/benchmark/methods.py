@@ -45,7 +45,7 @@ class Placed:
     def shared(self, key: tuple, make) -> tuple[object, float]:
         """``make()``'s value for this mesh and the seconds it took, made once per ``key``."""
         if key not in self._made:
-            self._made[key] = _timed(make)
+            self._made[key] = timed_call(make)
         return self._made[key]
 
     def views(self, renderer: NumpyRenderer) -> tuple[np.ndarray, float]:
@@ -74,7 +74,7 @@ class Method:
         return self
 
 
-def _timed(fn, *args):
+def timed_call(fn, *args):
     start = time.perf_counter()
     value = fn(*args)
     return value, time.perf_counter() - start
@@ -112,7 +112,7 @@ class DrkfsTorch(Method):
             return self.metric.described(verts, torch.as_tensor(placed.faces))
 
     def prepare(self, placed):
-        return _timed(self._described, placed)
+        return timed_call(self._described, placed)
 
     def compare(self, a, b):
         (desc_a, views_a), (desc_b, views_b) = a, b
@@ -137,7 +137,7 @@ class ImageMSE(Method):
         images, render_s = placed.views(self.renderer)
         if self.detector is None:
             return images, render_s
-        maps, seconds = _timed(self._maps, images)
+        maps, seconds = timed_call(self._maps, images)
         return maps, render_s + seconds
 
     def compare(self, a, b):
@@ -159,7 +159,7 @@ class Surface(Method):
         return cls(QUICK_SURFACE_SAMPLES if quick else SURFACE_SAMPLES)
 
     def prepare(self, placed):
-        return _timed(sample_surface, placed.verts, placed.faces, self.samples)
+        return timed_call(sample_surface, placed.verts, placed.faces, self.samples)
 
     def compare(self, a, b):
         d = surface_distances(a, b)
@@ -181,7 +181,7 @@ class VolumeIoU(Method):
         return occupancy(placed.verts, placed.faces)
 
     def prepare(self, placed):
-        return _timed(self._occupancy, placed)
+        return timed_call(self._occupancy, placed)
 
     def compare(self, a, b):
         return (None if a is None or b is None else 1.0 - iou(a, b),)

@@ -34,9 +34,9 @@ from ..synthetic.shapes import subdivide
 from ..synthetic.tiers import TIERS, simplified, smoothed, turned
 from ..synthetic.variants import (
     Variant,
-    _vertex_normals,
     face_areas,
     salient_tip,
+    vertex_normals,
     without_region,
 )
 
@@ -116,7 +116,7 @@ def real_variants(
     variants = [
         Variant("subdivided", "invisible", *subdivide(verts, faces)),
         *(Variant(f"turned_{d:g}", "invisible", turned(verts, d), faces) for d in TURNS),
-        Variant("noise", "surface", verts + noise[:, None] * _vertex_normals(verts, faces), faces),
+        Variant("noise", "surface", verts + noise[:, None] * vertex_normals(verts, faces), faces),
         Variant("smoothed", "surface", smoothed(verts, faces, iterations), faces),
         Variant("salient_part_removed", "structural", verts,
                 without_region(faces, verts, salient_tip(verts, faces), SALIENT_RADIUS * size)),

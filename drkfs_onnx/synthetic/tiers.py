@@ -25,13 +25,13 @@ from ..contract.cameras import rotation_y
 from .shapes import Part, assemble, subdivide
 from .variants import (
     Variant,
-    _region,
-    _vertex_normals,
     diagonal,
     make_variants,
+    region_of,
     shifted,
     surface_variants,
     thickened,
+    vertex_normals,
 )
 
 STRUCTURAL = ("part_removed", "part_added")
@@ -80,7 +80,7 @@ def noisy(
 ) -> np.ndarray:
     """Every vertex moved along its normal by N(0, ``edges`` local edges)."""
     amount = rng.normal(size=len(verts)) * edges * local_edges(verts, faces)
-    return verts + amount[:, None] * _vertex_normals(verts, faces)
+    return verts + amount[:, None] * vertex_normals(verts, faces)
 
 
 def smoothed(verts: np.ndarray, faces: np.ndarray, iterations: int = SMOOTHING) -> np.ndarray:
@@ -131,10 +131,10 @@ def scan_tiers(verts: np.ndarray, faces: np.ndarray, rng: np.random.Generator) -
     invisible and the surface ones here (noise on the surface subdivided once)."""
     size = float(np.linalg.norm(np.ptp(verts, axis=0)))
     structural = [v for v in surface_variants(verts, faces, rng) if v.kind == "structural"]
-    region = _region(verts, verts[int(rng.integers(len(verts)))], 0.15 * size)[:, None]
+    region = region_of(verts, verts[int(rng.integers(len(verts)))], 0.15 * size)[:, None]
     direction = rng.normal(size=3)
     direction /= np.linalg.norm(direction)
-    normals = _vertex_normals(verts, faces)
+    normals = vertex_normals(verts, faces)
     fine_verts, fine_faces = subdivide(verts, faces)
     invisible = [
         Variant("retessellated", "invisible", fine_verts, fine_faces),

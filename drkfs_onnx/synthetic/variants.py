@@ -90,13 +90,13 @@ def make_variants(
     ]
 
 
-def _region(verts: np.ndarray, centre: np.ndarray, radius: float) -> np.ndarray:
+def region_of(verts: np.ndarray, centre: np.ndarray, radius: float) -> np.ndarray:
     """(V,) weights: 1 within radius / 2 of centre, a cosine fall-off to 0 at radius."""
     d = np.linalg.norm(verts - centre, axis=1) / radius
     return np.where(d < 0.5, 1.0, np.where(d < 1.0, 0.5 + 0.5 * np.cos(np.pi * (2 * d - 1)), 0.0))
 
 
-def _vertex_normals(verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
+def vertex_normals(verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
     cross = np.cross(
         verts[faces[:, 1]] - verts[faces[:, 0]], verts[faces[:, 2]] - verts[faces[:, 0]]
     )
@@ -141,8 +141,8 @@ def surface_variants(
     size = float(np.linalg.norm(np.ptp(verts, axis=0)))
     radius = 0.15 * size
     centre = verts[int(rng.integers(len(verts)))]
-    normals = _vertex_normals(verts, faces)
-    region = _region(verts, centre, radius)
+    normals = vertex_normals(verts, faces)
+    region = region_of(verts, centre, radius)
     direction = rng.normal(size=3)
     direction /= np.linalg.norm(direction)
     spot = verts[int(rng.integers(len(verts)))]

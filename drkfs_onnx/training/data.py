@@ -143,7 +143,7 @@ def render_pairs(
     )
 
 
-def _camera_depth(w: torch.Tensor, config: PipelineConfig) -> torch.Tensor:
+def camera_depth(w: torch.Tensor, config: PipelineConfig) -> torch.Tensor:
     """Normalised inverse depth -> camera-frame z."""
     inv_near, inv_far = 1.0 / config.near, 1.0 / config.far
     return 1.0 / (w * (inv_near - inv_far) + inv_far)
@@ -162,7 +162,7 @@ def correspond(
     focal = make_cameras(config).focal
     rows, cols = pixels[:, 0], pixels[:, 1]
     w0 = pairs.depth[index, 0, rows, cols]
-    z = _camera_depth(w0, config)
+    z = camera_depth(w0, config)
     ndc = torch.stack([(2 * cols + 1) / size - 1, (2 * rows + 1) / size - 1], dim=1)
     cam0 = torch.cat([ndc * z[:, None] / focal, z[:, None]], dim=1)
     rot, eyes = pairs.rotations[index], pairs.eyes[index]
@@ -173,7 +173,7 @@ def correspond(
     on_screen = (w0 > 0) & (target >= 0).all(1) & (target < size).all(1)
     target = target.clamp(0, size - 1).flip(1)  # row, col
     w1 = pairs.depth[index, 1, target[:, 0], target[:, 1]]
-    z1 = _camera_depth(w1, config)
+    z1 = camera_depth(w1, config)
     seen = on_screen & (w1 > 0) & ((z1 - cam1[:, 2]).abs() < DEPTH_TOLERANCE * cam1[:, 2])
     return target, seen
 

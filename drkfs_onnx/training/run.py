@@ -200,7 +200,7 @@ class Training:
         self.times_file = work / "seconds.json"
         self.times = json.loads(self.times_file.read_text()) if self.times_file.exists() else {}
 
-    def _timed(self, name: str, start: float) -> None:
+    def timed_call(self, name: str, start: float) -> None:
         self.times[name] = self.times.get(name, 0.0) + time.perf_counter() - start
         self.times_file.write_text(json.dumps(self.times, indent=1))
 
@@ -233,7 +233,7 @@ class Training:
         torch.save(
             {k: v.to_dict() if isinstance(v, ViewPairs) else v for k, v in data.items()}, path
         )
-        self._timed("data", start)
+        self.timed_call("data", start)
         return data
 
     def detector(self, size: tuple[int, int, int], data: dict) -> PoIDetector:
@@ -263,7 +263,7 @@ class Training:
         train_steps(
             detector, loss_fn, p.detector_steps, p.detector_lr, checkpoint, p.checkpoint_every
         )
-        self._timed(checkpoint.stem, start)
+        self.timed_call(checkpoint.stem, start)
         return detector
 
     def hardnet(self, width: float, maps: torch.Tensor, matches: torch.Tensor) -> HardNet:
@@ -279,7 +279,7 @@ class Training:
         start = time.perf_counter()
         checkpoint = self.work / f"hardnet_w{width:g}.pt"
         train_steps(net, loss_fn, p.hardnet_steps, p.hardnet_lr, checkpoint, p.checkpoint_every)
-        self._timed(checkpoint.stem, start)
+        self.timed_call(checkpoint.stem, start)
         return net
 
 
@@ -308,7 +308,7 @@ def metric_stage(
     -> (the manifest's "metric" section, the tuned metric per width)."""
     p = plan.metric
     work = run.work / f"metric-{plan_key(p)}"
-    stage = MetricStage(p, work, plan.seed + 2, pairs, train_steps, run._timed)
+    stage = MetricStage(p, work, plan.seed + 2, pairs, train_steps, run.timed_call)
     data = stage.data
     config = _detector_config(p.pipeline, size)
     begin = {w: with_nets(config.replace(descriptor_width=w), m.detector, m.descriptor)

@@ -29,7 +29,7 @@ from ..synthetic.variants import (
     shifted,
     surface_variants,
 )
-from .data import _camera_depth, hard_depth
+from .data import camera_depth, hard_depth
 
 # camera-depth change (normalised units; the shape's half-diagonal is 1) that counts as another
 # surface: twice the largest mild shift (2.5% of the diagonal), so only silhouettes that move
@@ -96,7 +96,7 @@ class VariantViews:
 
 def _camera_z(depth: torch.Tensor, config: PipelineConfig) -> torch.Tensor:
     """Normalised inverse depth (0 on background) -> camera z, +inf on background."""
-    z = _camera_depth(depth.clamp_min(1e-12), config)
+    z = camera_depth(depth.clamp_min(1e-12), config)
     return torch.where(depth > 0, z, torch.full_like(z, float("inf")))
 
 
