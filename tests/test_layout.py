@@ -93,23 +93,34 @@ def test_no_module_takes_a_private_name_from_another():
                 assert not private, f"{path.relative_to(ROOT)} imports {private} from {node.module}"
 
 
-def test_the_contract_and_the_runtime_import_where_torch_and_onnx_cannot():
-    """Every module of contract/ and runtime/ imports in a process where importing torch or onnx
-    fails, and none of the two is loaded after."""
+# the base install's runtime and contract import none of the extras' libraries; a module that
+# is an extra's own (explain's picture: the plot extra) names it in its docstring's opening
+EXTRAS_LIBRARIES = ("torch", "onnx", "matplotlib", "scipy", "ray")
+EXTRA_MODULES = ("drkfs_onnx.runtime.explain_plot",)
+
+
+def test_the_contract_and_the_runtime_import_on_a_base_install():
+    """Every module of contract/ and runtime/ but an extra's own imports in a process where
+    importing torch, onnx or another extra's library fails, and none of them is loaded after."""
     names = [
         f"drkfs_onnx.{folder}.{path.stem}" for folder in FORBIDDEN for path in _modules(folder)
     ]
+    names = [name for name in names if name not in EXTRA_MODULES]
     code = (
         "import importlib, sys\n"
-        "sys.modules['torch'] = sys.modules['onnx'] = None\n"
+        f"for library in {EXTRAS_LIBRARIES!r}:\n"
+        "    sys.modules[library] = None\n"
         f"for name in {names!r}:\n"
         "    importlib.import_module(name)\n"
-        "print(sorted(m for m in sys.modules if m.split('.')[0] in ('torch', 'onnx')"
-        " and sys.modules[m] is not None))\n"
+        "print(sorted(m for m in sys.modules if m.split('.')[0] in "
+        f"{EXTRAS_LIBRARIES!r} and sys.modules[m] is not None))\n"
     )
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert result.returncode == 0, result.stderr
     assert result.stdout.strip() == "[]"
+    for name in EXTRA_MODULES:
+        opening = (PACKAGE.parent / (name.replace(".", "/") + ".py")).read_text()[:200]
+        assert '"drkfs-onnx[' in opening, f"{name} does not name its extra first"
 
 
 def test_a_stage_is_found_by_its_folder_and_file_name():
