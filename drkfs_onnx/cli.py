@@ -214,8 +214,8 @@ def bench(
         cells += [row["bars"]["deletion_over_max_shift"], row["seconds_per_pair"]]
         typer.echo(f"{name:36}" + "".join(f"{_fmt(c):>10}" for c in cells))
     typer.echo(
-        "real-mesh tiers (held-out side): inv<str, sur<str, inv<sur, turn<surface, every turn, "
-        "salient"
+        "real-mesh tiers (second side; validation: it chose a default): inv<str, sur<str, "
+        "inv<sur, turn<surface, every turn, salient"
     )
     for name, row in results["methods"].items():
         real = row["real_tiers"]

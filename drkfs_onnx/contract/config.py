@@ -129,7 +129,7 @@ class PipelineConfig:
     # this much normalised inverse depth behind the faces seen from the front, it falls only where
     # such a face still shows, an opening's inside: a closed mesh renders as under two-sided light,
     # but where a contour edge spans more depth than the push. At 0 of the light and a push of
-    # 0.05 (openings seen dark) the real tiers' held-out side meets every bar, where two-sided
+    # 0.05 (openings seen dark) the real tiers' second side meets every bar, where two-sided
     # light (``TWO_SIDED``) missed surface < structural, the third and fourth sides order more
     # pairs, and no synthetic or training pair, check or people's agreement moves; a second
     # blend, of the shadow alone, costs a new mesh about 1.1x (bench/records/real_levers.md,
