@@ -41,6 +41,13 @@ def arm(start: str, recipe: str) -> str:
     return f"{start}, then {recipe}"
 
 
+def judged() -> list[str]:
+    """Every start network and each of its arms, in ``FINETUNE``'s order."""
+    return [
+        n for start, recipes in FINETUNE.items() for n in (start, *(arm(start, r) for r in recipes))
+    ]
+
+
 def compared(start: str) -> list[tuple[str, str]]:
     """(challenger, against) pairs of one start's arms: DR-KFS's arm against its own loss's and
     against the control's, and the control against its own loss's."""
@@ -83,9 +90,7 @@ def run_finetune(
                 seconds.setdefault(name, {})[f"seed {seed}"] = tuned.get(seed, name)[
                     "seconds_per_step"
                 ]
-    names = [
-        n for start, recipes in FINETUNE.items() for n in (start, *(arm(start, r) for r in recipes))
-    ]
+    names = judged()
     judge = Judge(PipelineConfig(), threads, plan.unseen_views, plan.lfd, image_judges=False)
     truths: dict = {}
     try:
@@ -95,7 +100,6 @@ def run_finetune(
             tables[seed] = judge_all(judge, models, test_set, views["test"], truths, progress)
     finally:
         judge.close()
-    per = {"pooled": list(tables.values()), **{f"seed {s}": [t] for s, t in tables.items()}}
     results = {
         "command": f"python bench/single_view.py{' --quick' if quick else ''} --finetune "
         f"--seeds {','.join(map(str, seeds))} --device {device} --out {out}",
@@ -109,15 +113,25 @@ def run_finetune(
             r: [list(t) for t in by_name(r).terms] for recipes in FINETUNE.values() for r in recipes
         },  # fmt: skip
         "tables": {f"seed {s}": t for s, t in tables.items()},
-        "means": {key: means(ts, test_set, names)["mean"] for key, ts in per.items()},
-        "shares": {
-            key: {f"{c} | {a}": shares(ts, c, a) for start in FINETUNE for c, a in compared(start)}
-            for key, ts in per.items()
-        },  # fmt: skip
+        **summarise_finetune(tables, test_set),
         "seconds_per_step": seconds,
         "seconds_total": time.perf_counter() - began,
     }
     return write_json(out / "finetune.json", results)
+
+
+def summarise_finetune(tables: dict[int, dict], test_set) -> dict:
+    """Every start's and arm's means, and each ``compared`` pair's shares of test cells, per
+    seed and pooled."""
+    names = judged()
+    per = {"pooled": list(tables.values()), **{f"seed {s}": [t] for s, t in tables.items()}}
+    pairs = [pair for start in FINETUNE for pair in compared(start)]
+    return {
+        "means": {key: means(ts, test_set, names)["mean"] for key, ts in per.items()},
+        "shares": {
+            key: {f"{c} | {a}": shares(ts, c, a) for c, a in pairs} for key, ts in per.items()
+        },  # fmt: skip
+    }
 
 
 def finetune_markdown(results: dict) -> str:
