@@ -8,7 +8,7 @@ from pathlib import Path
 
 import onnxruntime as ort
 
-from drkfs_onnx.contract.config import PipelineConfig
+from drkfs_onnx.contract.config import GRAPH_FREE_FIELDS, PipelineConfig
 from drkfs_onnx.contract.model_files import (
     CONFIG_KEY,
     MATCH_FILE,
@@ -87,8 +87,7 @@ def open_features(
     if CONFIG_KEY not in graph.metadata:
         raise ModelMismatch(f"{graph.source}: no {CONFIG_KEY} metadata; not a DR-KFS feature graph")
     built = PipelineConfig.from_json(graph.metadata[CONFIG_KEY])
-    lit = ("num_views", "turn_degrees", "back_light", "back_push", "winding")
-    views = {name: getattr(config, name) for name in lit}
+    views = {name: getattr(config, name) for name in GRAPH_FREE_FIELDS}
     built = built.features_part().replace(**views)
     if built != config.features_part():
         raise ModelMismatch(

@@ -8,10 +8,15 @@ import pytest
 from drkfs_onnx.contract.cameras import hemisphere_directions, make_cameras, rotation_y
 from drkfs_onnx.contract.config import (
     FULL_PARTS,
+    GRAPH_FREE_FIELDS,
+    MATCH_FIELDS,
     NETS_TRAINED_AT,
     ONE_REACH,
     OWN_RING_ONLY,
+    RENDER_FIELDS,
+    STAGES,
     TWO_SIDED,
+    VIEW_FIELDS,
     PipelineConfig,
 )
 
@@ -51,6 +56,17 @@ def test_presets_share_the_defaults_cameras_and_differ_in_nets_and_match():
     assert structure.features_part() == default.features_part()  # the same descriptors
     assert (structure.matching, structure.reduction, structure.power) == ("global", "power", 8.0)
     assert PipelineConfig.paper().nets == PipelineConfig.loss().nets == "correspondence"
+
+
+def test_every_setting_belongs_to_one_stage_and_the_artefacts_keys_come_from_the_stages():
+    stages = [name for fields in STAGES.values() for name in fields]
+    assert sorted(stages) == sorted(f.name for f in dataclasses.fields(PipelineConfig))
+    assert len(set(stages)) == len(stages)
+    assert set(VIEW_FIELDS) == {*STAGES["cameras"], *STAGES["raster"], *STAGES["shading"]}
+    assert set(MATCH_FIELDS) == {*STAGES["match"], *STAGES["solid_change"]}
+    # the nets' weights and a feature graph serve other views: never another net or match
+    for reused in (RENDER_FIELDS, GRAPH_FREE_FIELDS):
+        assert set(reused) <= set(VIEW_FIELDS)
 
 
 def test_config_is_frozen_and_round_trips_through_json():

@@ -49,22 +49,44 @@ ADDED_FIELDS = {
     "turn_degrees": 0.0, "solid_weight": 0.0, **ONE_REACH, **OWN_RING_ONLY, **FULL_PARTS,
     **TWO_SIDED,
 }  # fmt: skip
-# The settings a mesh's views depend on (the cameras' and the renderer's): views made under one
-# config serve another that agrees on these.
-VIEW_FIELDS = (
-    "num_views", "turn_degrees", "image_size", "fov_degrees", "camera_distance", "sigma", "gamma",
-    "coverage_eps", "background_eps", "background", "light_direction", "ambient", "diffuse",
-    "back_light", "back_push", "winding",
+# Every setting by the stage of the data flow it shapes (settings per stage, as PyTorch3D's
+# RasterizationSettings and BlendParams, here as field names of the one frozen config, which
+# every graph and features file carries whole). A test holds that each field is in one stage.
+STAGES = {
+    "cameras": ("num_views", "turn_degrees", "image_size", "fov_degrees", "camera_distance"),
+    "raster": ("sigma", "gamma", "coverage_eps", "background_eps", "background"),
+    "shading": ("light_direction", "ambient", "diffuse", "back_light", "back_push", "winding"),
+    "nets": (
+        "detector_kernel", "detector_n", "detector_m", "patch_size", "patch_stride",
+        "descriptor_dim", "descriptor_width", "nets", "patch_norm_eps",
+    ),
+    "match": (
+        "matching", "window", "direction", "reduction", "tail_fraction", "power", "temperature",
+        "turned_part_share", "moderate_slope", "moderate_from", "moderate_to",
+    ),
+    "solid_change": (
+        "solid_weight", "solid_shift", "solid_block", "solid_ramp", "solid_inner_drop",
+        "solid_inner_power", "solid_both_rings",
+    ),
+}  # fmt: skip
+# What each artefact depends on, from the stages:
+# a mesh's views (the cameras, the renderer and the shading): views made under one config
+# serve another that agrees on these;
+VIEW_FIELDS = STAGES["cameras"] + STAGES["raster"] + STAGES["shading"]
+# the match of two meshes' descriptors and views, not the descriptors: a feature graph or
+# features file serves every value of these (one written before it kept its views serves no
+# solid change);
+MATCH_FIELDS = STAGES["match"] + STAGES["solid_change"]
+# what the nets are shown but not the nets: other cameras, a reduced config (fitting, a quick
+# run), the softer training renderer (``PipelineConfig.training()``) or another light on faces
+# seen from behind reuses the weights;
+RENDER_FIELDS = (
+    "num_views", "turn_degrees", "image_size", "sigma", "gamma", "back_light", "back_push",
+    "winding",
 )  # fmt: skip
-# The settings that shape only the match of two meshes' descriptors and views, not the
-# descriptors: a feature graph or features file serves every value of these (a features file
-# written before it kept its views serves no solid change).
-MATCH_FIELDS = (
-    "matching", "window", "direction", "reduction", "tail_fraction", "power", "temperature",
-    "solid_weight", "solid_shift", "solid_block", "solid_ramp", "solid_inner_drop",
-    "solid_inner_power", "turned_part_share", "solid_both_rings", "moderate_slope",
-    "moderate_from", "moderate_to",
-)  # fmt: skip
+# and what a feature graph never sees: it describes views from any number of cameras, however
+# lit.
+GRAPH_FREE_FIELDS = ("num_views", "turn_degrees", "back_light", "back_push", "winding")
 
 
 @dataclass(frozen=True)

@@ -9,7 +9,7 @@ import json
 from importlib import resources
 from pathlib import Path
 
-from .config import PipelineConfig
+from .config import RENDER_FIELDS, PipelineConfig
 
 MATCH_FILE = "match.onnx"
 CONFIG_KEY = "drkfs_config"
@@ -48,15 +48,6 @@ def shipped_weights() -> list[dict]:
     if not manifest_file.is_file():
         return []
     return json.loads(manifest_file.read_text()).get("weights", [])
-
-
-# Settings that change what the nets are shown but not the nets: other cameras, a reduced config
-# (fitting, a quick run), the softer training renderer (``PipelineConfig.training()``) or
-# another light on faces seen from behind reuses the weights.
-RENDER_FIELDS = (
-    "num_views", "turn_degrees", "image_size", "sigma", "gamma", "back_light", "back_push",
-    "winding",
-)  # fmt: skip
 
 
 def shipped_entry(config: PipelineConfig, any_rendering: bool = False) -> dict | None:
