@@ -241,7 +241,7 @@ class Terms:
             mode = "silhouette" if term == IOU else "shaded"
             rendered = self.renderer(torch.cat([verts, verts]), self.faces, azimuths, mode)
             return iou_loss(rendered, truth) if term == IOU else ((rendered - truth) ** 2).mean()
-        prepared = self._prepared(term)
+        prepared = self.prepare(term)
         if term == CHAMFER:
             points = surface_points(verts, self.faces, CHAMFER_SAMPLES, self.generator)
             return chamfer(points, prepared[batch.shapes.to(verts.device)])
@@ -249,7 +249,7 @@ class Terms:
         target = StagedTarget.stack([targets[i] for i in batch.shapes.tolist()])
         return loss(verts, self.faces, target, progress)
 
-    def _prepared(self, term: str):
+    def prepare(self, term: str):
         if term not in self.prepared:
             device = self.faces.device
             if term == CHAMFER:
