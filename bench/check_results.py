@@ -19,6 +19,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from score_scale import markdown, scale
+from studies.finetune import finetune_markdown, summarise_finetune
 from studies.losses import CHAMFER, FORMS, PIXEL, SHIPPED, with_chamfer
 from studies.network import FULL, choose_loss
 from studies.single_view import (
@@ -173,6 +174,18 @@ def single_view_controls_recompute_and_the_doc_holds_them(root: Path) -> None:
     assert controls_markdown(results) in doc, "single_view.md's controls tables differ"
 
 
+def single_view_finetuning_recomputes_and_the_doc_holds_it(root: Path) -> None:
+    """The fine-tuning protocol's means and shares recompute from its per-seed tables, and
+    bench/records/single_view.md holds its tables."""
+    results = _json(root, "bench/single_view/finetune.json")
+    tables = {int(seed.split()[1]): table for seed, table in results["tables"].items()}
+    again = summarise_finetune(tables, _test_set(next(iter(tables.values()))))
+    for key in ("means", "shares"):
+        assert again[key] == results[key], f"finetune.json's {key} do not recompute"
+    doc = (root / "bench/records/single_view.md").read_text()
+    assert finetune_markdown(results) in doc, "single_view.md's fine-tuning tables differ"
+
+
 def readme_score_scale_is_the_benchmarks(root: Path) -> None:
     """The README's table of what a score means is bench/score_scale.py's, from the committed
     benchmark."""
@@ -189,6 +202,7 @@ CHECKS: list[Callable[[Path], str | None]] = [
     network_studies_shares_recompute,
     single_view_study_recomputes_and_the_doc_holds_its_tables,
     single_view_controls_recompute_and_the_doc_holds_them,
+    single_view_finetuning_recomputes_and_the_doc_holds_it,
     readme_score_scale_is_the_benchmarks,
 ]
 
