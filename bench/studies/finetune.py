@@ -25,13 +25,13 @@ from .single_view import (
     by_name,
     judge_all,
     means,
+    run_header,
     shares,
     table_cell,
     train,
     training_data,
     write_json,
 )
-from .study import machine
 
 BATCH_SEED_SHIFT = 1000  # the fine-tuning's batches: none of the first training's order
 
@@ -101,12 +101,7 @@ def run_finetune(
     finally:
         judge.close()
     results = {
-        "command": f"python bench/single_view.py{' --quick' if quick else ''} --finetune "
-        f"--seeds {','.join(map(str, seeds))} --device {device} --out {out}",
-        **machine(),
-        "device": device if dev.type == "cpu" else torch.cuda.get_device_name(dev),
-        "lfd": judge.lfd_note,
-        "seeds": list(seeds),
+        **run_header("--finetune", quick, seeds, dev, out, judge),
         "steps": {"start": plan.steps, "fine-tuning": plan.steps},
         "arms": {start: [arm(start, r) for r in recipes] for start, recipes in FINETUNE.items()},
         "recipes": {

@@ -819,12 +819,7 @@ def run_controls(
     finally:
         judge.close()
     results = {
-        "command": f"python bench/single_view.py{' --quick' if quick else ''} --controls "
-        f"--seeds {','.join(map(str, seeds))} --device {device} --out {out}",
-        **machine(),
-        "device": device if dev.type == "cpu" else torch.cuda.get_device_name(dev),
-        "lfd": judge.lfd_note,
-        "seeds": list(seeds),
+        **run_header("--controls", quick, seeds, dev, out, judge),
         "steps": plan.steps,
         "matched": {d: list(cs) for d, cs in MATCHED.items()},
         "recipes": {n: [list(t) for t in by_name(n).terms] for n in names},
@@ -834,6 +829,21 @@ def run_controls(
         "seconds_total": time.perf_counter() - start,
     }
     return write_json(out / "controls.json", results)
+
+
+def run_header(
+    flag: str, quick: bool, seeds: tuple[int, ...], dev: torch.device, out: Path, judge: Judge
+) -> dict:
+    """What every seeded run's JSON opens with: its command, the machine and device, the LFD
+    judge it had and its seeds."""
+    return {
+        "command": f"python bench/single_view.py{' --quick' if quick else ''} {flag} "
+        f"--seeds {','.join(map(str, seeds))} --device {dev.type} --out {out}",
+        **machine(),
+        "device": "cpu" if dev.type == "cpu" else torch.cuda.get_device_name(dev),
+        "lfd": judge.lfd_note,
+        "seeds": list(seeds),
+    }
 
 
 def write_json(path: Path, results: dict) -> dict:
