@@ -25,6 +25,8 @@ from studies.network import FULL, choose_loss
 from studies.single_view import (
     Shape,
     controls_markdown,
+    curve_markdown,
+    means,
     summarise,
     summarise_controls,
     validation_choice,
@@ -186,6 +188,17 @@ def single_view_finetuning_recomputes_and_the_doc_holds_it(root: Path) -> None:
     assert finetune_markdown(results) in doc, "single_view.md's fine-tuning tables differ"
 
 
+def single_view_curve_recomputes_and_the_doc_holds_it(root: Path) -> None:
+    """Each judged point of the learning curve's means recompute from its table, and
+    bench/records/single_view.md holds the curve's table as it stands."""
+    results = _json(root, "bench/single_view/curve.json")
+    for point, found in results["points"].items():
+        again = means([found["table"]], _test_set(found["table"]), results["losses"])["mean"]
+        assert again == found["means"], f"curve.json's means at {point} steps do not recompute"
+    doc = (root / "bench/records/single_view.md").read_text()
+    assert curve_markdown(results) in doc, "single_view.md's learning-curve table differs"
+
+
 def readme_score_scale_is_the_benchmarks(root: Path) -> None:
     """The README's table of what a score means is bench/score_scale.py's, from the committed
     benchmark."""
@@ -203,6 +216,7 @@ CHECKS: list[Callable[[Path], str | None]] = [
     single_view_study_recomputes_and_the_doc_holds_its_tables,
     single_view_controls_recompute_and_the_doc_holds_them,
     single_view_finetuning_recomputes_and_the_doc_holds_it,
+    single_view_curve_recomputes_and_the_doc_holds_it,
     readme_score_scale_is_the_benchmarks,
 ]
 
