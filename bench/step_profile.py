@@ -34,6 +34,7 @@ from drkfs_onnx.contract.mesh import place_by  # noqa: E402
 from drkfs_onnx.loss import COARSE_TO_FINE, StagedTarget  # noqa: E402
 from drkfs_onnx.match import match_score  # noqa: E402
 from drkfs_onnx.nets.hardnet import conv_stack  # noqa: E402
+from drkfs_onnx.nets.patches import select_patches  # noqa: E402
 from drkfs_onnx.render.mesh_batch import MeshBatch  # noqa: E402
 from drkfs_onnx.render.torch_ops import TORCH_OPS  # noqa: E402
 
@@ -120,10 +121,9 @@ def main() -> None:
     with torch.no_grad():
         verts = model(views["train"][:16, 0])
         images = fine.render(verts, faces)
-    patches = fine.detector(images.to(torch.float32))
-    side, stride, size = fine.config.patches_per_side, fine.config.patch_stride, 32
-    patches = torch.cat([patches[..., r * stride:r * stride + size, c * stride:c * stride + size]
-                         for r in range(side) for c in range(side)])  # fmt: skip
+    maps = fine.detector(images.to(torch.float32))
+    every = torch.arange(len(maps) * fine.config.patches_per_view)
+    patches = select_patches(maps, every, fine.config)
     results = {
         "command": f"python bench/step_profile.py --repeats {args.repeats} --threads "
         f"{args.threads}" + (f" --out {args.out}" if args.out else ""),

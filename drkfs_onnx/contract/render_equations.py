@@ -408,18 +408,35 @@ def opposed_edges(verts: np.ndarray, faces: np.ndarray) -> int:
     surface; more where a face is wound against its neighbours, a part against the rest, or a
     face doubled to be seen from both sides, which a config's ``winding`` 'file' shades as the
     inside of a shell."""
-    corners = _same_rows(verts)[faces].astype(np.int64)
+    return int(np.count_nonzero(_edge_uses(_same_rows(verts)[faces]).alike))
+
+
+class _EdgeUses(NamedTuple):
+    """Faces' edges grouped by edge (either direction). face: (U,) the face of each use, an
+    edge's uses together; uses: (E,) how many faces use each edge; first: (P,) the first use
+    of each edge exactly two faces share; alike: (P,) whether those two run it the same way
+    (are wound against each other)."""
+
+    face: np.ndarray
+    uses: np.ndarray
+    first: np.ndarray
+    alike: np.ndarray
+
+
+def _edge_uses(corners: np.ndarray) -> _EdgeUses:
+    """The edges of faces given as (F, 3) welded vertex indices; edges of no length left out."""
+    corners = corners.astype(np.int64)
     start, end = corners.reshape(-1), corners[:, [1, 2, 0]].reshape(-1)
+    face = np.repeat(np.arange(len(corners)), 3)
     real = start != end
-    start, end = start[real], end[real]
-    span = int(corners.max(initial=0)) + 1
-    key = np.minimum(start, end) * span + np.maximum(start, end)
+    start, end, face = start[real], end[real], face[real]
+    key = np.minimum(start, end) * (int(corners.max(initial=0)) + 1) + np.maximum(start, end)
     order = np.argsort(key, kind="stable")
-    key, forward = key[order], (start < end)[order]
-    first = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
-    uses = np.diff(np.r_[first, len(key)])
-    pairs = first[uses == 2]  # an edge exactly two faces share
-    return int(np.count_nonzero(forward[pairs] == forward[pairs + 1]))
+    key, forward, face = key[order], (start < end)[order], face[order]
+    edge_start = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
+    uses = np.diff(np.r_[edge_start, len(key)])
+    first = edge_start[uses == 2]
+    return _EdgeUses(face, uses, first, forward[first] == forward[first + 1])
 
 
 def _same_rows(rows: np.ndarray) -> np.ndarray:
@@ -446,18 +463,8 @@ def _piece_signs(
     """(F,) of distinct faces: +1.0 or -1.0 per ``face_orientation``'s pieces, 0.0 for a face
     that shares no edge."""
     count = len(faces)
-    start, end = corners.reshape(-1), corners[:, [1, 2, 0]].reshape(-1)
-    face = np.repeat(np.arange(count), 3)
-    real = start != end
-    start, end, face = start[real], end[real], face[real]
-    key = np.minimum(start, end) * (int(corners.max()) + 1) + np.maximum(start, end)
-    order = np.argsort(key)  # an edge's two faces join alike in either order
-    key, forward, face = key[order], (start < end)[order], face[order]
-    edge_start = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
-    uses = np.diff(np.r_[edge_start, len(key)])
-    first = edge_start[uses == 2]  # an edge exactly two faces share
-    f, g = face[first], face[first + 1]
-    alike = forward[first] == forward[first + 1]  # run the same way: wound against each other
+    face, uses, first, alike = _edge_uses(corners)
+    f, g = face[first], face[first + 1]  # the two faces of each edge exactly two share
     # node f is face f as wound, node f + count the face turned: joining f to g (or to g turned
     # where the two are wound against each other) and their turned selves, each component of
     # the nodes is one piece of surface wound one way
