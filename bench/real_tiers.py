@@ -78,6 +78,7 @@ def write_renders(bench: sets.BenchSet, path: Path, threads: int, command: str) 
             axes.set_axis_off()
             axes.set_title(base.removeprefix(sets.REAL_PREFIX) if j == 0 else title, fontsize=6)
     figure.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
     figure.savefig(path, dpi=110)
     pixels = {"command": command, "config": RENDER.to_dict(),
               "share_over_threshold": PIXEL_CHANGE, "variants": changes}  # fmt: skip

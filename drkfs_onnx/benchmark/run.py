@@ -15,7 +15,7 @@ import numpy as np
 from ..contract.mesh import frame_of, place
 from ..synthetic.tiers import TIERS
 from ..synthetic.variants import structural_wins
-from . import sets
+from . import as_they_come, sets
 from .chart import pareto_front, write_chart
 from .human import add_human, agreement_ceiling, dataset_agreement, human_agreement
 from .methods import (
@@ -163,6 +163,9 @@ def _halves(group: str, bases: list[str]) -> dict[str, list[str]]:
     (``real_sides``)."""
     if group == "real":
         return real_sides(bases)
+    if group == as_they_come.GROUP:
+        sides = as_they_come.sides().items()
+        return {side: [b for b in keys if b in bases] for side, keys in sides}
     return {
         "synthetic": [b for b in bases if b not in sets.SHARED_MESHES],
         "shared": [b for b in bases if b in sets.SHARED_MESHES],
@@ -246,6 +249,37 @@ def real_checks(bench: sets.BenchSet, values: dict[int, float | None]) -> dict:
             for name, passed in (("turn_below_every_surface", turn),
                                  ("every_turn_below_every_surface", turns),
                                  ("salient_above_every_invisible", salient))
+        }  # fmt: skip
+    return result
+
+
+def as_they_come_checks(bench: sets.BenchSet, values: dict[int, float | None]) -> dict:
+    """Per side of "meshes as they come", the share of bases where each 2-degree turn (about
+    x, y and z) scores below every surface variant, where every turn does, where every file
+    variant (winding, doubled, repeated, soup) does, and of the assets where the removed part
+    scores above every surface variant; with the bases each fails on."""
+    groups = _tier_values(bench, values, as_they_come.GROUP)
+    twos = {f"turned_{axis}_2" for axis in as_they_come.TURN_AXES}
+    result = {}
+    for half, bases in _halves(as_they_come.GROUP, list(groups)).items():
+        checks: dict[str, dict[str, bool]] = defaultdict(dict)
+        for b in bases:
+            surface, invisible = groups[b]["surface"].values(), groups[b]["invisible"]
+            if not surface:
+                continue
+            below = {label: value < min(surface) for label, value in invisible.items()}
+            checks["turn_2_below_every_surface"][b] = all(below[t] for t in twos)
+            checks["every_turn_below_every_surface"][b] = all(
+                ok for label, ok in below.items() if label.startswith("turned_")
+            )
+            checks["every_file_below_every_surface"][b] = all(below[f] for f in as_they_come.FILES)
+            if "part_removed" in groups[b]["structural"]:
+                part = groups[b]["structural"]["part_removed"]
+                checks["part_above_every_surface"][b] = part > max(surface)
+        result[half] = {
+            name: {"share": sum(passed.values()) / len(passed),
+                   "failed": sorted(b for b, ok in passed.items() if not ok)}
+            for name, passed in checks.items()
         }  # fmt: skip
     return result
 

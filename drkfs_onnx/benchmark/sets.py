@@ -114,7 +114,7 @@ class BenchSet:
         return path
 
 
-def _variants_of(bench: BenchSet, base: str, verts, faces, variants, group: str = "tiers") -> None:
+def add_variants(bench: BenchSet, base: str, verts, faces, variants, group: str = "tiers") -> None:
     # the base may be stored already under another key (a shared mesh in two groups)
     reference = bench.add(base, verts, faces)
     for v in variants:
@@ -132,11 +132,11 @@ def tiers(
     for family in families:
         parts = random_shape(family, rng)
         verts, faces = assemble(parts, 1)  # the variants' own tessellation
-        _variants_of(bench, prefix + family, verts, faces, part_tiers(parts, rng))
+        add_variants(bench, prefix + family, verts, faces, part_tiers(parts, rng))
     for name in shared:
         mesh = load_mesh(real_mesh(name))
         variants = scan_tiers(mesh.vertices, mesh.faces, rng)
-        _variants_of(bench, name, mesh.vertices, mesh.faces, variants)
+        add_variants(bench, name, mesh.vertices, mesh.faces, variants)
 
 
 REAL_PREFIX = "real-"  # the real tiers' base keys: real-<mesh>
@@ -158,7 +158,7 @@ def real_tiers(
     for name in names:
         mesh = load_mesh(real_mesh(name) if folder is None else Path(folder) / f"{name}.obj")
         variants = real_variants(name, mesh.vertices, mesh.faces, rng, relabelled)
-        _variants_of(bench, REAL_PREFIX + name, mesh.vertices, mesh.faces, variants, "real")
+        add_variants(bench, REAL_PREFIX + name, mesh.vertices, mesh.faces, variants, "real")
 
 
 def other_tiers(

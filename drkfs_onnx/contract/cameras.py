@@ -68,10 +68,19 @@ def look_at(eyes: np.ndarray, target: np.ndarray | None = None) -> np.ndarray:
     return np.stack([right, down, forward], axis=1)
 
 
+def rotation(axis: int, degrees: float) -> np.ndarray:
+    """(3, 3): a turn of ``degrees`` about the axis ``axis`` (0: x, 1: y, the vertical, 2: z),
+    counter-clockwise seen from the axis' positive end."""
+    c, s = math.cos(math.radians(degrees)), math.sin(math.radians(degrees))
+    i, j = (axis + 1) % 3, (axis + 2) % 3  # the plane the turn moves in, in right-hand order
+    turn = np.eye(3)
+    turn[i, i], turn[i, j], turn[j, i], turn[j, j] = c, -s, s, c
+    return turn
+
+
 def rotation_y(degrees: float) -> np.ndarray:
     """(3, 3): a turn of ``degrees`` about the vertical (y) axis."""
-    c, s = math.cos(math.radians(degrees)), math.sin(math.radians(degrees))
-    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+    return rotation(1, degrees)
 
 
 def make_cameras(config: PipelineConfig) -> Cameras:
