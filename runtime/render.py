@@ -50,7 +50,7 @@ class NumpyRenderer:
     threads: groups of views render in parallel (numpy releases the GIL in its array loops).
     """
 
-    def __init__(self, config: PipelineConfig, cameras: Cameras | None = None, threads: int = 1):
+    def __init__(self, config: PipelineConfig, cameras: Cameras | None = None, *, threads: int = 1):
         self.config = config
         self.cameras = cameras if cameras is not None else make_cameras(config)
         self.threads = max(1, threads)

@@ -503,3 +503,17 @@ def test_the_turn_search_script_scores_every_turn_set(tmp_path):
     # own turn, so no invisible < surface pair is lost to it
     no_turn, search = results["tiers"]["no turn"], results["tiers"]["+-2"]
     assert len(search["misses_invisible_vs_surface"]) <= len(no_turn["misses_invisible_vs_surface"])
+
+
+def test_the_image_methods_render_a_mesh_alone_when_no_other_method_shares_their_views():
+    """Pixel and PoI-map MSE take the paper preset's renders; scored without the paper preset
+    (a run of a few methods), each renders them itself, with its own threads."""
+    from drkfs_onnx.benchmark import methods
+
+    verts, faces = assemble(FAMILIES["chair"](np.random.default_rng(0)), 1)
+    built = methods.build_methods(methods.models_dir(), threads=2, quick=True)
+    for method in (m for m in built if isinstance(m, methods.ImageMSE)):
+        placed = Placed("chair", place(verts, frame_of(verts)), faces)
+        prepared, seconds = method.prepare(placed)
+        assert method.renderer.threads == 2 and seconds > 0
+        assert method.compare(prepared, prepared) == (0.0,)

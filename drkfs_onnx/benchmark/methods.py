@@ -237,7 +237,7 @@ def build_methods(models: Path, threads: int, quick: bool = False) -> list[Metho
     default = configs[DEFAULT_NAME]
     paper = configs[PAPER_NAME]
     cameras = {"num_views": paper.num_views, "image_size": paper.image_size}
-    renderer = NumpyRenderer(PipelineConfig.paper(**cameras), threads)
+    renderer = NumpyRenderer(PipelineConfig.paper(**cameras), threads=threads)
     metric = DRKFS.pretrained(default)
     return [
         *methods,
