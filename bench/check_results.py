@@ -5,8 +5,8 @@ the committed rows it came from, or holds the code's choices to the study that m
 
 Prints one line a check ("ok", or "FAILED" with the reason) and exits 1 when any failed. These
 checks read only committed files (bench/fit, bench/fit-network, bench/single_view,
-bench/results, the README, bench/records/single_view.md); the tests run the script
-(tests/test_check_results.py).
+bench/results, the README, docs/benchmark.md, bench/records/single_view.md); the tests run the
+script (tests/test_check_results.py).
 """
 
 from __future__ import annotations
@@ -18,6 +18,13 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
+from bench_tables import (
+    ceiling_table,
+    readme_table,
+    results_table,
+    stability_table,
+    targets_table,
+)
 from score_scale import markdown, scale
 from studies.finetune import finetune_markdown, summarise_finetune
 from studies.losses import CHAMFER, FORMS, PIXEL, SHIPPED, with_chamfer
@@ -206,6 +213,16 @@ def readme_score_scale_is_the_benchmarks(root: Path) -> None:
     assert table in (root / "README.md").read_text(), "README's score scale table differs"
 
 
+def benchmark_tables_are_the_benchmarks(root: Path) -> None:
+    """The README's and docs/benchmark.md's tables of the methods are bench/bench_tables.py's,
+    from the committed benchmark."""
+    results = _json(root, "bench/results/results.json")
+    assert readme_table(results) in (root / "README.md").read_text(), "README's table differs"
+    doc = (root / "docs/benchmark.md").read_text()
+    for table in (results_table, targets_table, ceiling_table, stability_table):
+        assert table(results) in doc, f"docs/benchmark.md's {table.__name__} differs"
+
+
 CHECKS: list[Callable[[Path], str | None]] = [
     fitting_study_fitted_the_shipped_form,
     ideas_recompute_from_their_rows,
@@ -218,6 +235,7 @@ CHECKS: list[Callable[[Path], str | None]] = [
     single_view_finetuning_recomputes_and_the_doc_holds_it,
     single_view_curve_recomputes_and_the_doc_holds_it,
     readme_score_scale_is_the_benchmarks,
+    benchmark_tables_are_the_benchmarks,
 ]
 
 

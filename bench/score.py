@@ -9,8 +9,9 @@ seconds per match of two described meshes (the mesh against a copy jittered by 0
 size, so no descriptor has an exact copy), the torch path's (``DRKFS`` eager) new mesh and match
 as ratios, its forward+backward for the jittered copy against a prepared target (what a training
 step costs), the two paths' score difference, the default's new mesh and forward+backward
-against the same under two-sided light (its openings' shadow is a second blend; in turns, in
-one process), and the peak memory (max RSS) of the torch-free
+against the same under two-sided light (its openings' shadow is a second blend) and under
+drkfs-1.0 (each face's outside read from the file, not the surface; in turns, in one
+process), and the peak memory (max RSS) of the torch-free
 part, measured before torch is imported. Chamfer-L1 (the benchmark's 20k samples) is timed on the
 same pair. The paper preset's global search is also timed alone, by numpy's BLAS against the
 exported match graph in onnxruntime and against the bare float32 product of the two sets. Each
@@ -147,24 +148,19 @@ def _new_mesh(scorer, mesh):
     return scorer.features(mesh)
 
 
-def _light_cost(scorer, mesh, repeats: int) -> dict:
-    """The default's new mesh against the same under two-sided light, the default's before
-    openings were seen dark (a second blend, of the shadow alone), in turns."""
-    from drkfs_onnx.contract.config import TWO_SIDED
+def _beside(scorer, mesh, name: str, other, repeats: int) -> dict:
+    """The default's new mesh against the same under the ``other`` config, in turns."""
     from drkfs_onnx.runtime import Scorer
 
-    two_sided = Scorer(scorer.config.replace(**TWO_SIDED), threads=2)
+    beside = Scorer(other, threads=2)
     best = _alternating(
-        {
-            "openings_dark": lambda: _new_mesh(scorer, mesh),
-            "two_sided": lambda: _new_mesh(two_sided, mesh),
-        },
+        {"default": lambda: _new_mesh(scorer, mesh), name: lambda: _new_mesh(beside, mesh)},
         3 * repeats,
     )
     return {
-        "new_mesh_s": best["openings_dark"],
-        "two_sided_new_mesh_s": best["two_sided"],
-        "over_two_sided": best["openings_dark"] / best["two_sided"],
+        "new_mesh_s": best["default"],
+        f"{name}_new_mesh_s": best[name],
+        f"over_{name}": best["default"] / best[name],
     }
 
 
@@ -189,7 +185,15 @@ def run_case(path: Path, preset: str, repeats: int) -> dict:
     # a reference's memory as described, and once its matches have made their forms
     runtime.update(described_mb=described_mb, held_after_match_mb=_held_mb(reference))
     if preset == "default":
-        runtime["light"] = _light_cost(scorer, mesh, repeats)
+        from drkfs_onnx.contract.config import TWO_SIDED
+        from drkfs_onnx.contract.versions import metric_config
+
+        # the openings' shadow is a second blend; a face's outside read from the surface
+        # (drkfs-1.1) costs its orientation against the file's winding (drkfs-1.0)
+        two_sided = config.replace(**TWO_SIDED)
+        runtime["light"] = _beside(scorer, mesh, "two_sided", two_sided, repeats)
+        from_file = metric_config("drkfs-1.0")
+        runtime["winding"] = _beside(scorer, mesh, "winding_file", from_file, repeats)
     if config.matching == "global":
         runtime["nearest_search_s"] = _nearest_search(
             prediction.descriptors, reference.descriptors, 5 * repeats

@@ -7,7 +7,7 @@ torch-free; ``drkfs_onnx.DRKFS`` and ``drkfs_onnx.MeshBatch`` load the torch pat
 from .contract.config import PipelineConfig
 from .contract.mesh import Mesh, MeshError, check_mesh, load_mesh
 
-__version__ = "1.0.0"
+__version__ = "1.1.0"
 __all__ = ["DRKFS", "Mesh", "MeshBatch", "MeshError", "PipelineConfig", "check_mesh", "load_mesh"]
 
 

@@ -146,7 +146,7 @@ def test_a_file_wound_against_itself_is_named_in_a_warning_where_the_winding_is_
     """Where the config reads a face's outside from the file (drkfs-1.0), a mesh whose
     neighbouring faces run an edge the same way is named in one warning; a consistent file
     (split into a soup of its faces, or with parts meeting at an edge) is not, nor any file
-    where the winding is moot (read from the surface, or lit from both sides)."""
+    where the winding is moot (read from the surface, the default, or lit from both sides)."""
     chair = load_mesh(EXAMPLES / "chair.obj")
     flips = np.random.default_rng(0).random(len(chair.faces)) < 0.5
     rewound = Mesh(chair.vertices, np.where(flips[:, None], chair.faces[:, ::-1], chair.faces),
@@ -158,14 +158,13 @@ def test_a_file_wound_against_itself_is_named_in_a_warning_where_the_winding_is_
         == 0
         < opposed_edges(rewound.vertices, rewound.faces)
     )
-    default = Scorer(threads=2)
+    from_file = Scorer(metric="drkfs-1.0", threads=2)
     with pytest.warns(
         WindingWarning, match=r"^half flipped: \d+ of its edges .*--winding geometry"
     ):
-        default.load(rewound)
+        from_file.load(rewound)
     quiet = [
-        (default, chair), (default, soup),
-        (Scorer(PipelineConfig(winding="geometry"), threads=2), rewound),
+        (from_file, chair), (from_file, soup), (Scorer(threads=2), rewound),
         (Scorer(PipelineConfig(**TWO_SIDED), threads=2), rewound),
     ]  # fmt: skip
     with warnings.catch_warnings():
@@ -179,13 +178,13 @@ def test_a_file_wound_against_itself_is_named_in_a_warning_where_the_winding_is_
 
 @pytest.mark.parametrize("name", ["chair", "cow", "woody", "beetle"])
 def test_no_winding_of_a_files_faces_scores_above_its_subdivision(name):
-    """With each face's outside read from the surface (``winding='geometry'``) no winding of a
-    file's faces matters: every face flipped at random, the whole mesh flipped and double-sided
-    copies of its faces score below the mesh against its own subdivision (the same surface, 4x
-    the faces) + 0.005, either way round."""
+    """With each face's outside read from the surface (``winding='geometry'``, the default) no
+    winding of a file's faces matters: every face flipped at random, the whole mesh flipped and
+    double-sided copies of its faces score below the mesh against its own subdivision (the same
+    surface, 4x the faces) + 0.005, either way round."""
     path = EXAMPLES / "chair.obj" if name == "chair" else sets.real_mesh(name)
     mesh = load_mesh(path)
-    scorer = Scorer(PipelineConfig(winding="geometry"), threads=2)
+    scorer = Scorer(threads=2)
     subdivided = Mesh(*trimesh.remesh.subdivide(mesh.vertices, mesh.faces), "subdivided")
     bar = max(scorer.score(subdivided, mesh), scorer.score(mesh, subdivided)) + 0.005
     flips = np.random.default_rng(0).random(len(mesh.faces)) < 0.5

@@ -22,7 +22,7 @@ from .config import (
 )
 from .versions import LATEST, VERSIONS, metric_config
 
-PRESETS = {"default": LATEST, "paper": "drkfs-paper", "structure": "drkfs-structure-1.0"}
+PRESETS = {"default": LATEST, "paper": "drkfs-paper", "structure": "drkfs-structure-1.1"}
 
 
 def choices(values) -> str:
@@ -54,7 +54,7 @@ Preset = Annotated[
     typer.Option(
         metavar=choices(PRESETS),
         help=f"default ({LATEST}, chosen by the benchmark), paper (drkfs-paper: 25 views, 256 "
-        "px, global sum) or structure (drkfs-structure-1.0: the default's nets, cameras and "
+        f"px, global sum) or structure ({PRESETS['structure']}: the default's nets, cameras and "
         "solid change, global match, power mean of order 8).",
     ),
 ]
@@ -121,10 +121,10 @@ Winding = Annotated[
     str | None,
     typer.Option(
         metavar=choices(WINDINGS),
-        help="Which side of a face is its outside, where openings are seen dark: file (the "
-        "file's winding, turned as a whole by the mesh's volume: the default) or geometry (read "
+        help="Which side of a face is its outside, where openings are seen dark: geometry (read "
         "from the surface, so faces wound against their neighbours or doubled for both sides "
-        "move no score).",
+        "move no score: the default) or file (the file's winding, turned as a whole by the "
+        "mesh's volume: drkfs-1.0).",
         show_default=False,
     ),
 ]

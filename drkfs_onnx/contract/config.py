@@ -157,14 +157,14 @@ class PipelineConfig:
     # blend, of the shadow alone, costs a new mesh about 1.1x (bench/records/real_levers.md,
     # "Openings seen dark").
     back_push: float = 0.05
-    # Which side of a face is its outside, for the shadow above: 'file' takes the file's
-    # winding, turned as a whole by the mesh's volume (``render_equations.mesh_orientation``),
-    # so half the example chair's faces flipped at random score 1.03 against the chair;
-    # 'geometry' reads it from the surface (``render_equations.face_orientation``: faces
-    # sharing an edge wound alike, each piece turned outward by its volume or towards the
-    # cameras), so the file's winding moves no score (0 for that chair). Measured as a lever
-    # (bench/results/real_levers_winding.json), not yet the default.
-    winding: str = "file"
+    # Which side of a face is its outside, for the shadow above: 'geometry' reads it from the
+    # surface (``render_equations.face_orientation``: faces sharing an edge wound alike, each
+    # piece turned outward by its volume or towards the cameras), so a file's winding moves no
+    # score, where 'file' takes the file's winding turned as a whole by the mesh's volume
+    # (``render_equations.mesh_orientation``) and half the example chair's faces flipped at
+    # random score 1.03 against the chair (bench/records/real_levers.md, "Faces oriented by
+    # the surface").
+    winding: str = "geometry"
     # PoI detector: sum_n delta_n max_m (W_mn * I + b_mn); N = M = 2 with 9 x 9 filters, the
     # smallest of the training sweep's sizes within 0.01 repeatability of the best
     detector_kernel: int = 9

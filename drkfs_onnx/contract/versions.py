@@ -30,6 +30,9 @@ VERSIONS: dict[str, dict] = {
     # window r0 match reduced by softmax, moderated parts, the views' solid change, openings
     # seen dark
     "drkfs-1.0": _DRKFS_1_0,
+    # drkfs-1.0 with each face's outside read from the surface: a file's face winding moves
+    # no score
+    "drkfs-1.1": {**_DRKFS_1_0, "winding": "geometry"},
     # drkfs-1.0's nets, cameras, light and solid change with a global match reduced by the
     # power mean of order 8, parts in full: listens to the few patches a missing part changes
     "drkfs-structure-1.0": {
@@ -37,6 +40,13 @@ VERSIONS: dict[str, dict] = {
         "matching": "global",
         "reduction": "power",
         **_PARTS_IN_FULL,
+    },  # fmt: skip
+    "drkfs-structure-1.1": {
+        **_DRKFS_1_0,
+        "matching": "global",
+        "reduction": "power",
+        **_PARTS_IN_FULL,
+        "winding": "geometry",
     },  # fmt: skip
     # the DR-KFS paper's recipe (Jin et al. 2020): 25 views of 256 px, full-width nets trained
     # on view correspondences, every patch of A searches all of B's, distances summed
@@ -56,7 +66,7 @@ VERSIONS: dict[str, dict] = {
         **_PARTS_IN_FULL,
     },  # fmt: skip
 }
-LATEST = "drkfs-1.0"
+LATEST = "drkfs-1.1"
 CUSTOM = "custom"  # a config that is no named version (a setting overridden)
 
 
