@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import re
 import sys
 from collections.abc import Callable
@@ -40,6 +41,8 @@ from studies.single_view import (
 )
 from studies.single_view import markdown as single_view_tables
 
+from drkfs_onnx import PipelineConfig
+from drkfs_onnx.contract.versions import metric_name
 from drkfs_onnx.judging.judges import VISUAL
 from drkfs_onnx.judging.rule import brief_share, chamfer_ratios, share
 
@@ -223,6 +226,26 @@ def benchmark_tables_are_the_benchmarks(root: Path) -> None:
         assert table(results) in doc, f"docs/benchmark.md's {table.__name__} differs"
 
 
+def version_sample_is_the_benchmarks(root: Path) -> str:
+    """Each named version's scores of bench/version_sample.py's sample are the committed
+    benchmark's, for every DR-KFS row of the benchmark that is a named version."""
+    results = _json(root, "bench/results/results.json")
+    sample = _json(root, "bench/results/version_sample.json")["versions"]
+    held = []
+    for method, row in results["methods"].items():
+        version = metric_name(PipelineConfig.from_dict(row["config"])) if "config" in row else None
+        if version not in sample:
+            continue
+        for key, value in sample[version].items():
+            committed = results["values"][method][key]
+            assert math.isclose(value, committed, rel_tol=1e-6), (
+                f"{version} {key}: {value} vs {committed}"
+            )
+        held.append(version)
+    assert held, "no DR-KFS row of the benchmark is a named version"
+    return f"{', '.join(held)} held"
+
+
 CHECKS: list[Callable[[Path], str | None]] = [
     fitting_study_fitted_the_shipped_form,
     ideas_recompute_from_their_rows,
@@ -236,6 +259,7 @@ CHECKS: list[Callable[[Path], str | None]] = [
     single_view_curve_recomputes_and_the_doc_holds_it,
     readme_score_scale_is_the_benchmarks,
     benchmark_tables_are_the_benchmarks,
+    version_sample_is_the_benchmarks,
 ]
 
 
