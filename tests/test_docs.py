@@ -14,6 +14,7 @@ from drkfs_onnx.synthetic.examples import write_examples
 
 ROOT = Path(__file__).resolve().parents[1]
 QUICK_STARTS = ("Score your two meshes", "Run a server", "Train a network")
+RECORD_HEADINGS = ["Question", "Change", "Command", "Result", "Decision", "Metric version"]
 
 
 def _sections(text: str) -> dict[str, list[str]]:
@@ -93,6 +94,18 @@ def test_the_reference_pages_are_short_and_the_studies_live_in_the_lab():
     index = (records / "README.md").read_text()
     for record in records.glob("*.md"):
         assert record.name == "README.md" or f"]({record.name})" in index, record.name
+
+
+def test_every_study_in_the_lab_has_the_six_headings_in_order():
+    # one section a study in each bench/records file, each with the same headings, once each
+    for record in sorted((ROOT / "bench" / "records").glob("*.md")):
+        text = record.read_text()
+        sections = _sections(text)
+        titles = [line for line in text.splitlines() if line.startswith("## ")]
+        assert len(sections) == len(titles), (record.name, "a title twice")
+        for name, lines in sections.items():
+            found = [m.group(1) for m in (re.match(r"- \*\*(.+?)\.\*\*", x) for x in lines) if m]
+            assert found == RECORD_HEADINGS, (record.name, name, found)
 
 
 def _python_blocks() -> list[tuple[str, str]]:
