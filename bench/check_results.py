@@ -20,6 +20,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from bench_tables import (
+    as_they_come_table,
     ceiling_table,
     readme_table,
     results_table,
@@ -224,6 +225,8 @@ def benchmark_tables_are_the_benchmarks(root: Path) -> None:
     doc = (root / "docs/benchmark.md").read_text()
     for table in (results_table, targets_table, ceiling_table, stability_table):
         assert table(results) in doc, f"docs/benchmark.md's {table.__name__} differs"
+    section = _json(root, "bench/results/as_they_come.json")
+    assert as_they_come_table(section) in doc, "docs/benchmark.md's meshes as they come differ"
 
 
 def version_sample_is_the_benchmarks(root: Path) -> str:
