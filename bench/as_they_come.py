@@ -21,8 +21,7 @@ from drkfs_onnx.benchmark import as_they_come, sets
 from drkfs_onnx.benchmark.methods import DrkfsOnnx, build_methods
 from drkfs_onnx.benchmark.run import (
     as_they_come_checks,
-    peer_methods,
-    score_everything,
+    score_with_peers,
     tier_accuracy,
 )
 from drkfs_onnx.contract.versions import metric_config
@@ -57,12 +56,7 @@ def main() -> None:
                if set(m.outputs) & set(wanted)]  # fmt: skip
     if FILE_WINDING in wanted:
         methods.append(DrkfsOnnx(FILE_WINDING, metric_config("drkfs-1.0"), None, args.threads))
-    peers, notes = peer_methods() if "LFD" in wanted else ([], {})
-    try:
-        scores, costs = score_everything(bench, [*methods, *peers], print)
-    finally:
-        for peer in peers:
-            peer.close()
+    scores, costs, notes = score_with_peers(bench, methods, print, wanted)
     kept = {name: values for name, values in scores.comparisons.items() if name in wanted}
     results = {
         "command": f"python bench/as_they_come.py --out {args.out} --methods '{args.methods}'",

@@ -31,10 +31,9 @@ from drkfs_onnx.benchmark.methods import build_methods
 from drkfs_onnx.benchmark.real_tiers import HELDOUT_MESHES, TRAINING_MESHES, parse_relabels
 from drkfs_onnx.benchmark.run import (
     OTHER_SIDE,
-    peer_methods,
     real_sides,
     real_summary,
-    score_everything,
+    score_with_peers,
     tier_accuracy,
 )
 
@@ -211,12 +210,7 @@ def main() -> None:
         return
     methods = [m for m in build_methods(args.work / "models", args.threads)
                if set(m.outputs) & set(wanted)]  # fmt: skip
-    peers, notes = peer_methods() if "LFD" in wanted else ([], {})
-    try:
-        scores, costs = score_everything(bench, [*methods, *peers], print)
-    finally:
-        for peer in peers:
-            peer.close()
+    scores, costs, notes = score_with_peers(bench, methods, print, wanted)
     results = {
         "command": f"python bench/real_tiers.py{chosen} --out {args.out} --methods "
         f"'{args.methods}'",

@@ -42,7 +42,7 @@ ASSET_PARTS = {
     "sofa": ("arm_left",),
 }
 ASSET_SEEDS = {"training": (4000, 4001), "held_out": (4002, 4003)}
-ASSET_PREFIX = "asset-"  # an asset's base key: asset-<family>-<seed>
+ASSET_PREFIX = "asset-"  # an asset's base key: ``asset_key``
 REAL_PREFIX = "came-"  # a real mesh's base key here: came-<mesh>
 FILES = ("half_flipped", "all_flipped", "double_sided", "repeated", "soup")
 TURN_AXES = ("x", "y", "z")
@@ -134,11 +134,16 @@ def real_mesh_variants(
     ]
 
 
+def asset_key(family: str, seed: int) -> str:
+    """An asset's base key: asset-<family>-<seed>."""
+    return f"{ASSET_PREFIX}{family}-{seed}"
+
+
 def sides() -> dict[str, list[str]]:
     """The section's base keys by side: chosen on ("training"), judged on ("held_out")."""
     return {
         side: [REAL_PREFIX + m for m in meshes]
-        + [f"{ASSET_PREFIX}{family}-{seed}" for seed in ASSET_SEEDS[side] for family in ASSET_PARTS]
+        + [asset_key(family, seed) for seed in ASSET_SEEDS[side] for family in ASSET_PARTS]
         for side, meshes in (("training", TRAINING_MESHES), ("held_out", HELDOUT_MESHES))
     }
 
@@ -154,5 +159,4 @@ def add_section(bench: BenchSet, seed: int = SEED) -> None:
         for asset_seed in seeds:
             for family in ASSET_PARTS:
                 verts, faces, variants = asset(family, asset_seed)
-                key = f"{ASSET_PREFIX}{family}-{asset_seed}"
-                add_variants(bench, key, verts, faces, variants, GROUP)
+                add_variants(bench, asset_key(family, asset_seed), verts, faces, variants, GROUP)

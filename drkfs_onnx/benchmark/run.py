@@ -376,6 +376,21 @@ def peer_methods() -> tuple[list[Method], dict[str, str]]:
     return [LightField(*found)], {"LFD": f"light-field-distance 0.0.9 ({found[1].name})"}
 
 
+def score_with_peers(
+    bench: sets.BenchSet, methods: list[Method], progress, wanted: list[str] | None = None
+) -> tuple[Scores, dict, dict[str, str]]:
+    """``score_everything`` over ``methods`` and the outside metrics installed here
+    (``peer_methods``; with ``wanted``, only where it names LFD), each peer closed after: the
+    scores, the costs and a note per peer."""
+    peers, notes = peer_methods() if wanted is None or "LFD" in wanted else ([], {})
+    try:
+        scores, costs = score_everything(bench, [*methods, *peers], progress)
+    finally:
+        for peer in peers:
+            peer.close()
+    return scores, costs, notes
+
+
 def run_bench(
     out: Path, quick: bool, threads: int = 2, progress=print, human: Path | None = None
 ) -> dict:
@@ -389,12 +404,7 @@ def run_bench(
     bench.write(out / "set")
     progress(f"{len(bench.shapes)} meshes, {len(bench.comparisons)} comparisons written")
     methods = build_methods(out / "models", threads, quick)
-    peers, peer_notes = peer_methods()
-    try:
-        scores, costs = score_everything(bench, [*methods, *peers], progress)
-    finally:
-        for peer in peers:
-            peer.close()
+    scores, costs, peer_notes = score_with_peers(bench, methods, progress)
     summary = {}
     configs = {m.outputs[0]: m.scorer.config for m in methods if isinstance(m, DrkfsOnnx)}
     for name, values in scores.comparisons.items():
