@@ -1,4 +1,4 @@
-"""The benchmark's "meshes as they come" section alone (``drkfs_onnx.benchmark.as_they_come``):
+"""The benchmark's "meshes as they come" section alone (``drkfs_lab.benchmark.as_they_come``):
 each method's tier shares on both sides and the section's checks (docs/benchmark.md).
 
     python bench/as_they_come.py --out bench/results/as_they_come.json [--methods "DR-KFS,LFD"]
@@ -15,15 +15,14 @@ import json
 import time
 from pathlib import Path
 
-from real_tiers import write_renders
-
-from drkfs_onnx.benchmark import as_they_come, sets
-from drkfs_onnx.benchmark.methods import DrkfsOnnx, build_methods
-from drkfs_onnx.benchmark.run import (
+from drkfs_lab.benchmark import as_they_come, sets
+from drkfs_lab.benchmark.methods import DrkfsOnnx, build_methods
+from drkfs_lab.benchmark.run import (
     as_they_come_checks,
     score_with_peers,
     tier_accuracy,
 )
+from drkfs_lab.real_tiers import write_renders
 from drkfs_onnx.contract.versions import metric_config
 
 DEFAULT_METHODS = "DR-KFS,DR-KFS drkfs-1.0,DR-KFS structure,pixel MSE,Chamfer-L1,LFD"

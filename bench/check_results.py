@@ -19,7 +19,7 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
-from bench_tables import (
+from drkfs_lab.bench_tables import (
     as_they_come_table,
     ceiling_table,
     readme_table,
@@ -27,11 +27,13 @@ from bench_tables import (
     stability_table,
     targets_table,
 )
-from score_scale import markdown, scale
-from studies.finetune import finetune_markdown, summarise_finetune
-from studies.losses import CHAMFER, FORMS, PIXEL, SHIPPED, with_chamfer
-from studies.network import FULL, choose_loss
-from studies.single_view import (
+from drkfs_lab.judging.judges import VISUAL
+from drkfs_lab.judging.rule import brief_share, chamfer_ratios, share
+from drkfs_lab.score_scale import markdown, scale
+from drkfs_lab.studies.finetune import finetune_markdown, summarise_finetune
+from drkfs_lab.studies.losses import CHAMFER, FORMS, PIXEL, SHIPPED, with_chamfer
+from drkfs_lab.studies.network import FULL, choose_loss
+from drkfs_lab.studies.single_view import (
     Shape,
     controls_markdown,
     curve_markdown,
@@ -40,12 +42,9 @@ from studies.single_view import (
     summarise_controls,
     validation_choice,
 )
-from studies.single_view import markdown as single_view_tables
-
+from drkfs_lab.studies.single_view import markdown as single_view_tables
 from drkfs_onnx import PipelineConfig
 from drkfs_onnx.contract.versions import metric_name
-from drkfs_onnx.judging.judges import VISUAL
-from drkfs_onnx.judging.rule import brief_share, chamfer_ratios, share
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -1,6 +1,6 @@
-"""The fitting and network studies of bench/records/fitting.md, from a checkout (they are not
-installed with the package): fit templates to targets, or with --network train reconstruction
-networks, with DR-KFS, Chamfer and the others, and judge every result by metrics no loss computes.
+"""The fitting and network studies of bench/records/fitting.md (the lab's): fit templates to
+targets, or with --network train reconstruction networks, with DR-KFS, Chamfer and the others,
+and judge every result by metrics no loss computes.
 
     python bench/fit.py --quick                  # seconds: the tests' plan
     python bench/fit.py --network --seed 0       # the network study (about 2 hours on 2 cores)
@@ -15,7 +15,8 @@ from typing import Annotated
 
 import typer
 
-from drkfs_onnx.cli import RUNS, RealMeshes, use_meshes
+from drkfs_lab.cli import RealMeshes, use_meshes
+from drkfs_onnx.contract.cli_options import RUNS
 
 app = typer.Typer(add_completion=False)
 
@@ -46,12 +47,12 @@ def fit(
             "--seed is for --network: a template fit starts from its template, not random weights"
         )
     if network:
-        from studies.network import run_network_study
+        from drkfs_lab.studies.network import run_network_study
 
         out = out or RUNS / "fit-network"
         results = run_network_study(out, quick, threads, progress, seed)
     else:
-        from studies.study import run_study
+        from drkfs_lab.studies.study import run_study
 
         out = out or RUNS / "fit"
         results = run_study(out, quick, threads, progress)

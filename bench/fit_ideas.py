@@ -37,7 +37,10 @@ import time
 from pathlib import Path
 
 import torch
-from studies.losses import (
+
+from drkfs_lab.judging.judges import Judge
+from drkfs_lab.judging.rule import chamfer_ratios
+from drkfs_lab.studies.losses import (
     CHAMFER,
     PIXEL,
     Recipe,
@@ -47,9 +50,9 @@ from studies.losses import (
     pixel_with_chamfer,
     with_both,
 )
-from studies.mesh_fit import Fade
-from studies.network import reproduction
-from studies.study import (
+from drkfs_lab.studies.mesh_fit import Fade
+from drkfs_lab.studies.network import reproduction
+from drkfs_lab.studies.study import (
     FULL,
     QUICK_STUDY,
     Fitter,
@@ -58,12 +61,9 @@ from studies.study import (
     machine,
     pair_shares,
 )
-
+from drkfs_lab.training import graded
 from drkfs_onnx.contract.config import PipelineConfig
-from drkfs_onnx.judging.judges import Judge
-from drkfs_onnx.judging.rule import chamfer_ratios
 from drkfs_onnx.synthetic.shapes import FAMILIES
-from drkfs_onnx.training import graded
 
 TUNED = "fine-tuned nets"
 FADED_CONTROL = "the control, pixel MSE last"

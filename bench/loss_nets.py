@@ -3,7 +3,7 @@
     python bench/loss_nets.py --out bench/fit/loss_nets.json [--quick]
     python bench/loss_nets.py --save-nets bench/single_view/loss_nets.pt   # the nets alone
 
-1. Graded series (``drkfs_onnx.training.graded``) of held-out bases: how fast the loss's score
+1. Graded series (``drkfs_lab.training.graded``) of held-out bases: how fast the loss's score
    and its patches' distances grow with an edit, for the loss's shipped nets (correspondence),
    the scoring default's (metric) and the fine-tuned ones.
 2. The correspondence nets fine-tuned with ``graded_monotone`` on series of other bases (work
@@ -20,14 +20,14 @@ import time
 from pathlib import Path
 
 import torch
-from studies.losses import Terms, alone
-from studies.study import FULL, QUICK_STUDY, Fitter, average_ranks, load_problem
 
+from drkfs_lab.judging.judges import Judge
+from drkfs_lab.studies.losses import Terms, alone
+from drkfs_lab.studies.study import FULL, QUICK_STUDY, Fitter, average_ranks, load_problem
+from drkfs_lab.training import graded
 from drkfs_onnx.contract.config import PipelineConfig
-from drkfs_onnx.judging.judges import Judge
 from drkfs_onnx.metric import DRKFS
 from drkfs_onnx.synthetic.shapes import FAMILIES
-from drkfs_onnx.training import graded
 
 SHIPPED, TUNED = "shipped nets", "fine-tuned for the loss"
 

@@ -20,10 +20,10 @@ from pathlib import Path
 
 import numpy as np
 
-from drkfs_onnx.benchmark import sets
-from drkfs_onnx.benchmark.human import SETTINGS, add_human, human_agreement
-from drkfs_onnx.benchmark.methods import DrkfsOnnx, Method, Placed, Surface, timed_call
-from drkfs_onnx.benchmark.run import (
+from drkfs_lab.benchmark import sets
+from drkfs_lab.benchmark.human import SETTINGS, add_human, human_agreement
+from drkfs_lab.benchmark.methods import DrkfsOnnx, Method, Placed, Surface, timed_call
+from drkfs_lab.benchmark.run import (
     bars_summary,
     retrieval_summary,
     score_everything,

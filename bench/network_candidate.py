@@ -19,12 +19,12 @@ import time
 from pathlib import Path
 
 import torch
-from studies.losses import CHAMFER, FORMS, PIXEL, with_chamfer
-from studies.network import retrained_beside
-from studies.study import machine
 
-from drkfs_onnx.judging.judges import VISUAL
-from drkfs_onnx.judging.rule import chamfer_ratios, share
+from drkfs_lab.judging.judges import VISUAL
+from drkfs_lab.judging.rule import chamfer_ratios, share
+from drkfs_lab.studies.losses import CHAMFER, FORMS, PIXEL, with_chamfer
+from drkfs_lab.studies.network import retrained_beside
+from drkfs_lab.studies.study import machine
 
 
 def main() -> None:

@@ -21,11 +21,11 @@ import time
 from pathlib import Path
 
 import torch
-from studies.losses import CHAMFER, PIXEL, pixel_with_chamfer, with_both
-from studies.network import retrained_beside
-from studies.study import average_ranks, machine, metric_means, pair_shares
 
-from drkfs_onnx.judging.rule import chamfer_ratios
+from drkfs_lab.judging.rule import chamfer_ratios
+from drkfs_lab.studies.losses import CHAMFER, PIXEL, pixel_with_chamfer, with_both
+from drkfs_lab.studies.network import retrained_beside
+from drkfs_lab.studies.study import average_ranks, machine, metric_means, pair_shares
 
 
 def main() -> None:

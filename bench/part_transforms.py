@@ -34,18 +34,18 @@ from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
-import real_levers as levers
 
-from drkfs_onnx import PipelineConfig
-from drkfs_onnx.benchmark import human, sets, torch_checks
-from drkfs_onnx.benchmark.methods import DrkfsOnnx, Placed
-from drkfs_onnx.benchmark.run import (
+from drkfs_lab import real_levers as levers
+from drkfs_lab.benchmark import human, sets, torch_checks
+from drkfs_lab.benchmark.methods import DrkfsOnnx, Placed
+from drkfs_lab.benchmark.run import (
     bars_summary,
     lever_summary,
     real_sides,
     retrieval_summary,
     score_everything,
 )
+from drkfs_onnx import PipelineConfig
 from drkfs_onnx.contract import match_rules
 
 TIERS = ("invisible", "surface", "structural")

@@ -11,10 +11,10 @@ from __future__ import annotations
 import torch
 from torch import nn
 
+from drkfs_lab.training.metric_stage import benchmark_rows_script
+from drkfs_lab.training.net_metrics import gaussian_blur
 from drkfs_onnx.contract.config import NETS, PipelineConfig
 from drkfs_onnx.metric import DRKFS
-from drkfs_onnx.training.metric_stage import benchmark_rows_script
-from drkfs_onnx.training.net_metrics import gaussian_blur
 
 SIGMAS = (0.0, 1.0, 2.0)  # pixels
 

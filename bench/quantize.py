@@ -29,8 +29,8 @@ from onnxruntime.quantization import (
     quantize_static,
 )
 from onnxruntime.quantization.shape_inference import quant_pre_process
-from score import CASES, ROOT, best_time  # bench/score.py: the same meshes and timer
 
+from drkfs_lab.score import CASES, ROOT, best_time  # bench/score.py: the same meshes and timer
 from drkfs_onnx import PipelineConfig, check_mesh, load_mesh
 from drkfs_onnx.contract.mesh import frame_of, place
 from drkfs_onnx.contract.model_files import features_file

@@ -40,11 +40,10 @@ from pathlib import Path
 
 import numpy as np
 
-from drkfs_onnx import PipelineConfig
-from drkfs_onnx.benchmark import human, sets, torch_checks
-from drkfs_onnx.benchmark.methods import DrkfsOnnx, Method, Placed
-from drkfs_onnx.benchmark.real_tiers import HELDOUT_MESHES, TRAINING_MESHES, parse_relabels
-from drkfs_onnx.benchmark.run import (
+from drkfs_lab.benchmark import human, sets, torch_checks
+from drkfs_lab.benchmark.methods import DrkfsOnnx, Method, Placed
+from drkfs_lab.benchmark.real_tiers import HELDOUT_MESHES, TRAINING_MESHES, parse_relabels
+from drkfs_lab.benchmark.run import (
     bars_summary,
     lever_summary,
     ranked_retrieval,
@@ -52,6 +51,7 @@ from drkfs_onnx.benchmark.run import (
     score_everything,
     tier_accuracy,
 )
+from drkfs_onnx import PipelineConfig
 from drkfs_onnx.contract import match_rules
 from drkfs_onnx.contract.array_ops import NUMPY_OPS
 from drkfs_onnx.contract.cameras import rotation_y

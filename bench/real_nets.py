@@ -40,20 +40,20 @@ from pathlib import Path
 
 import torch
 
-from drkfs_onnx import PipelineConfig
-from drkfs_onnx.benchmark import human, sets, torch_checks
-from drkfs_onnx.benchmark.methods import DrkfsTorch
-from drkfs_onnx.benchmark.real_tiers import HELDOUT_MESHES, TRAINING_MESHES
-from drkfs_onnx.benchmark.run import (
+from drkfs_lab.benchmark import human, sets, torch_checks
+from drkfs_lab.benchmark.methods import DrkfsTorch
+from drkfs_lab.benchmark.real_tiers import HELDOUT_MESHES, TRAINING_MESHES
+from drkfs_lab.benchmark.run import (
     TIER_PAIRS,
     bars_summary,
     lever_summary,
     score_everything,
     tier_accuracy,
 )
+from drkfs_lab.training import tolerance
+from drkfs_onnx import PipelineConfig
 from drkfs_onnx.contract.config import NETS_TRAINED_AT
 from drkfs_onnx.metric import DRKFS, with_nets
-from drkfs_onnx.training import tolerance
 
 # the nets fine-tuned: the metric nets (the default's before the tolerant nets), at their config
 DEFAULT = PipelineConfig(nets="metric", **NETS_TRAINED_AT)

@@ -25,17 +25,17 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from drkfs_onnx import PipelineConfig
-from drkfs_onnx.benchmark import sets
-from drkfs_onnx.benchmark.methods import build_methods
-from drkfs_onnx.benchmark.real_tiers import HELDOUT_MESHES, TRAINING_MESHES, parse_relabels
-from drkfs_onnx.benchmark.run import (
+from drkfs_lab.benchmark import sets
+from drkfs_lab.benchmark.methods import build_methods
+from drkfs_lab.benchmark.real_tiers import HELDOUT_MESHES, TRAINING_MESHES, parse_relabels
+from drkfs_lab.benchmark.run import (
     OTHER_SIDE,
     real_sides,
     real_summary,
     score_with_peers,
     tier_accuracy,
 )
+from drkfs_onnx import PipelineConfig
 
 DEFAULT_METHODS = "DR-KFS,DR-KFS paper,DR-KFS structure,pixel MSE,Chamfer-L1,F-score 1%,LFD"
 RENDER = PipelineConfig(num_views=6, turn_degrees=0.0, image_size=256)  # the figure's: view VIEW

@@ -9,9 +9,9 @@ is the row sigma 1e-4, gamma 0.1.
 
 from __future__ import annotations
 
+from drkfs_lab.training.metric_stage import benchmark_rows_script
 from drkfs_onnx.contract.config import PipelineConfig
 from drkfs_onnx.metric import DRKFS
-from drkfs_onnx.training.metric_stage import benchmark_rows_script
 
 SOFTNESS = (  # (sigma, gamma): the scoring renderer, then softer coverage, then softer depth
     (1e-5, 1e-4),

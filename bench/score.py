@@ -119,8 +119,8 @@ GOALS = {"new_mesh_s": 0.2, "match_s": 0.001, "torch_step_s": 1.0}  # the defaul
 
 
 def _chamfer(mesh, other, repeats: int) -> dict:
-    from drkfs_onnx.benchmark.methods import SURFACE_SAMPLES
-    from drkfs_onnx.benchmark.point_metrics import sample_surface, surface_distances
+    from drkfs_lab.benchmark.methods import SURFACE_SAMPLES
+    from drkfs_lab.benchmark.point_metrics import sample_surface, surface_distances
 
     def sample(m):
         return sample_surface(m.vertices, m.faces, SURFACE_SAMPLES)

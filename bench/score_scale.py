@@ -18,8 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
-from drkfs_onnx.benchmark.sets import tier_set
-from drkfs_onnx.synthetic.tiers import TIERS
+from drkfs_lab.benchmark.sets import tier_set
+from drkfs_lab.benchmark.tiers import TIERS
 
 ROOT = Path(__file__).resolve().parents[1]
 METHODS = {"DR-KFS": "default", "DR-KFS structure": "structure", "DR-KFS paper": "paper"}

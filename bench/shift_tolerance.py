@@ -26,11 +26,13 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from drkfs_lab.benchmark import sets
+from drkfs_lab.benchmark.methods import Method, timed_call
+from drkfs_lab.benchmark.real_tiers import HELDOUT_MESHES, TRAINING_MESHES
+from drkfs_lab.benchmark.run import lever_summary, score_everything
+from drkfs_lab.benchmark.tiers import turned
+from drkfs_lab.training.tolerance import warped
 from drkfs_onnx import PipelineConfig
-from drkfs_onnx.benchmark import sets
-from drkfs_onnx.benchmark.methods import Method, timed_call
-from drkfs_onnx.benchmark.real_tiers import HELDOUT_MESHES, TRAINING_MESHES
-from drkfs_onnx.benchmark.run import lever_summary, score_everything
 from drkfs_onnx.contract import match_rules
 from drkfs_onnx.contract.cameras import make_cameras, rotation_y
 from drkfs_onnx.contract.config import NETS_TRAINED_AT
@@ -39,8 +41,6 @@ from drkfs_onnx.match import match_score
 from drkfs_onnx.metric import DRKFS
 from drkfs_onnx.render.renderer import Renderer
 from drkfs_onnx.render.torch_ops import TORCH_OPS
-from drkfs_onnx.synthetic.tiers import turned
-from drkfs_onnx.training.tolerance import warped
 
 # the config the nets were trained at (the default's when this was measured), metric nets
 DEFAULT = PipelineConfig(nets="metric", **NETS_TRAINED_AT)

@@ -1,6 +1,6 @@
 """The DR-KFS paper's single-view reconstruction experiment (bench/records/single_view.md), from a
-checkout (the studies are not installed with the package): SoftRas' shape generator trained
-with each loss at several seeds, judged on held-out shapes and views by metrics no loss computes.
+checkout with the lab installed: SoftRas' shape generator trained with each loss at several
+seeds, judged on held-out shapes and views by metrics no loss computes.
 
     python bench/single_view.py --quick                      # seconds: the tests' plan
     python bench/single_view.py --out bench/single_view      # the study (resumable)
@@ -21,7 +21,7 @@ from typing import Annotated
 
 import typer
 
-from drkfs_onnx.cli import RUNS
+from drkfs_onnx.contract.cli_options import RUNS
 
 app = typer.Typer(add_completion=False)
 
@@ -92,7 +92,7 @@ def single_view(
     ] = False,
 ) -> None:
     """Train SoftRas' shape generator with each loss and judge the reconstructions."""
-    from studies.single_view import (
+    from drkfs_lab.studies.single_view import (
         CURVE_STATE,
         controls_markdown,
         curve_markdown,
@@ -129,7 +129,7 @@ def single_view(
         typer.echo(curve_markdown(results))  # bench/records/single_view.md's table
         return
     if finetune:
-        from studies.finetune import finetune_markdown, run_finetune
+        from drkfs_lab.studies.finetune import finetune_markdown, run_finetune
 
         results = run_finetune(out, seed_list, quick, device, threads, progress)
         typer.echo(finetune_markdown(results))  # bench/records/single_view.md's tables

@@ -16,27 +16,23 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 import torch
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
-from studies.shape_generator import ShapeGenerator  # noqa: E402
-from studies.single_view import DRKFS_SHADED, FULL, draw_batch, training_data  # noqa: E402
-from studies.study import machine  # noqa: E402
-from studies.views import CHANNELS, IMAGE_SIZE  # noqa: E402
-
-from drkfs_onnx.contract.mesh import place_by  # noqa: E402
-from drkfs_onnx.loss import COARSE_TO_FINE, StagedTarget  # noqa: E402
-from drkfs_onnx.match import match_score  # noqa: E402
-from drkfs_onnx.nets.hardnet import conv_stack  # noqa: E402
-from drkfs_onnx.nets.patches import select_patches  # noqa: E402
-from drkfs_onnx.render.mesh_batch import MeshBatch  # noqa: E402
-from drkfs_onnx.render.torch_ops import TORCH_OPS  # noqa: E402
+from drkfs_lab.studies.shape_generator import ShapeGenerator
+from drkfs_lab.studies.single_view import DRKFS_SHADED, FULL, draw_batch, training_data
+from drkfs_lab.studies.study import machine
+from drkfs_lab.studies.views import CHANNELS, IMAGE_SIZE
+from drkfs_onnx.contract.mesh import place_by
+from drkfs_onnx.loss import COARSE_TO_FINE, StagedTarget
+from drkfs_onnx.match import match_score
+from drkfs_onnx.nets.hardnet import conv_stack
+from drkfs_onnx.nets.patches import select_patches
+from drkfs_onnx.render.mesh_batch import MeshBatch
+from drkfs_onnx.render.torch_ops import TORCH_OPS
 
 PARTS = ("render", "describe", "match", "describe_backward", "render_backward")
 

@@ -48,7 +48,8 @@ import time
 from pathlib import Path
 
 import torch
-from studies.network import loss_step_case
+
+from drkfs_lab.studies.network import loss_step_case
 
 ROOT = Path(__file__).resolve().parents[1]
 BEFORE = "ecf7222"  # the last commit whose torch path took one mesh per call

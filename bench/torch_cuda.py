@@ -20,16 +20,14 @@ import sys
 from pathlib import Path
 
 import torch
-from studies.network import loss_step_case
 
+from drkfs_lab.benchmark.torch_checks import agreement, value_and_gradient
+from drkfs_lab.studies.network import loss_step_case
+from drkfs_lab.torch_metric import MESHES, timed_call
 from drkfs_onnx import DRKFS, PipelineConfig, load_mesh
-from drkfs_onnx.benchmark.torch_checks import agreement, value_and_gradient
 from drkfs_onnx.contract.mesh import normalize_pair
 from drkfs_onnx.loss import DrkfsLoss
 from drkfs_onnx.render.torch_ops import TORCH_OPS
-
-sys.path.insert(0, str(Path(__file__).parent))
-from torch_metric import MESHES, timed_call  # noqa: E402
 
 SCORED = {"5k": "cow.obj", "20k": "rocker-arm.obj"}
 

@@ -114,8 +114,8 @@ def run_case(mesh_name: str, width: float, repeats: int, profile: bool) -> dict:
 def run_training_step(repeats: int) -> dict:
     """One training step of the network study's prediction against a prepared target."""
     import torch
-    from studies.network import loss_step_case
 
+    from drkfs_lab.studies.network import loss_step_case
     from drkfs_onnx import DRKFS, PipelineConfig
     from drkfs_onnx.loss import DrkfsLoss
 

@@ -23,9 +23,9 @@ from pathlib import Path
 
 import numpy as np
 
-from drkfs_onnx.benchmark import sets
-from drkfs_onnx.benchmark.methods import DrkfsOnnx, Placed
-from drkfs_onnx.benchmark.run import TIER_PAIRS, tier_accuracy
+from drkfs_lab.benchmark import sets
+from drkfs_lab.benchmark.methods import DrkfsOnnx, Placed
+from drkfs_lab.benchmark.run import TIER_PAIRS, tier_accuracy
 from drkfs_onnx.contract.cameras import rotation_y
 from drkfs_onnx.contract.config import PipelineConfig
 from drkfs_onnx.contract.mesh import frame_of, place

@@ -17,7 +17,7 @@ import argparse
 import json
 from pathlib import Path
 
-from drkfs_onnx.benchmark import sets
+from drkfs_lab.benchmark import sets
 from drkfs_onnx.contract.mesh import Mesh
 from drkfs_onnx.contract.versions import VERSIONS, metric_config
 from drkfs_onnx.runtime import Scorer

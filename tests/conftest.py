@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from drkfs_onnx.benchmark.sets import real_mesh
+from drkfs_lab.benchmark.sets import real_mesh
 
 # Tests run the rasteriser's equations eagerly, their subprocesses too: compiling them for each
 # test's config would cost CI's 2 cores about 10 s a graph. The default, compiled where a

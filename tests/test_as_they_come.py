@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 import trimesh
 
-from drkfs_onnx.benchmark import as_they_come, sets
-from drkfs_onnx.benchmark.run import as_they_come_checks, tier_accuracy
+from drkfs_lab.benchmark import as_they_come, sets
+from drkfs_lab.benchmark.run import as_they_come_checks, tier_accuracy
 from drkfs_onnx.contract.mesh import load_mesh
 from drkfs_onnx.contract.render_equations import face_orientation
 from drkfs_onnx.synthetic.variants import face_areas

@@ -11,13 +11,21 @@ import pytest
 import torch
 import trimesh
 
-from drkfs_onnx.benchmark import human, peers, sets
-from drkfs_onnx.benchmark import point_metrics as pm
-from drkfs_onnx.benchmark.chart import pareto_front, write_chart
-from drkfs_onnx.benchmark.methods import DEFAULT_NAME, DrkfsOnnx, Placed, drkfs_configs
-from drkfs_onnx.benchmark.run import TIER_PAIRS, run_bench, tier_accuracy
-from drkfs_onnx.benchmark.sets import STABILITY, _box_with_cavity
-from drkfs_onnx.benchmark.torch_checks import agreement, value_and_gradient
+from drkfs_lab.benchmark import human, peers, sets
+from drkfs_lab.benchmark import point_metrics as pm
+from drkfs_lab.benchmark.chart import pareto_front, write_chart
+from drkfs_lab.benchmark.methods import DEFAULT_NAME, DrkfsOnnx, Placed, drkfs_configs
+from drkfs_lab.benchmark.run import TIER_PAIRS, run_bench, tier_accuracy
+from drkfs_lab.benchmark.sets import STABILITY, _box_with_cavity
+from drkfs_lab.benchmark.tiers import (
+    INVISIBLE,
+    STRUCTURAL,
+    SURFACE,
+    local_edges,
+    part_tiers,
+    scan_tiers,
+)
+from drkfs_lab.benchmark.torch_checks import agreement, value_and_gradient
 from drkfs_onnx.contract.config import TWO_SIDED, PipelineConfig
 from drkfs_onnx.contract.mesh import frame_of, load_mesh, place
 from drkfs_onnx.runtime.render import NumpyRenderer
@@ -28,14 +36,6 @@ from drkfs_onnx.synthetic.shapes import (
     assemble,
     random_shape,
     subdivide,
-)
-from drkfs_onnx.synthetic.tiers import (
-    INVISIBLE,
-    STRUCTURAL,
-    SURFACE,
-    local_edges,
-    part_tiers,
-    scan_tiers,
 )
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
@@ -176,7 +176,7 @@ def quick(tmp_path_factory):
     run, and ``test_lfd_sees_the_missing_leg_and_not_the_retessellation`` checks it."""
     out = tmp_path_factory.mktemp("bench")
     with pytest.MonkeyPatch.context() as patch:
-        patch.setattr("drkfs_onnx.benchmark.run.find_lfd", lambda: "left out of the tests")
+        patch.setattr("drkfs_lab.benchmark.run.find_lfd", lambda: "left out of the tests")
         return out, run_bench(out, quick=True, progress=lambda line: None)
 
 
@@ -296,7 +296,7 @@ def test_missing_graphs_are_exported_once_before_the_bench_scores(tmp_path, monk
     once and every DR-KFS method reads its graph from the run's folder."""
     import shutil
 
-    from drkfs_onnx.benchmark import methods
+    from drkfs_lab.benchmark import methods
     from drkfs_onnx.contract.model_files import models_dir
     from drkfs_onnx.export import onnx_files
 
@@ -508,7 +508,7 @@ def test_the_turn_search_script_scores_every_turn_set(tmp_path):
 def test_the_image_methods_render_a_mesh_alone_when_no_other_method_shares_their_views():
     """Pixel and PoI-map MSE take the paper preset's renders; scored without the paper preset
     (a run of a few methods), each renders them itself, with its own threads."""
-    from drkfs_onnx.benchmark import methods
+    from drkfs_lab.benchmark import methods
 
     verts, faces = assemble(FAMILIES["chair"](np.random.default_rng(0)), 1)
     built = methods.build_methods(methods.models_dir(), threads=2, quick=True)

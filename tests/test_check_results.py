@@ -7,8 +7,9 @@ import subprocess
 import sys
 from pathlib import Path
 
-import check_results
 import pytest
+
+from drkfs_lab import check_results
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -10,10 +10,10 @@ import pytest
 import trimesh
 from typer.testing import CliRunner
 
+from drkfs_lab.judging.choice import JUDGE_CONFIG, judge_and_choose, read_reconstructions
+from drkfs_lab.judging.judges import VISUAL, Judge
+from drkfs_lab.judging.rule import choose
 from drkfs_onnx.cli import app
-from drkfs_onnx.judging.choice import JUDGE_CONFIG, judge_and_choose, read_reconstructions
-from drkfs_onnx.judging.judges import VISUAL, Judge
-from drkfs_onnx.judging.rule import choose
 from drkfs_onnx.synthetic.examples import write_examples
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -5,8 +5,8 @@ import pytest
 import torch
 from conftest import loss_case
 
+from drkfs_lab.benchmark.torch_checks import agreement, value_and_gradient
 from drkfs_onnx import DRKFS, PipelineConfig
-from drkfs_onnx.benchmark.torch_checks import agreement, value_and_gradient
 from drkfs_onnx.loss import DrkfsLoss
 
 pytestmark = pytest.mark.skipif(not torch.cuda.is_available(), reason="no CUDA device")

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 import tomllib
 
-from drkfs_onnx.benchmark import sets
+from drkfs_lab.benchmark import sets
 from drkfs_onnx.synthetic.examples import write_examples
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -32,9 +32,8 @@ def test_the_readme_opens_with_the_two_commands_and_has_a_short_quick_start_per_
     text = (ROOT / "README.md").read_text()
     first = re.search(r"```bash\n(.*?)```", text, re.S).group(1)
     assert "drkfs-score batch examples/pairs.csv" in first
-    test_command = (
-        'pip install torch==2.13.0 && pip install -e ".[torch,dev]" && python -m pytest -q'
-    )
+    installs = 'pip install torch==2.13.0 && pip install -e ".[torch,dev]" -e ./bench'
+    test_command = f"{installs} && python -m pytest -q"
     assert test_command in first and test_command in (ROOT / ".ci" / "run").read_text()
     sections = _sections(text)
     for name in QUICK_STARTS:  # a quick start per reader, each under 30 lines
@@ -59,7 +58,7 @@ def test_every_real_mesh_is_in_the_repository_with_its_origin_and_terms():
 
 
 def test_a_folder_without_the_real_meshes_is_named_with_where_they_come_from(tmp_path):
-    code = "from drkfs_onnx.benchmark.sets import real_mesh; real_mesh('cow')"
+    code = "from drkfs_lab.benchmark.sets import real_mesh; real_mesh('cow')"
     env = {"DRKFS_MESHES": str(tmp_path), "PATH": ""}
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env)
     assert f"{tmp_path / 'cow.obj'}: real mesh cow.obj not found" in result.stderr

@@ -13,9 +13,13 @@ import numpy as np
 import pytest
 import torch
 import trimesh
-from fit import app as fit_app
-from studies.landscape import AGREEMENT, CHECKS, probe
-from studies.losses import (
+from typer.testing import CliRunner
+
+from drkfs_lab.fit import app as fit_app
+from drkfs_lab.judging.judges import METRICS, VISUAL, Judge
+from drkfs_lab.judging.rule import share
+from drkfs_lab.studies.landscape import AGREEMENT, CHECKS, probe
+from drkfs_lab.studies.losses import (
     FORMS,
     SHIPPED,
     pixel_with_chamfer,
@@ -23,7 +27,7 @@ from studies.losses import (
     with_chamfer,
     with_pixel,
 )
-from studies.mesh_fit import (
+from drkfs_lab.studies.mesh_fit import (
     ChamferLoss,
     DrkfsTerm,
     Fade,
@@ -32,8 +36,8 @@ from studies.mesh_fit import (
     fit_mesh,
     float_tensor,
 )
-from studies.problems import perturbed, shared, synthetic
-from studies.study import (
+from drkfs_lab.studies.problems import perturbed, shared, synthetic
+from drkfs_lab.studies.study import (
     FULL,
     QUICK_STUDY,
     RANK_NOISE,
@@ -46,11 +50,7 @@ from studies.study import (
     slug,
     study_recipes,
 )
-from typer.testing import CliRunner
-
 from drkfs_onnx.geometry import Smoothness, chamfer, surface_points
-from drkfs_onnx.judging.judges import METRICS, VISUAL, Judge
-from drkfs_onnx.judging.rule import share
 from drkfs_onnx.synthetic.shapes import Part, assemble, random_shape
 
 ROOT = Path(__file__).resolve().parents[1]

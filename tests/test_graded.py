@@ -11,9 +11,9 @@ from pathlib import Path
 import pytest
 import torch
 
+from drkfs_lab.training import graded
 from drkfs_onnx.contract.config import PipelineConfig
 from drkfs_onnx.metric import DRKFS
-from drkfs_onnx.training import graded
 
 ROOT = Path(__file__).resolve().parents[1]
 CONFIG = PipelineConfig.loss(num_views=2, image_size=64)

@@ -1,5 +1,6 @@
-"""The package's folders say what may import what: the torch-free contract, the torch renderer and
-nets on it, the metric and loss on top, the runtime on the contract alone."""
+"""What may import what, folder by folder: the library's torch-free contract, the torch renderer
+and nets on it, the metric and loss on top, the runtime on the contract alone; the lab (bench/,
+installed as drkfs_lab) on the library, and never the library on the lab."""
 
 import ast
 import subprocess
@@ -10,11 +11,13 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGE = ROOT / "drkfs_onnx"
-# layer -> the layers its modules may import (besides their own); a folder is a layer, the
-# package's own modules (the torch metric, its match and loss) are "metric" and its command
-# line "cli". The training stage selects its nets on the benchmark's sets (which makes those
-# sets validation for the nets), so training sits above the benchmark.
-ALLOWED = {
+LAB = ROOT / "bench"
+# layer -> the layers its modules may import (besides their own). A folder of the library or of
+# the lab is a layer; the library's own modules (the torch metric, its match and loss) are
+# "metric", its command line "cli"; the lab's own modules (its scripts and command line) are
+# "scripts". The training stage selects its nets on the benchmark's sets (which makes those sets
+# validation for the nets), so training sits above the benchmark.
+LIBRARY = {
     "contract": (),
     "render": ("contract",),
     "nets": ("contract",),
@@ -22,28 +25,49 @@ ALLOWED = {
     "runtime": ("contract",),
     "metric": ("contract", "render", "nets"),
     "export": ("contract", "nets", "metric"),
-    "benchmark": ("contract", "export", "runtime", "synthetic", "metric"),
-    "judging": ("contract", "render", "runtime", "benchmark", "metric"),
-    "training": ("contract", "render", "nets", "synthetic", "benchmark", "metric"),
     "models": (),
 }
-ALLOWED["cli"] = tuple(ALLOWED)  # the command line: every layer
+LIBRARY["cli"] = tuple(LIBRARY)  # the command line: every layer of the library
+LAB_LAYERS = {
+    "benchmark": (*LIBRARY,),
+    "judging": (*LIBRARY, "benchmark"),
+    "training": (*LIBRARY, "benchmark"),
+    "studies": (*LIBRARY, "benchmark", "judging", "training"),
+}
+LAB_LAYERS["scripts"] = (*LIBRARY, *LAB_LAYERS)  # the lab's scripts and command line: everything
+ALLOWED = {**LIBRARY, **LAB_LAYERS}
 FORBIDDEN = {"contract": ("torch", "onnx"), "runtime": ("torch", "onnx")}
-LAB = ("studies", "bench")  # the lab's packages (bench/): nothing in the library imports them
+OWN_MODULES = {"drkfs_onnx": ("metric", "cli"), "drkfs_lab": ("scripts",)}
+
+
+def _root(layer: str) -> tuple[str, Path]:
+    """The package name and folder of a layer."""
+    return ("drkfs_lab", LAB) if layer in LAB_LAYERS else ("drkfs_onnx", PACKAGE)
 
 
 def _layer(name: str) -> str:
-    """The layer of a module of the package, by its dotted name."""
-    part = name.split(".")[1] if "." in name else "metric"
-    if part == "cli":
-        return "cli"
-    return part if (PACKAGE / part).is_dir() else "metric"
+    """The layer of a module of the library or the lab, by its dotted name."""
+    package, folder = (
+        ("drkfs_lab", LAB) if name.startswith("drkfs_lab") else ("drkfs_onnx", PACKAGE)
+    )
+    part = name.split(".")[1] if "." in name else ""
+    if part and (folder / part).is_dir() and (folder / part / "__init__.py").is_file():
+        return part
+    if package == "drkfs_lab":
+        return "scripts"
+    return "cli" if part == "cli" else "metric"
 
 
 def _layer_modules(layer: str) -> list[Path]:
-    if layer in ("metric", "cli"):
-        return [p for p in sorted(PACKAGE.glob("*.py")) if (p.stem == "cli") == (layer == "cli")]
-    return sorted((PACKAGE / layer).glob("*.py"))
+    package, folder = _root(layer)
+    if layer in OWN_MODULES[package]:
+        own = [p for p in sorted(folder.glob("*.py")) if p.stem != "__init__"]
+        return (
+            own
+            if package == "drkfs_lab"
+            else [p for p in own if (p.stem == "cli") == (layer == "cli")]
+        )
+    return sorted((folder / layer).glob("*.py"))
 
 
 def _imports(path: Path, package: str) -> set[str]:
@@ -67,26 +91,30 @@ def _modules(folder: str) -> list[Path]:
     return sorted((PACKAGE / folder).glob("*.py"))
 
 
-def test_every_folder_of_the_package_is_a_layer():
-    folders = {p.name for p in PACKAGE.iterdir() if p.is_dir() and p.name != "__pycache__"}
-    assert folders <= set(ALLOWED)
+def test_every_folder_of_the_library_and_the_lab_is_a_layer():
+    for package, folder in (("drkfs_onnx", PACKAGE), ("drkfs_lab", LAB)):
+        layers = LIBRARY if package == "drkfs_onnx" else LAB_LAYERS
+        folders = {p.name for p in folder.iterdir() if (p / "__init__.py").is_file()}
+        assert folders == set(layers) - set(OWN_MODULES[package]), package
 
 
 @pytest.mark.parametrize("layer", sorted(ALLOWED))
 def test_each_layer_imports_only_the_layers_below_it(layer):
     allowed = {layer, *ALLOWED[layer]}
+    package, _ = _root(layer)
     for path in _layer_modules(layer):
-        package = "drkfs_onnx" if layer in ("metric", "cli") else f"drkfs_onnx.{layer}"
-        for name in _imports(path, package):
+        own = layer in OWN_MODULES[package]
+        for name in _imports(path, package if own else f"{package}.{layer}"):
             top = name.split(".")[0]
-            if top == "drkfs_onnx" and name != "drkfs_onnx":
+            if top in ("drkfs_onnx", "drkfs_lab") and name != top:
                 assert _layer(name) in allowed, f"{path.relative_to(ROOT)} imports {name}"
             assert top not in FORBIDDEN.get(layer, ()), f"{layer}/{path.name} imports {name}"
-            assert top not in LAB, f"{path.relative_to(ROOT)} imports the lab's {name}"
+            if layer in LIBRARY:
+                assert top != "drkfs_lab", f"{path.relative_to(ROOT)} imports the lab's {name}"
 
 
 def test_no_module_takes_a_private_name_from_another():
-    for path in sorted([*PACKAGE.rglob("*.py"), *(ROOT / "bench").rglob("*.py")]):
+    for path in sorted([*PACKAGE.rglob("*.py"), *LAB.rglob("*.py")]):
         for node in ast.walk(ast.parse(path.read_text())):
             if isinstance(node, ast.ImportFrom) and node.module != "__future__":
                 private = [a.name for a in node.names if a.name.startswith("_")]

@@ -5,9 +5,8 @@ import numpy as np
 import pytest
 import torch
 
-from drkfs_onnx import DRKFS, PipelineConfig
-from drkfs_onnx.training.metric_losses import RANK_MARGIN, ranking_loss
-from drkfs_onnx.training.metric_stage import (
+from drkfs_lab.training.metric_losses import RANK_MARGIN, ranking_loss
+from drkfs_lab.training.metric_stage import (
     BASELINE,
     OBJECTIVES,
     Correspondences,
@@ -15,12 +14,13 @@ from drkfs_onnx.training.metric_stage import (
     choose_objective,
     choose_smallest,
 )
-from drkfs_onnx.training.variant_views import (
+from drkfs_lab.training.variant_views import (
     VARIANT_NAMES,
     VariantViews,
     changed_share,
     render_variant_views,
 )
+from drkfs_onnx import DRKFS, PipelineConfig
 
 CONFIG = PipelineConfig(turn_degrees=0.0, num_views=2, image_size=64, patch_size=16, patch_stride=8)
 

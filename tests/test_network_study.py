@@ -12,9 +12,13 @@ import numpy as np
 import pytest
 import torch
 import trimesh
-from fit import app as fit_app
-from studies.losses import CHAMFER, alone
-from studies.network import (
+from typer.testing import CliRunner
+
+from drkfs_lab.benchmark.point_metrics import iou, is_watertight
+from drkfs_lab.fit import app as fit_app
+from drkfs_lab.judging.judges import HIGHER_IS_BETTER, VISUAL, SilhouetteJudge, unseen_cameras
+from drkfs_lab.studies.losses import CHAMFER, alone
+from drkfs_lab.studies.network import (
     FULL,
     JUDGED,
     PRIMITIVES,
@@ -29,13 +33,9 @@ from studies.network import (
     make_shape,
     train,
 )
-from studies.study import slug
-from typer.testing import CliRunner
-
-from drkfs_onnx.benchmark.point_metrics import iou, is_watertight
+from drkfs_lab.studies.study import slug
 from drkfs_onnx.contract.cameras import make_cameras
 from drkfs_onnx.contract.config import PipelineConfig
-from drkfs_onnx.judging.judges import HIGHER_IS_BETTER, VISUAL, SilhouetteJudge, unseen_cameras
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -13,9 +13,9 @@ import pytest
 import torch
 import trimesh
 import typer.main
-from fit import app as fit_app
 from typer.testing import CliRunner
 
+from drkfs_lab.fit import app as fit_app
 from drkfs_onnx import DRKFS, PipelineConfig, load_mesh
 from drkfs_onnx.cli import RUNS, app
 from drkfs_onnx.synthetic.examples import example_meshes
@@ -110,7 +110,7 @@ def test_no_command_writes_into_shipped_files_by_default(monkeypatch):
         ("study", "run_study", []),
         ("network", "run_network_study", ["--network"]),
     ):
-        monkeypatch.setattr(f"studies.{module}.{function}", record)
+        monkeypatch.setattr(f"drkfs_lab.studies.{module}.{function}", record)
         result = CliRunner().invoke(fit_app, args)
         assert isinstance(result.exception, Called), result.output
         assert Path(result.exception.args[0]).parts[0] == RUNS.name
@@ -171,11 +171,10 @@ def test_the_installed_package_is_lean_and_ships_each_presets_nets_once(installe
     assert models == {"__init__.py", "manifest.json", "match.onnx", *PRESET_GRAPHS}
     size = sum(path.stat().st_size for path in package.rglob("*") if path.is_file())
     assert size <= 12e6, f"{size / 1e6:.1f} MB"
-    # the studies stay in the repository: the package is the metric, the loss, the runtime,
-    # export, the benchmark, the nets' training and choose-loss
+    # the package is the metric, the loss, the runtime and export; the lab (bench/: the
+    # benchmark, the nets' training, judging and the studies) is a distribution of its own
     assert sorted(p.name for p in package.iterdir() if p.is_dir() and p.name != "__pycache__") == [
-        "benchmark", "contract", "export", "judging", "models", "nets", "render", "runtime",
-        "synthetic", "training",
+        "contract", "export", "models", "nets", "render", "runtime", "synthetic",
     ]  # fmt: skip
 
 

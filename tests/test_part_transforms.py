@@ -1,9 +1,6 @@
 """bench/part_transforms.py: a transform of the descriptors' part scored offline as the runtime
 scores it, which misorderings no transform can mend, and the rule's candidates."""
 
-import importlib.util
-import sys
-from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
@@ -12,21 +9,12 @@ import pytest
 from drkfs_onnx import PipelineConfig
 from drkfs_onnx.contract.config import TWO_SIDED
 
-BENCH = Path(__file__).resolve().parents[1] / "bench"
-
 
 @pytest.fixture(scope="module")
 def study():
-    sys.path.insert(0, str(BENCH))  # the study imports real_levers.py beside it
-    try:
-        spec = importlib.util.spec_from_file_location(
-            "part_transforms", BENCH / "part_transforms.py"
-        )
-        module = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(module)
-    finally:
-        sys.path.remove(str(BENCH))
-    return module
+    from drkfs_lab import part_transforms
+
+    return part_transforms
 
 
 def test_the_records_are_the_default_before_its_window_with_parts_in_full(study):

@@ -2,8 +2,6 @@
 place and gained at another, so the two nearly cancel; a part removed is only lost), and the
 own-ring pairing's solid change taken over both rings' views."""
 
-import importlib.util
-from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
@@ -13,15 +11,12 @@ from drkfs_onnx import PipelineConfig
 from drkfs_onnx.contract.config import FULL_PARTS
 from drkfs_onnx.contract.solid_change import solid_reaches
 
-SCRIPT = Path(__file__).resolve().parents[1] / "bench" / "real_levers.py"
-
 
 @pytest.fixture(scope="module")
 def real_levers():
-    spec = importlib.util.spec_from_file_location("real_levers", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    from drkfs_lab import real_levers
+
+    return real_levers
 
 
 def _views(*bars: tuple[int, int]) -> np.ndarray:

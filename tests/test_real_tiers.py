@@ -4,9 +4,8 @@ the benchmark reports on them."""
 import numpy as np
 import pytest
 
-from drkfs_onnx import load_mesh
-from drkfs_onnx.benchmark import real_tiers, sets
-from drkfs_onnx.benchmark.real_tiers import (
+from drkfs_lab.benchmark import real_tiers, sets
+from drkfs_lab.benchmark.real_tiers import (
     DECIMATED_FACES,
     HELDOUT_MESHES,
     NOISE_EDGES,
@@ -15,8 +14,9 @@ from drkfs_onnx.benchmark.real_tiers import (
     real_variants,
     second_piece,
 )
-from drkfs_onnx.benchmark.run import lever_summary, real_checks, tier_accuracy
-from drkfs_onnx.synthetic.tiers import smoothed
+from drkfs_lab.benchmark.run import lever_summary, real_checks, tier_accuracy
+from drkfs_lab.benchmark.tiers import smoothed
+from drkfs_onnx import load_mesh
 from drkfs_onnx.synthetic.variants import salient_tip
 
 
@@ -207,8 +207,8 @@ def test_the_shares_recomputed_without_some_variants_leave_out_exactly_their_pai
 
 
 def test_meshes_from_outside_the_repository_form_a_third_side_with_their_own_labels(tmp_path):
-    from drkfs_onnx.benchmark.real_tiers import parse_relabels
-    from drkfs_onnx.benchmark.run import real_sides
+    from drkfs_lab.benchmark.real_tiers import parse_relabels
+    from drkfs_lab.benchmark.run import real_sides
 
     other = tmp_path / "other"
     other.mkdir()
@@ -244,7 +244,7 @@ def test_meshes_from_outside_the_repository_form_a_third_side_with_their_own_lab
 
 
 def test_a_third_side_refuses_a_repository_meshs_name_and_a_malformed_relabel(tmp_path):
-    from drkfs_onnx.benchmark.real_tiers import parse_relabels
+    from drkfs_lab.benchmark.real_tiers import parse_relabels
 
     (tmp_path / "cow.obj").write_bytes(sets.real_mesh("cow").read_bytes())
     with pytest.raises(ValueError, match="cow named as the repository's meshes"):

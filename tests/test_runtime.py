@@ -10,8 +10,8 @@ import pytest
 import torch
 import trimesh
 
+from drkfs_lab.benchmark import sets
 from drkfs_onnx import DRKFS, PipelineConfig, load_mesh
-from drkfs_onnx.benchmark import sets
 from drkfs_onnx.contract.cameras import rotation_y
 from drkfs_onnx.contract.config import TWO_SIDED
 from drkfs_onnx.contract.mesh import Mesh, frame_of, place

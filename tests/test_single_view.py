@@ -10,18 +10,21 @@ import numpy as np
 import pytest
 import torch
 import trimesh
-from single_view import app
-from studies import single_view as study
-from studies.finetune import arm, compared, finetune_markdown
-from studies.network import TEST_SEED as NETWORK_TEST_SEED
-from studies.shape_generator import (
+from typer.testing import CliRunner
+
+from drkfs_lab.benchmark.point_metrics import is_watertight
+from drkfs_lab.single_view import app
+from drkfs_lab.studies import single_view as study
+from drkfs_lab.studies.finetune import arm, compared, finetune_markdown
+from drkfs_lab.studies.network import TEST_SEED as NETWORK_TEST_SEED
+from drkfs_lab.studies.shape_generator import (
     FLATTEN_WEIGHT,
     LAPLACIAN_WEIGHT,
     SPHERE_RADIUS,
     Regularisers,
     ShapeGenerator,
 )
-from studies.single_view import (
+from drkfs_lab.studies.single_view import (
     BASELINES,
     DRKFS_RECIPES,
     FINETUNE,
@@ -45,10 +48,14 @@ from studies.single_view import (
     validation_choice,
     views_of,
 )
-from studies.views import AZIMUTHS, CHANNELS, ELEVATION, IMAGE_SIZE, VIEW_CONFIG, ViewRenderer
-from typer.testing import CliRunner
-
-from drkfs_onnx.benchmark.point_metrics import is_watertight
+from drkfs_lab.studies.views import (
+    AZIMUTHS,
+    CHANNELS,
+    ELEVATION,
+    IMAGE_SIZE,
+    VIEW_CONFIG,
+    ViewRenderer,
+)
 from drkfs_onnx.contract.cameras import Cameras, look_at
 from drkfs_onnx.metric import DRKFS
 from drkfs_onnx.render.renderer import Renderer

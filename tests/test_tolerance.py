@@ -14,14 +14,14 @@ import pytest
 import torch
 from typer.testing import CliRunner
 
+from drkfs_lab.benchmark.tiers import TIERS
+from drkfs_lab.training import tolerance
 from drkfs_onnx.cli import app
 from drkfs_onnx.contract.config import NETS_TRAINED_AT, PipelineConfig
 from drkfs_onnx.contract.model_files import MANIFEST, shipped_entry
 from drkfs_onnx.metric import DRKFS
 from drkfs_onnx.synthetic.shapes import assemble, random_shape
-from drkfs_onnx.synthetic.tiers import TIERS
 from drkfs_onnx.synthetic.variants import face_areas, salient_tip
-from drkfs_onnx.training import tolerance
 
 ROOT = Path(__file__).resolve().parents[1]
 CONFIG = PipelineConfig(

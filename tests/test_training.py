@@ -11,15 +11,15 @@ import torch
 import trimesh
 from typer.testing import CliRunner
 
+from drkfs_lab.training.data import correspond, render_pairs, sample_matches
+from drkfs_lab.training.metric_stage import BASELINE
+from drkfs_lab.training.net_losses import detector_loss, hardest_triplet_loss
+from drkfs_lab.training.run import QUICK_TRAIN, train_steps
 from drkfs_onnx import DRKFS, PipelineConfig
 from drkfs_onnx.cli import app
 from drkfs_onnx.contract.model_files import MANIFEST, models_dir, shipped_entry
 from drkfs_onnx.synthetic.shapes import FAMILIES, assemble, random_shape
 from drkfs_onnx.synthetic.variants import MILD, STRUCTURAL, make_variants
-from drkfs_onnx.training.data import correspond, render_pairs, sample_matches
-from drkfs_onnx.training.metric_stage import BASELINE
-from drkfs_onnx.training.net_losses import detector_loss, hardest_triplet_loss
-from drkfs_onnx.training.run import QUICK_TRAIN, train_steps
 
 
 @pytest.mark.parametrize("family", list(FAMILIES))

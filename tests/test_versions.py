@@ -49,7 +49,7 @@ def test_an_overridden_setting_is_no_version_but_its_views_still_are_one():
 
 @pytest.fixture(scope="module")
 def version_sample():
-    from version_sample import sample
+    from drkfs_lab.version_sample import sample
 
     return sample()
 
@@ -61,7 +61,7 @@ def version_sample():
 def test_each_version_scores_the_committed_sample_of_bench_pairs_as_it_did(version, version_sample):
     """A version's scores of the benchmark's fixed sample (bench/version_sample.py) are those
     committed when it was made, whatever the default has become since."""
-    from version_sample import scores
+    from drkfs_lab.version_sample import scores
 
     committed = json.loads((ROOT / "bench/results/version_sample.json").read_text())
     again = scores(version, version_sample)

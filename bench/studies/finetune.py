@@ -13,8 +13,8 @@ from pathlib import Path
 
 import torch
 
+from drkfs_lab.judging.judges import Judge
 from drkfs_onnx.contract.config import PipelineConfig
-from drkfs_onnx.judging.judges import Judge
 
 from .single_view import (
     COLUMNS,

@@ -14,8 +14,8 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from drkfs_lab.judging.rule import CHAMFER
 from drkfs_onnx.contract.config import PipelineConfig
-from drkfs_onnx.judging.rule import CHAMFER
 from drkfs_onnx.loss import COARSE_TO_FINE, DrkfsLoss, SoftMatch, Stage
 from drkfs_onnx.metric import DRKFS
 

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from drkfs_onnx.benchmark.point_metrics import sample_surface
+from drkfs_lab.benchmark.point_metrics import sample_surface
 from drkfs_onnx.geometry import Smoothness, chamfer, surface_points
 from drkfs_onnx.loss import DrkfsLoss
 from drkfs_onnx.metric import DRKFS

@@ -32,12 +32,12 @@ import torch
 import trimesh
 from torch import nn
 
-from drkfs_onnx.benchmark.point_metrics import sample_surface
+from drkfs_lab.benchmark.point_metrics import sample_surface
+from drkfs_lab.judging.judges import HIGHER_IS_BETTER, SURFACE, UNSEEN_VIEWS, VISUAL, Judge
+from drkfs_lab.judging.rule import brief_share, chamfer_ratios, choose, share
 from drkfs_onnx.contract.config import PipelineConfig
 from drkfs_onnx.contract.mesh import frame_of, place
 from drkfs_onnx.geometry import Smoothness
-from drkfs_onnx.judging.judges import HIGHER_IS_BETTER, SURFACE, UNSEEN_VIEWS, VISUAL, Judge
-from drkfs_onnx.judging.rule import brief_share, chamfer_ratios, choose, share
 from drkfs_onnx.loss import StagedTarget
 from drkfs_onnx.synthetic.shapes import assemble, random_shape
 

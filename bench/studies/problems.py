@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from drkfs_onnx.benchmark.sets import real_mesh
+from drkfs_lab.benchmark.sets import real_mesh
 from drkfs_onnx.contract.mesh import frame_of, load_mesh, place
 from drkfs_onnx.synthetic.shapes import Part, assemble, random_shape
 

@@ -25,11 +25,11 @@ from typing import NamedTuple
 import numpy as np
 import torch
 
-from drkfs_onnx.benchmark.point_metrics import sample_surface
+from drkfs_lab.benchmark.point_metrics import sample_surface
+from drkfs_lab.judging.judges import HIGHER_IS_BETTER, Judge, better
 from drkfs_onnx.contract.config import VIEW_FIELDS, PipelineConfig
 from drkfs_onnx.contract.mesh import frame_of, place
 from drkfs_onnx.geometry import chamfer, surface_points
-from drkfs_onnx.judging.judges import HIGHER_IS_BETTER, Judge, better
 from drkfs_onnx.loss import COARSE_TO_FINE, DrkfsLoss, StagedTarget
 from drkfs_onnx.metric import DRKFS
 from drkfs_onnx.synthetic.shapes import assemble, random_shape

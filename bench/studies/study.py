@@ -36,9 +36,7 @@ import numpy as np
 import torch
 import trimesh
 
-from drkfs_onnx.contract.config import PipelineConfig
-from drkfs_onnx.contract.model_files import sha256
-from drkfs_onnx.judging.judges import (
+from drkfs_lab.judging.judges import (
     HIGHER_IS_BETTER,
     METRICS,
     SURFACE,
@@ -46,7 +44,9 @@ from drkfs_onnx.judging.judges import (
     VISUAL,
     Judge,
 )
-from drkfs_onnx.judging.rule import brief_share, chamfer_ratios, share
+from drkfs_lab.judging.rule import brief_share, chamfer_ratios, share
+from drkfs_onnx.contract.config import PipelineConfig
+from drkfs_onnx.contract.model_files import sha256
 from drkfs_onnx.synthetic.shapes import FAMILIES
 
 from .gallery import write_gallery

@@ -6,6 +6,7 @@ from __future__ import annotations
 import functools
 import inspect
 from collections.abc import Callable
+from pathlib import Path
 from typing import Annotated, Any
 
 import typer
@@ -22,6 +23,9 @@ from .config import (
 )
 from .versions import LATEST, VERSIONS, metric_config
 
+# Where drkfs's commands write unless --out says otherwise: never the shipped models/ or the
+# committed bench/ results, which only an explicit --out replaces.
+RUNS = Path("runs")
 PRESETS = {"default": LATEST, "paper": "drkfs-paper", "structure": "drkfs-structure-1.1"}
 
 

@@ -21,15 +21,16 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..contract.cameras import make_cameras, rotation
-from ..contract.config import PipelineConfig
-from ..contract.mesh import load_mesh
-from ..contract.render_equations import face_orientation
-from ..synthetic.shapes import assemble, random_shape
-from ..synthetic.tiers import FINE_SUBDIVISIONS, part_tiers
-from ..synthetic.variants import Variant, without_region
+from drkfs_onnx.contract.cameras import make_cameras, rotation
+from drkfs_onnx.contract.config import PipelineConfig
+from drkfs_onnx.contract.mesh import load_mesh
+from drkfs_onnx.contract.render_equations import face_orientation
+from drkfs_onnx.synthetic.shapes import assemble, random_shape
+from drkfs_onnx.synthetic.variants import Variant, without_region
+
 from .real_tiers import HELDOUT_MESHES, TRAINING_MESHES, real_variants
 from .sets import BenchSet, add_variants, real_mesh
+from .tiers import FINE_SUBDIVISIONS, part_tiers
 
 GROUP = "as_they_come"
 # family -> the parts removed together as one small part

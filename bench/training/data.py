@@ -15,11 +15,11 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from ..contract.cameras import Cameras, look_at, make_cameras
-from ..contract.config import PipelineConfig
-from ..contract.mesh import frame_of, place
-from ..render.renderer import Renderer
-from ..synthetic.shapes import assemble, random_shape
+from drkfs_onnx.contract.cameras import Cameras, look_at, make_cameras
+from drkfs_onnx.contract.config import PipelineConfig
+from drkfs_onnx.contract.mesh import frame_of, place
+from drkfs_onnx.render.renderer import Renderer
+from drkfs_onnx.synthetic.shapes import assemble, random_shape
 
 DEPTH_TOLERANCE = 0.01  # relative camera-depth difference still counted as the same surface
 

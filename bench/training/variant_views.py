@@ -16,11 +16,11 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from ..contract.config import PipelineConfig
-from ..contract.mesh import frame_of, place
-from ..render.renderer import Renderer
-from ..synthetic.shapes import Part, assemble, random_shape
-from ..synthetic.variants import (
+from drkfs_onnx.contract.config import PipelineConfig
+from drkfs_onnx.contract.mesh import frame_of, place
+from drkfs_onnx.render.renderer import Renderer
+from drkfs_onnx.synthetic.shapes import Part, assemble, random_shape
+from drkfs_onnx.synthetic.variants import (
     MILD,
     STRUCTURAL,
     Variant,
@@ -29,6 +29,7 @@ from ..synthetic.variants import (
     shifted,
     surface_variants,
 )
+
 from .data import camera_depth, hard_depth
 
 # camera-depth change (normalised units; the shape's half-diagonal is 1) that counts as another

@@ -30,15 +30,16 @@ from dataclasses import replace
 import numpy as np
 import trimesh
 
-from ..synthetic.shapes import subdivide
-from ..synthetic.tiers import TIERS, simplified, smoothed, turned
-from ..synthetic.variants import (
+from drkfs_onnx.synthetic.shapes import subdivide
+from drkfs_onnx.synthetic.variants import (
     Variant,
     face_areas,
     salient_tip,
     vertex_normals,
     without_region,
 )
+
+from .tiers import TIERS, simplified, smoothed, turned
 
 TRAINING_MESHES = ("alligator", "beetle", "cow", "fandisk", "woody")
 HELDOUT_MESHES = ("beast", "cheburashka", "homer", "rocker-arm", "stanford-bunny")

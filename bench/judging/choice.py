@@ -18,8 +18,9 @@ import subprocess
 from pathlib import Path
 from typing import NamedTuple
 
-from ..contract.config import PipelineConfig
-from ..contract.mesh import MeshError, frame_of, load_mesh, place
+from drkfs_onnx.contract.config import PipelineConfig
+from drkfs_onnx.contract.mesh import MeshError, frame_of, load_mesh, place
+
 from .judges import Judge
 from .rule import choose
 

@@ -12,8 +12,8 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from ..contract.mesh import check_mesh, load_mesh
-from ..synthetic.shapes import (
+from drkfs_onnx.contract.mesh import check_mesh, load_mesh
+from drkfs_onnx.synthetic.shapes import (
     ALL_FAMILIES,
     FAMILIES,
     Part,
@@ -22,8 +22,9 @@ from ..synthetic.shapes import (
     random_shape,
     subdivide,
 )
-from ..synthetic.tiers import part_tiers, scan_tiers
+
 from .real_tiers import HELDOUT_MESHES, RELABELLED, TRAINING_MESHES, real_variants
+from .tiers import part_tiers, scan_tiers
 
 # The real meshes (meshes/README.md gives each one's origin and terms): a checkout's meshes/
 # folder, or the folder DRKFS_MESHES names (``drkfs bench --meshes`` sets it)
@@ -126,8 +127,8 @@ def tiers(
     bench: BenchSet, families: list[str], shared: list[str], seed: int = SEED, prefix: str = ""
 ) -> None:
     """A base shape of each family and each named shared mesh, with their variants of every
-    tier (``synthetic.tiers``); ``seed`` and ``prefix`` (of the base keys) make other sets of
-    the same kind (a held-out check)."""
+    tier (``tiers``); ``seed`` and ``prefix`` (of the base keys) make other sets of the same
+    kind (a held-out check)."""
     rng = np.random.default_rng(seed)
     for family in families:
         parts = random_shape(family, rng)

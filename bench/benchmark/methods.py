@@ -14,12 +14,13 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from ..contract.config import MATCH_FIELDS, VIEW_FIELDS, PipelineConfig
-from ..contract.model_files import features_file, models_dir
-from ..match import match_score
-from ..metric import DRKFS
-from ..runtime.render import NumpyRenderer
-from ..runtime.scorer import Scorer
+from drkfs_onnx.contract.config import MATCH_FIELDS, VIEW_FIELDS, PipelineConfig
+from drkfs_onnx.contract.model_files import features_file, models_dir
+from drkfs_onnx.match import match_score
+from drkfs_onnx.metric import DRKFS
+from drkfs_onnx.runtime.render import NumpyRenderer
+from drkfs_onnx.runtime.scorer import Scorer
+
 from .point_metrics import iou, is_watertight, occupancy, sample_surface, surface_distances
 
 SURFACE_SAMPLES = 100_000  # per mesh, as OccNet
@@ -223,7 +224,7 @@ def build_methods(models: Path, threads: int, quick: bool = False) -> list[Metho
     ``Surface.of_bench(quick)``'s samples. When a config's feature graph is not shipped
     (weights retrained but not exported), ``drkfs export``'s function runs once, before any
     scoring, and writes every graph of the current weights into ``models``."""
-    from ..export.onnx_files import export_shipped
+    from drkfs_onnx.export.onnx_files import export_shipped
 
     configs = drkfs_configs(quick)
     shipped = models_dir()

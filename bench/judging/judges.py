@@ -9,6 +9,12 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from drkfs_onnx.contract.cameras import Cameras, hemisphere_directions, look_at, make_cameras
+from drkfs_onnx.contract.config import PipelineConfig
+from drkfs_onnx.metric import DRKFS
+from drkfs_onnx.render.renderer import Renderer
+from drkfs_onnx.runtime.render import NumpyRenderer
+
 from ..benchmark.methods import DrkfsTorch, ImageMSE, Placed
 from ..benchmark.peers import LightField, find_lfd
 from ..benchmark.point_metrics import (
@@ -19,11 +25,6 @@ from ..benchmark.point_metrics import (
     sample_surface,
     surface_distances,
 )
-from ..contract.cameras import Cameras, hemisphere_directions, look_at, make_cameras
-from ..contract.config import PipelineConfig
-from ..metric import DRKFS
-from ..render.renderer import Renderer
-from ..runtime.render import NumpyRenderer
 
 UNSEEN_VIEWS = 8  # silhouette cameras, none of them among the losses'
 UNSEEN_TURN = np.pi / 4  # radians

@@ -13,10 +13,11 @@ from collections.abc import Callable
 import numpy as np
 import torch
 
-from ..contract.patch_grid import nonempty_patches
-from ..match import descriptor_score
-from ..metric import DRKFS
-from ..nets.patches import select_patches
+from drkfs_onnx.contract.patch_grid import nonempty_patches
+from drkfs_onnx.match import descriptor_score
+from drkfs_onnx.metric import DRKFS
+from drkfs_onnx.nets.patches import select_patches
+
 from .net_losses import descriptor_distances, hardest_triplet_loss
 from .variant_views import VariantViews
 

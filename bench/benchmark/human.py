@@ -22,7 +22,8 @@ from pathlib import Path
 import numpy as np
 from scipy.stats import spearmanr
 
-from ..contract.mesh import load_mesh
+from drkfs_onnx.contract.mesh import load_mesh
+
 from .sets import BenchSet, Comparison
 
 SETTINGS = ("close_flipped", "close_normal", "far_flipped", "far_normal")

@@ -17,14 +17,15 @@ from typing import NamedTuple
 import numpy as np
 import torch
 
+from drkfs_onnx.contract.config import NETS_TRAINED_AT, PipelineConfig
+from drkfs_onnx.match import descriptor_score
+from drkfs_onnx.metric import DRKFS
+from drkfs_onnx.synthetic.shapes import FAMILIES
+from drkfs_onnx.synthetic.variants import structural_wins
+
 from ..benchmark import sets
 from ..benchmark.methods import DrkfsTorch, Surface
 from ..benchmark.run import bars_summary, retrieval_summary, score_everything, tier_accuracy
-from ..contract.config import NETS_TRAINED_AT, PipelineConfig
-from ..match import descriptor_score
-from ..metric import DRKFS
-from ..synthetic.shapes import FAMILIES
-from ..synthetic.variants import structural_wins
 from .metric_losses import LossFn, metric_ranking, patch_contrast
 from .net_losses import correspondence_triplet
 from .variant_views import VariantViews, render_variant_views

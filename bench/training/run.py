@@ -17,12 +17,13 @@ import torch
 import typer
 from torch import nn
 
-from ..contract.config import PipelineConfig
-from ..contract.model_files import MANIFEST, sha256
-from ..metric import DRKFS, with_nets
-from ..nets.detector import PoIDetector
-from ..nets.hardnet import HardNet
-from ..synthetic.shapes import FAMILIES
+from drkfs_onnx.contract.config import PipelineConfig
+from drkfs_onnx.contract.model_files import MANIFEST, sha256
+from drkfs_onnx.metric import DRKFS, with_nets
+from drkfs_onnx.nets.detector import PoIDetector
+from drkfs_onnx.nets.hardnet import HardNet
+from drkfs_onnx.synthetic.shapes import FAMILIES
+
 from .data import ViewPairs, render_pairs, sample_matches
 from .metric_stage import (
     ACCURACY_TOLERANCE,

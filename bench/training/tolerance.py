@@ -32,16 +32,17 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from ..contract.config import NETS_TRAINED_AT, PipelineConfig
-from ..contract.mesh import frame_of
-from ..contract.model_files import MANIFEST, entry_for, sha256, shipped_entry
-from ..match import descriptor_score
-from ..metric import DRKFS, with_nets
-from ..nets.weights import load_checked
-from ..render.renderer import Renderer
-from ..synthetic.shapes import FAMILIES, Part, assemble, random_shape
-from ..synthetic.tiers import FINE_SUBDIVISIONS, TIERS, part_tiers, simplified, smoothed, turned
-from ..synthetic.variants import Variant, salient_tip, shifted, without, without_region
+from drkfs_onnx.contract.config import NETS_TRAINED_AT, PipelineConfig
+from drkfs_onnx.contract.mesh import frame_of
+from drkfs_onnx.contract.model_files import MANIFEST, entry_for, sha256, shipped_entry
+from drkfs_onnx.match import descriptor_score
+from drkfs_onnx.metric import DRKFS, with_nets
+from drkfs_onnx.nets.weights import load_checked
+from drkfs_onnx.render.renderer import Renderer
+from drkfs_onnx.synthetic.shapes import FAMILIES, Part, assemble, random_shape
+from drkfs_onnx.synthetic.variants import Variant, salient_tip, shifted, without, without_region
+
+from ..benchmark.tiers import FINE_SUBDIVISIONS, TIERS, part_tiers, simplified, smoothed, turned
 from .data import views_in_frame
 from .metric_losses import LossFn, ranking_loss
 from .run import git_commit, plan_key, train_steps

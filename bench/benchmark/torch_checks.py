@@ -7,11 +7,11 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from ..contract.mesh import frame_of, place
-from ..match import match_score
-from ..metric import DRKFS
-from ..synthetic.shapes import assemble, chair
-from ..synthetic.variants import diagonal, shifted
+from drkfs_onnx.contract.mesh import frame_of, place
+from drkfs_onnx.match import match_score
+from drkfs_onnx.metric import DRKFS
+from drkfs_onnx.synthetic.shapes import assemble, chair
+from drkfs_onnx.synthetic.variants import diagonal, shifted
 
 SLIDE_STEPS = 11
 SLIDE_RANGE = 0.05  # of the chair's bounding-box diagonal

@@ -9,7 +9,8 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from ..contract.config import PipelineConfig
+from drkfs_onnx.contract.config import PipelineConfig
+
 from .data import ViewPairs, correspond, crops
 from .net_losses import descriptor_distances
 

@@ -21,9 +21,9 @@ from __future__ import annotations
 import numpy as np
 import trimesh
 
-from ..contract.cameras import rotation_y
-from .shapes import Part, assemble, subdivide
-from .variants import (
+from drkfs_onnx.contract.cameras import rotation_y
+from drkfs_onnx.synthetic.shapes import Part, assemble, subdivide
+from drkfs_onnx.synthetic.variants import (
     Variant,
     diagonal,
     make_variants,

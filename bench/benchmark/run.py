@@ -12,9 +12,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..contract.mesh import frame_of, place
-from ..synthetic.tiers import TIERS
-from ..synthetic.variants import structural_wins
+from drkfs_onnx.contract.mesh import frame_of, place
+from drkfs_onnx.synthetic.variants import structural_wins
+
 from . import as_they_come, sets
 from .chart import pareto_front, write_chart
 from .human import add_human, agreement_ceiling, dataset_agreement, human_agreement
@@ -31,6 +31,7 @@ from .methods import (
     build_methods,
 )
 from .peers import LightField, find_lfd
+from .tiers import TIERS
 from .torch_checks import gradient_check, self_score, slide
 
 CHARTED = "invisible_vs_structural"  # the accuracy on the chart's y axis

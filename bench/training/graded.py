@@ -20,13 +20,14 @@ import torch
 import torch.nn.functional as F
 import trimesh
 
-from ..contract.config import PipelineConfig
-from ..contract.mesh import frame_of
-from ..match import descriptor_score
-from ..metric import DRKFS
-from ..render.renderer import Renderer
-from ..synthetic.shapes import Part, assemble, random_shape
-from ..synthetic.variants import diagonal, shifted, thickened, without
+from drkfs_onnx.contract.config import PipelineConfig
+from drkfs_onnx.contract.mesh import frame_of
+from drkfs_onnx.match import descriptor_score
+from drkfs_onnx.metric import DRKFS
+from drkfs_onnx.render.renderer import Renderer
+from drkfs_onnx.synthetic.shapes import Part, assemble, random_shape
+from drkfs_onnx.synthetic.variants import diagonal, shifted, thickened, without
+
 from .data import views_in_frame
 from .metric_losses import LossFn, ranking_loss
 from .run import train_steps
