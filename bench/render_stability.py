@@ -21,12 +21,10 @@ from drkfs_onnx.render.renderer import Renderer
 from drkfs_onnx.render.torch_ops import TORCH_OPS
 from drkfs_onnx.synthetic.examples import REFERENCE, example_meshes
 
-ROOT = Path(__file__).resolve().parents[1]
-
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", default=str(ROOT / "bench" / "results" / "render_stability.json"))
+    parser.add_argument("--out", type=Path, help="the JSON to write (default: print only)")
     args = parser.parse_args()
     config = PipelineConfig.paper()  # the committed measurement's cameras
     renderer = Renderer(config)
@@ -55,12 +53,13 @@ def main() -> None:
             }
         )
     report = {
-        "command": "python bench/render_stability.py",
+        "command": "python bench/render_stability.py" + (f" --out {args.out}" if args.out else ""),
         "config": config.to_dict(),
         "rows": rows,
     }
-    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.out).write_text(json.dumps(report, indent=2) + "\n")
+    if args.out:
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        args.out.write_text(json.dumps(report, indent=2) + "\n")
     for row in rows:
         mesh, mean, peak = row["mesh"], row["mean_abs"], row["max_abs"]
         print(f"{mesh:28} mean {mean:.2e}  max {peak:.3f}  {row['change']}")
