@@ -2,7 +2,8 @@
 preset and the outside metrics a reader compares with) and docs/benchmark.md's (every method of
 the run, tiers split by synthetic and shared meshes, people's four subsets, the bars; the
 targets; what the human check lets a scorer reach; each method's verdict on the stability cases;
-"meshes as they come", from bench/as_they_come.py's JSON).
+"meshes as they come", from bench/as_they_come.py's JSON; the frozen test set's releases, from
+bench/test_set.py's).
 
     python bench/bench_tables.py [--results bench/results/results.json]
 
@@ -191,18 +192,44 @@ def as_they_come_table(section: dict) -> str:
     return "\n".join(lines)
 
 
+def test_set_table(results: dict) -> str:
+    """The frozen test set (bench/test_set.py's JSON): per release and method, the tier shares
+    of its synthetic bases and of its assets, and the share of assets passing each check."""
+    groups = {"test_tiers": "synthetic", "test_assets": "assets"}
+    lines = [
+        "| release | method | "
+        + " | ".join(f"{g}: {t.replace('_vs_', ' < ').replace('_', ' ')}"
+                     for g in groups.values() for t in TIER_PAIRS)
+        + " | " + " | ".join(AS_THEY_COME_CHECKS.values()) + " |",
+        "|---|---|" + "---:|" * (2 * len(TIER_PAIRS) + len(AS_THEY_COME_CHECKS)),
+    ]  # fmt: skip
+    for release, entry in results["releases"].items():
+        for method, row in entry["methods"].items():
+            cells = [_fmt3(row[g][t]) for g in groups for t in TIER_PAIRS]
+            cells += [f"{row['asset_checks'][c]:.2f}" for c in AS_THEY_COME_CHECKS]
+            lines.append(f"| {release} | {method} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def _fmt3(value: float | None) -> str:
+    return "n/a" if value is None else f"{value:.3f}"
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--results", type=Path, default=ROOT / "bench/results/results.json")
     parser.add_argument(
         "--as-they-come", type=Path, default=ROOT / "bench/results/as_they_come.json"
     )
+    parser.add_argument("--test-set", type=Path, default=ROOT / "bench/results/test_set.json")
     args = parser.parse_args()
     results = json.loads(args.results.read_text())
     tables = (readme_table, results_table, targets_table, ceiling_table, stability_table)
     print(*(table(results) for table in tables), sep="\n\n")
     if args.as_they_come.is_file():
         print("", as_they_come_table(json.loads(args.as_they_come.read_text())), sep="\n")
+    if args.test_set.is_file():
+        print("", test_set_table(json.loads(args.test_set.read_text())), sep="\n")
 
 
 if __name__ == "__main__":

@@ -26,7 +26,11 @@ from drkfs_lab.bench_tables import (
     results_table,
     stability_table,
     targets_table,
+    test_set_table,
 )
+from drkfs_lab.benchmark import test_set
+from drkfs_lab.benchmark.run import TIER_PAIRS, as_they_come_checks, tier_accuracy
+from drkfs_lab.benchmark.sets import BenchSet, Comparison
 from drkfs_lab.judging.judges import VISUAL
 from drkfs_lab.judging.rule import brief_share, chamfer_ratios, share
 from drkfs_lab.score_scale import markdown, scale
@@ -44,7 +48,7 @@ from drkfs_lab.studies.single_view import (
 )
 from drkfs_lab.studies.single_view import markdown as single_view_tables
 from drkfs_onnx import PipelineConfig
-from drkfs_onnx.contract.versions import metric_name
+from drkfs_onnx.contract.versions import LATEST, metric_name
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -248,6 +252,34 @@ def version_sample_is_the_benchmarks(root: Path) -> str:
     return f"{', '.join(held)} held"
 
 
+def test_set_is_scored_at_each_release(root: Path) -> str:
+    """bench/results/test_set.json holds the newest version's release, scored on the frozen set
+    (its digest), each method's shares recompute from its values, and docs/benchmark.md holds
+    the table."""
+    results = _json(root, "bench/results/test_set.json")
+    assert results["set"]["digest"] == test_set.DIGEST, "scored on another test set"
+    assert LATEST in results["releases"], f"{LATEST} is not scored on the test set"
+    labels = results["set"]["labels"]
+    keys = list(labels)
+    bench = BenchSet(comparisons=[
+        Comparison(group, key.rsplit("/", 1)[0], key.rsplit("/", 1)[1], kind, key, "")
+        for key, (group, kind) in labels.items()
+    ])  # fmt: skip
+    for release, entry in results["releases"].items():
+        for method, row in entry["methods"].items():
+            values = {i: entry["values"][method][key] for i, key in enumerate(keys)}
+            for group in (test_set.TIERS_GROUP, test_set.ASSETS_GROUP):
+                found = tier_accuracy(bench, values, group)
+                shares = {pair: found[pair] for pair in TIER_PAIRS}
+                expected = {pair: row[group][pair] for pair in TIER_PAIRS}
+                assert shares == expected, f"{release} {method} {group}"
+            checks = as_they_come_checks(bench, values, test_set.ASSETS_GROUP)["all"]
+            assert {n: c["share"] for n, c in checks.items()} == row["asset_checks"], method
+    doc = (root / "docs/benchmark.md").read_text()
+    assert test_set_table(results) in doc, "docs/benchmark.md's test set table differs"
+    return f"releases {', '.join(results['releases'])}"
+
+
 CHECKS: list[Callable[[Path], str | None]] = [
     fitting_study_fitted_the_shipped_form,
     ideas_recompute_from_their_rows,
@@ -262,6 +294,7 @@ CHECKS: list[Callable[[Path], str | None]] = [
     readme_score_scale_is_the_benchmarks,
     benchmark_tables_are_the_benchmarks,
     version_sample_is_the_benchmarks,
+    test_set_is_scored_at_each_release,
 ]
 
 

@@ -161,12 +161,14 @@ def real_sides(bases: list[str]) -> dict[str, list[str]]:
 
 def _halves(group: str, bases: list[str]) -> dict[str, list[str]]:
     """The tier set's halves (synthetic bases, shared meshes); the real tiers' sides
-    (``real_sides``)."""
+    (``real_sides``); the sides of "meshes as they come"; any other group whole ("all")."""
     if group == "real":
         return real_sides(bases)
     if group == as_they_come.GROUP:
         sides = as_they_come.sides().items()
         return {side: [b for b in keys if b in bases] for side, keys in sides}
+    if group != "tiers":
+        return {"all": bases}
     return {
         "synthetic": [b for b in bases if b not in sets.SHARED_MESHES],
         "shared": [b for b in bases if b in sets.SHARED_MESHES],
@@ -254,15 +256,18 @@ def real_checks(bench: sets.BenchSet, values: dict[int, float | None]) -> dict:
     return result
 
 
-def as_they_come_checks(bench: sets.BenchSet, values: dict[int, float | None]) -> dict:
-    """Per side of "meshes as they come", the share of bases where each 2-degree turn (about
-    x, y and z) scores below every surface variant, where every turn does, where every file
-    variant (winding, doubled, repeated, soup) does, and of the assets where the removed part
-    scores above every surface variant; with the bases each fails on."""
-    groups = _tier_values(bench, values, as_they_come.GROUP)
+def as_they_come_checks(
+    bench: sets.BenchSet, values: dict[int, float | None], group: str = as_they_come.GROUP
+) -> dict:
+    """Per side of "meshes as they come" (or of another ``group`` built as it is), the share of
+    bases where each 2-degree turn (about x, y and z) scores below every surface variant, where
+    every turn does, where every file variant (winding, doubled, repeated, soup) does, and of
+    the assets where the removed part scores above every surface variant; with the bases each
+    fails on."""
+    groups = _tier_values(bench, values, group)
     twos = {f"turned_{axis}_2" for axis in as_they_come.TURN_AXES}
     result = {}
-    for half, bases in _halves(as_they_come.GROUP, list(groups)).items():
+    for half, bases in _halves(group, list(groups)).items():
         checks: dict[str, dict[str, bool]] = defaultdict(dict)
         for b in bases:
             surface, invisible = groups[b]["surface"].values(), groups[b]["invisible"]

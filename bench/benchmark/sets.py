@@ -124,20 +124,25 @@ def add_variants(bench: BenchSet, base: str, verts, faces, variants, group: str 
 
 
 def tiers(
-    bench: BenchSet, families: list[str], shared: list[str], seed: int = SEED, prefix: str = ""
+    bench: BenchSet,
+    families: list[str],
+    shared: list[str],
+    seed: int = SEED,
+    prefix: str = "",
+    group: str = "tiers",
 ) -> None:
     """A base shape of each family and each named shared mesh, with their variants of every
-    tier (``tiers``); ``seed`` and ``prefix`` (of the base keys) make other sets of the same
-    kind (a held-out check)."""
+    tier (``tiers``); ``seed``, ``prefix`` (of the base keys) and ``group`` make other sets of
+    the same kind (a held-out check, the test set)."""
     rng = np.random.default_rng(seed)
     for family in families:
         parts = random_shape(family, rng)
         verts, faces = assemble(parts, 1)  # the variants' own tessellation
-        add_variants(bench, prefix + family, verts, faces, part_tiers(parts, rng))
+        add_variants(bench, prefix + family, verts, faces, part_tiers(parts, rng), group)
     for name in shared:
         mesh = load_mesh(real_mesh(name))
         variants = scan_tiers(mesh.vertices, mesh.faces, rng)
-        add_variants(bench, name, mesh.vertices, mesh.faces, variants)
+        add_variants(bench, name, mesh.vertices, mesh.faces, variants, group)
 
 
 REAL_PREFIX = "real-"  # the real tiers' base keys: real-<mesh>

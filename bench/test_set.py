@@ -1,0 +1,114 @@
+"""Score the frozen test set (``drkfs_lab.benchmark.test_set``) for a metric version's release:
+once per version, never to choose anything.
+
+    python bench/test_set.py --release drkfs-1.1 --out bench/results/test_set.json
+
+The release named must be the newest version (``PipelineConfig()``'s), and the results file must
+not hold it yet: a version's test figures are written once, at its release, and kept. Every
+named version is scored in the same run beside it (their rows say what the release changed on
+pairs nobody chose on), with pixel MSE, Chamfer-L1 and LFD where it is installed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import subprocess
+import sys
+import time
+from datetime import date
+from pathlib import Path
+
+import drkfs_onnx
+from drkfs_lab.benchmark import test_set
+from drkfs_lab.benchmark.methods import DrkfsOnnx, build_methods
+from drkfs_lab.benchmark.run import (
+    TIER_PAIRS,
+    as_they_come_checks,
+    score_with_peers,
+    tier_accuracy,
+)
+from drkfs_onnx.contract.versions import LATEST, VERSIONS, metric_config
+
+PEERS = ("pixel MSE", "Chamfer-L1", "LFD")
+
+
+def release_error(release: str, out: Path) -> str | None:
+    """Why ``release`` may not be scored into ``out`` (None when it may)."""
+    if release != LATEST:
+        return f"--release {release}: only the newest version ({LATEST}) is released"
+    if out.is_file() and release in json.loads(out.read_text()).get("releases", {}):
+        return f"{out}: {release} was scored at its release; its test figures are kept"
+    found = test_set.digest(test_set.build())
+    if found != test_set.DIGEST:
+        return f"the test set moved (digest {found[:12]}, frozen {test_set.DIGEST[:12]})"
+    return None
+
+
+def summary(bench, values: dict[int, float | None]) -> dict:
+    """A method's figures on the test set: the tier shares of both groups, with their pair
+    counts, and the assets' checks."""
+    shares = {}
+    for group in (test_set.TIERS_GROUP, test_set.ASSETS_GROUP):
+        found = tier_accuracy(bench, values, group)
+        shares[group] = {pair: found[pair] for pair in TIER_PAIRS} | {"pairs": found["pairs"]}
+    checks = as_they_come_checks(bench, values, test_set.ASSETS_GROUP)["all"]
+    return {**shares, "asset_checks": {name: row["share"] for name, row in checks.items()}}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--release", required=True, help="the version released (the newest)")
+    parser.add_argument("--out", type=Path, required=True, help="the results' JSON (appended)")
+    parser.add_argument("--threads", type=int, default=2)
+    parser.add_argument("--work", type=Path, default=Path("runs/test_set"))
+    args = parser.parse_args()
+    error = release_error(args.release, args.out)
+    if error:
+        sys.exit(f"error: {error}")
+    start = time.perf_counter()
+    bench = test_set.build()
+    methods = [DrkfsOnnx(name, metric_config(name), None, args.threads) for name in VERSIONS]
+    methods += [m for m in build_methods(args.work / "models", args.threads)
+                if set(m.outputs) & set(PEERS)]  # fmt: skip
+    scores, costs, notes = score_with_peers(bench, methods, print, [*VERSIONS, *PEERS])
+    kept = {n: v for n, v in scores.comparisons.items() if n in VERSIONS or n in PEERS}
+    commit = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True)
+    release = {
+        "command": f"python bench/test_set.py --release {args.release} --out {args.out}",
+        "package": drkfs_onnx.__version__,
+        "commit": commit.stdout.strip() or None,
+        "date": date.today().isoformat(),
+        "platform": platform.platform(),
+        "threads": args.threads,
+        "peers": notes,
+        "methods": {
+            name: {**summary(bench, values), "seconds_per_pair": costs[name]["seconds_per_pair"]}
+            for name, values in kept.items()
+        },
+        "values": {
+            name: {f"{c.base}/{c.label}": values.get(i) for i, c in enumerate(bench.comparisons)}
+            for name, values in kept.items()
+        },
+        "seconds": time.perf_counter() - start,
+    }
+    results = json.loads(args.out.read_text()) if args.out.is_file() else {}
+    results["set"] = {
+        "digest": test_set.DIGEST,
+        "tier_seeds": list(test_set.TIER_SEEDS),
+        "asset_seeds": list(test_set.ASSET_SEEDS),
+        "labels": {f"{c.base}/{c.label}": [c.group, c.kind] for c in bench.comparisons},
+    }
+    results.setdefault("releases", {})[args.release] = release
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps(results, indent=1) + "\n")
+    for name, row in release["methods"].items():
+        cells = [
+            row[g][p] for g in (test_set.TIERS_GROUP, test_set.ASSETS_GROUP) for p in TIER_PAIRS
+        ]
+        print(f"{name:22}" + "".join(f"{'n/a' if c is None else f'{c:.3f}':>8}" for c in cells))
+
+
+if __name__ == "__main__":
+    main()
