@@ -96,10 +96,12 @@ def _nearest_search(queries: np.ndarray, targets: np.ndarray, repeats: int) -> d
     """Seconds of the nearest search alone, by the Scorer's numpy search and by the exported
     match graph in onnxruntime (both return each query's nearest target), and of the float32
     product of the two sets alone: the search's floor with this BLAS."""
+    from drkfs_onnx.contract.model_files import MATCH_FILE, models_dir
     from drkfs_onnx.runtime.nearest import lift, nearest_lifted
-    from drkfs_onnx.runtime.sessions import open_match
+    from drkfs_onnx.runtime.sessions import Graph
 
-    graph = open_match(threads=2).session
+    shipped = models_dir() / MATCH_FILE
+    graph = Graph.open(shipped.read_bytes(), str(shipped), threads=2).session
     lifted = lift(targets)  # cached per reference mesh by the Scorer
     numpy_s, by_numpy = best_time(lambda: nearest_lifted(queries, lifted), repeats)
     onnx_s, (by_graph,) = best_time(lambda: graph.run(None, {"a": queries, "b": targets}), repeats)

@@ -11,7 +11,6 @@ import onnxruntime as ort
 from drkfs_onnx.contract.config import GRAPH_FREE_FIELDS, PipelineConfig
 from drkfs_onnx.contract.model_files import (
     CONFIG_KEY,
-    MATCH_FILE,
     VERSION_KEY,
     features_file,
     models_dir,
@@ -96,7 +95,3 @@ def open_features(
             "export a model for this config or score with the model's config"
         )
     return graph
-
-
-def open_match(path: str | Path | None = None, threads: int | None = None) -> Graph:
-    return Graph.open(*_read(path, MATCH_FILE), threads)
