@@ -2,6 +2,7 @@
 chart, and the quick run end to end."""
 
 import json
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -484,6 +485,22 @@ def test_lfd_sees_the_missing_leg_and_not_the_retessellation():
         assert lfd.compare(prepared["chair"], prepared["retessellated"]) == (0.0,)
         (missing,) = lfd.compare(prepared["chair"], prepared["no_leg"])
         assert missing > 0 and lfd.compare(prepared["no_leg"], prepared["chair"]) == (missing,)
+    finally:
+        lfd.close()
+
+
+@pytest.mark.skipif(shutil.which("Xvfb") is None, reason="no Xvfb here")
+def test_a_mesh_lfd_cannot_describe_leaves_its_pairs_unscored_and_is_named(tmp_path):
+    program = tmp_path / "Executable"
+    program.mkdir()
+    (program / "3DAlignment").write_text("#!/bin/sh\nexit 1\n")
+    (program / "3DAlignment").chmod(0o755)
+    lfd = peers.LightField(program, program / "Distance")
+    try:
+        chair = load_mesh(EXAMPLES / "chair.obj")
+        described, _ = lfd.prepare(Placed("chair", chair.vertices, chair.faces))
+        assert described is None and lfd.failed == ["chair"]
+        assert lfd.compare(described, described) == (None,)
     finally:
         lfd.close()
 

@@ -60,23 +60,35 @@ class LightField(Method):
         self.symmetric = distance.name == "Distance_fixed"
         self.display, self.server = _start_xvfb()
         self.count = 0
+        self.failed: list[str] = []  # the meshes 3DAlignment could not describe
 
     def prepare(self, placed: Placed):
+        """The stem of the mesh's descriptor files, or None where 3DAlignment fails on it twice
+        (it has failed once on a mesh it then described: its pairs are then unscored and the
+        mesh is named in ``failed``)."""
         start = time.perf_counter()
         self.count += 1
         stem = self.work / f"mesh{self.count}"
         trimesh.Trimesh(placed.verts, placed.faces, process=False).export(f"{stem}.obj")
         env = {**os.environ, "DISPLAY": self.display}
-        subprocess.run(
-            ["./3DAlignment", str(stem)], cwd=self.program, env=env, check=True,
-            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-        )  # fmt: skip
+        for _ in range(2):
+            described = subprocess.run(
+                ["./3DAlignment", str(stem)], cwd=self.program, env=env,
+                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+            )  # fmt: skip
+            if described.returncode == 0:
+                break
+        Path(f"{stem}.obj").unlink()
+        if described.returncode != 0:
+            self.failed.append(placed.key)
+            return None, time.perf_counter() - start
         for made, kept in LFD_OUTPUTS.items():
             (self.program / made).replace(kept.format(stem))
-        Path(f"{stem}.obj").unlink()
         return stem, time.perf_counter() - start
 
     def compare(self, a, b):
+        if a is None or b is None:
+            return (None,)
         result = subprocess.run(
             [str(self.distance), str(a), str(b)], cwd=self.program, capture_output=True
         )

@@ -394,6 +394,9 @@ def score_with_peers(
     finally:
         for peer in peers:
             peer.close()
+    for peer in peers:
+        if peer.failed:
+            notes[peer.outputs[0]] += f"; could not describe (pairs unscored): {peer.failed}"
     return scores, costs, notes
 
 
