@@ -186,7 +186,7 @@ def main() -> None:
         write_renders(bench, args.renders, args.threads,
                       f"python bench/real_tiers.py{chosen} --renders {args.renders}")  # fmt: skip
     if args.scan_renders is not None:
-        # the synthetic tiers' scan variants (``synthetic.tiers.scan_tiers``) of the swept
+        # the synthetic tiers' scan variants (``benchmark.tiers.scan_tiers``) of the swept
         # meshes, labelled by their recipe, not by looking
         scans = sets.tier_set(quick=False)
         scans.comparisons = [c for c in scans.comparisons if c.base in sets.SWEPT_MESHES]

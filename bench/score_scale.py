@@ -6,7 +6,7 @@ surface, structural), from the values a ``drkfs bench`` run committed, so a read
 
 Prints a markdown table (the README's) and, with --out, writes it as JSON: per method and tier,
 the median, the 10th and 90th percentiles and the range of the scores of that tier's variants
-against their base (9 synthetic families and 8 real meshes; the tiers are ``synthetic.tiers``').
+against their base (9 synthetic families and 8 real meshes; the tiers are ``benchmark.tiers``').
 """
 
 from __future__ import annotations

@@ -10,7 +10,7 @@ a pair is its least score. The set of no turn reproduces the benchmark's tier ac
 set: the three tier accuracies (pooled and per half) and the wrong-way invisible < surface
 pairs. Renders of a reference grow with the set's size; ``seconds`` has the measured cost.
 
-The benchmark's own turn is made about each base's centre (``synthetic.tiers.turned``); before
+The benchmark's own turn is made about each base's centre (``benchmark.tiers.turned``); before
 that fix it was made about the file's origin, which also shifted a scan (docs/benchmark.md).
 """
 

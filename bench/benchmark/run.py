@@ -460,7 +460,7 @@ def run_bench(
 
 
 DEFINITIONS = {
-    "tiers": "for two tiers of change (invisible < surface < structural, synthetic.tiers), the "
+    "tiers": "for two tiers of change (invisible < surface < structural, benchmark.tiers), the "
     "share of (lower-tier, higher-tier) variant pairs of one base where the higher tier's variant "
     "is further from the base; all bases pooled, and per half (synthetic bases, shared meshes); "
     "misses: per pair of tiers, how many bases order each pair of variants the wrong way (a tie "

@@ -6,7 +6,7 @@ With the shipped nets a 1-pixel translation of every view scores 0.6-3.8 times a
 which moves the projected surface by under a pixel on average (``bench/shift_tolerance.py``,
 bench/records/real_levers.md): the descriptors follow every pixel of the PoI map, so the diffuse
 motion of a turn outweighs a defect that changes the shading without moving it. The data here are
-the benchmark's kind of tiers (``synthetic.tiers.part_tiers``) on bases of other seeds, with turns
+the benchmark's kind of tiers (``benchmark.tiers.part_tiers``) on bases of other seeds, with turns
 of 1 and 3 degrees beside its 2 and the smallest part removed; each step also warps whole views
 slightly (``warped``: a shift, a turn in the image plane, a change of scale), of the base (an
 invisible change) and of a surface variant against itself (moving a textured view is not adding

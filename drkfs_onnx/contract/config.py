@@ -19,12 +19,12 @@ MATCHINGS = ("global", "window")
 DIRECTIONS = ("forward", "backward", "both")
 REDUCTIONS = ("sum", "mean", "tail", "power", "softmax")
 WINDINGS = ("geometry", "file")
-# what the detector and HardNet were trained for: 'correspondence' (the paper's way: the same
-# surface point in views 5-30 degrees apart, ``training.net_losses``; the paper preset's and the
-# loss's), 'metric' (then fine-tuned to rank the metric's own structural edits above its mild
-# ones, ``training.metric_losses``) or 'tolerant' (the metric nets then fine-tuned for a viewer's
-# tolerance to small turns and shifts and for simplifications, ``training.tolerance``; the
-# default's and ``PipelineConfig.structure()``'s)
+# what the detector and HardNet were trained for (by the lab's training, bench/training/):
+# 'correspondence' (the paper's way: the same surface point in views 5-30 degrees apart,
+# ``net_losses``; the paper preset's and the loss's), 'metric' (then fine-tuned to rank the
+# metric's own structural edits above its mild ones, ``metric_losses``) or 'tolerant' (the
+# metric nets then fine-tuned for a viewer's tolerance to small turns and shifts and for
+# simplifications, ``tolerance``; the default's and ``PipelineConfig.structure()``'s)
 NETS = ("tolerant", "metric", "correspondence")
 # Each pairing's descriptors' part in full (no moderated window).
 FULL_PARTS = {"moderate_slope": 1.0, "moderate_from": 0.0, "moderate_to": 0.0}
