@@ -3,8 +3,6 @@ chart, and the quick run end to end."""
 
 import json
 import shutil
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -16,7 +14,7 @@ from drkfs_lab.benchmark import human, peers, sets
 from drkfs_lab.benchmark import point_metrics as pm
 from drkfs_lab.benchmark.chart import pareto_front, write_chart
 from drkfs_lab.benchmark.methods import DEFAULT_NAME, DrkfsOnnx, Placed, drkfs_configs
-from drkfs_lab.benchmark.run import TIER_PAIRS, run_bench, tier_accuracy
+from drkfs_lab.benchmark.run import TIER_PAIRS, run_bench
 from drkfs_lab.benchmark.sets import STABILITY, _box_with_cavity
 from drkfs_lab.benchmark.tiers import (
     INVISIBLE,
@@ -430,41 +428,6 @@ def test_a_folder_without_the_stimuli_is_named(tmp_path):
         human.faces_in(tmp_path)
 
 
-def test_the_reductions_script_reproduces_the_benchmarks_default_from_one_set_of_distances(
-    tmp_path,
-):
-    jods = {f"F{i}": {"p12.50": -0.5, "p06.25": -1.0 - i, "p03.12": -2.0 - 2 * i} for i in range(3)}
-    folder = _geometric_folder(tmp_path / "geo", jods)
-    out = tmp_path / "reductions.json"
-    done = subprocess.run(
-        [sys.executable, "bench/reductions.py", "--out", str(out), "--quick", "--human",
-         str(folder), "--threads", "1"],
-        cwd=Path(__file__).resolve().parents[1], capture_output=True, text=True, timeout=600,
-    )  # fmt: skip
-    assert done.returncode == 0, done.stderr[-2000:]
-    rows = json.loads(out.read_text())["rows"]
-    assert len(rows) == 7 and all(set(r["human"]) >= set(human.SETTINGS) for r in rows.values())
-    # the default's row is what the benchmark's default scores on the same set
-    bench = sets.tier_set(quick=True)
-    jod = human.add_human(bench, folder)
-    method = DrkfsOnnx("DR-KFS", PipelineConfig(), None, threads=1)
-    values = {}
-    for i, c in enumerate(bench.comparisons):
-        frame = frame_of(bench.shapes[c.reference][0])
-        shape, reference = (
-            method.prepare(Placed(key, place(bench.shapes[key][0], frame), bench.shapes[key][1]))[0]
-            for key in (c.shape, c.reference)
-        )
-        values[i] = method.compare(shape, reference)[0]
-    default = rows[f"default (softmax, t = {PipelineConfig().temperature:g})"]
-    accuracy = tier_accuracy(bench, values)
-    assert default["tiers"] == {pair: accuracy[pair] for pair in TIER_PAIRS}
-    agreement = human.human_agreement(bench, values, jod)
-    assert [default["human"][s] for s in human.SETTINGS] == pytest.approx(
-        [agreement[s] for s in human.SETTINGS]
-    )
-
-
 def test_lfd_is_skipped_with_its_reason_where_it_is_not_installed(tmp_path):
     assert "not installed" in peers.find_lfd(tmp_path)
 
@@ -503,23 +466,6 @@ def test_a_mesh_lfd_cannot_describe_leaves_its_pairs_unscored_and_is_named(tmp_p
         assert lfd.compare(described, described) == (None,)
     finally:
         lfd.close()
-
-
-def test_the_turn_search_script_scores_every_turn_set(tmp_path):
-    out = tmp_path / "turn_search.json"
-    done = subprocess.run(
-        [sys.executable, "bench/turn_search.py", "--out", str(out), "--quick", "--threads", "1"],
-        cwd=Path(__file__).resolve().parents[1], capture_output=True, text=True, timeout=600,
-    )  # fmt: skip
-    assert done.returncode == 0, done.stderr[-2000:]
-    results = json.loads(out.read_text())
-    assert set(results["tiers"]) == {"no turn", "+-1", "+-2", "+-3"}
-    for accuracy in results["tiers"].values():
-        assert all(0.0 <= accuracy[pair] <= 1.0 for pair in TIER_PAIRS)
-    # a least score over more turns never puts a pair further apart: +-2 contains the benchmark's
-    # own turn, so no invisible < surface pair is lost to it
-    no_turn, search = results["tiers"]["no turn"], results["tiers"]["+-2"]
-    assert len(search["misses_invisible_vs_surface"]) <= len(no_turn["misses_invisible_vs_surface"])
 
 
 def test_the_image_methods_render_a_mesh_alone_when_no_other_method_shares_their_views():

@@ -3,22 +3,22 @@
 defect (noise, smoothing), and that below a missing or added part.
 
 With the shipped nets a 1-pixel translation of every view scores 0.6-3.8 times a 2-degree turn,
-which moves the projected surface by under a pixel on average (``bench/shift_tolerance.py``,
-bench/records/real_levers.md): the descriptors follow every pixel of the PoI map, so the diffuse
-motion of a turn outweighs a defect that changes the shading without moving it. The data here are
-the benchmark's kind of tiers (``benchmark.tiers.part_tiers``) on bases of other seeds, with turns
-of 1 and 3 degrees beside its 2 and the smallest part removed; each step also warps whole views
-slightly (``warped``: a shift, a turn in the image plane, a change of scale), of the base (an
+which moves the projected surface by under a pixel on average (bench/records/real_levers.md, "Why a
+2° turn outscores a visible defect"): the descriptors follow every pixel of the PoI map, so the
+diffuse motion of a turn outweighs a defect that changes the shading without moving it. The data
+here are the benchmark's kind of tiers (``benchmark.tiers.part_tiers``) on bases of other seeds,
+with turns of 1 and 3 degrees beside its 2 and the smallest part removed; each step also warps whole
+views slightly (``warped``: a shift, a turn in the image plane, a change of scale), of the base (an
 invisible change) and of a surface variant against itself (moving a textured view is not adding
-texture). With ``simplification`` data, each step also ranks a smoothed synthetic shape's
-quadric simplifications coarser above finer (people judge simplified scans so: Geo-metric's
-judgments stay a check, never training data). With ``salient`` data, each base also has a
-removed tip and a cut hole as structural changes (``small_regions_removed``): measured, and not
-shipped, since they cost people's agreement (docs/training.md). With ``slides`` data, each step
-also asks a part slid sideways step by step to score up evenly, no step much larger than the
-others (the benchmark's slide check asks it of a chair's leg), and with the part removed too,
-the furthest slide below its removal: both measured, and not shipped, since they let the slide's
-whole rise grow and fail the bars test (docs/training.md).
+texture). With ``simplification`` data, each step also ranks a smoothed synthetic shape's quadric
+simplifications coarser above finer (people judge simplified scans so: Geo-metric's judgments stay a
+check, never training data). With ``salient`` data, each base also has a removed tip and a cut hole
+as structural changes (``small_regions_removed``): measured, and not shipped, since they cost
+people's agreement (docs/training.md). With ``slides`` data, each step also asks a part slid
+sideways step by step to score up evenly, no step much larger than the others (the benchmark's slide
+check asks it of a chair's leg), and with the part removed too, the furthest slide below its
+removal: both measured, and not shipped, since they let the slide's whole rise grow and fail the
+bars test (docs/training.md).
 """
 
 from __future__ import annotations
