@@ -1,5 +1,6 @@
 """Each loss idea's strongest recipe on the fitting study's problems, beside the committed fits
-(issue 32: where the fitting target against pixel MSE is out of reach, show every idea's best).
+(bench/records/fitting.md: where the fitting target against pixel MSE is out of reach, every
+idea's best).
 
     python bench/fit_ideas.py --study bench/fit/results.json --out bench/fit/ideas.json [--quick]
 

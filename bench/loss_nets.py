@@ -1,4 +1,5 @@
-"""Nets fine-tuned for the loss, measured (issue 32's fourth idea).
+"""Nets fine-tuned for the loss, measured (bench/records/fitting.md, "Nets fine-tuned for the
+loss").
 
     python bench/loss_nets.py --out bench/fit/loss_nets.json [--quick]
     python bench/loss_nets.py --save-nets bench/single_view/loss_nets.pt   # the nets alone

@@ -51,7 +51,7 @@ REQUIRED_STABILITY = (
     "retessellated", "misaligned_1pct", "duplicated_faces", "flipped_faces",
     "far_from_origin", "other_scale",
 )  # fmt: skip
-# the goals of issue 30, each met or not (``targets``)
+# the second match choice's goals (bench/records/matching.md), each met or not (``targets``)
 GOALS = {
     "invisible_vs_structural": 0.95,
     "invisible_vs_surface": 0.9,
@@ -169,7 +169,8 @@ def summarise(bench: sets.BenchSet, jod: dict | None, scores, costs, sweep: Swee
 
 
 def targets(row: dict, chamfer: dict) -> dict[str, bool]:
-    """Which of issue 30's goals a variant meets (a goal the run cannot judge is not met)."""
+    """Which of the second match choice's goals a variant meets (a goal the run cannot judge is
+    not met)."""
     tiers, people = row["tiers"], row["human"] or {}
 
     def at_most(settings: tuple[str, ...], goal: float) -> bool:
@@ -202,8 +203,8 @@ def merit(row: dict) -> float:
 
 def choose(feature_configs: dict, chamfer: dict) -> dict:
     """The default. Hard limits: every REQUIRED_STABILITY case passed, at most SLOWER times the
-    current default's seconds per new mesh and per match. Among those: the most of issue 30's
-    goals met (``targets``), then the best ``merit``, then the cheaper feature config."""
+    current default's seconds per new mesh and per match. Among those: the most of the second
+    choice's goals met (``targets``), then the best ``merit``, then the cheaper feature config."""
     current = feature_configs[feature_name(PipelineConfig())]
     rows = []
     for name, entry in feature_configs.items():

@@ -1,4 +1,4 @@
-"""Nets with a viewer's tolerance (issue 71's training lever), fine-tuned and judged.
+"""Nets with a viewer's tolerance (bench/records/real_levers.md), fine-tuned and judged.
 
     python bench/real_nets.py --out bench/results/real_nets.json [--steps N] [--quick]
     python bench/real_nets.py --out ... --save-nets FILE   # also the fine-tuned nets' state

@@ -1,4 +1,4 @@
-"""Where a DR-KFS training step of the single-view study goes (issue: a faster CPU step), and what
+"""Where a DR-KFS training step of the single-view study goes, and what
 running HardNet in bfloat16 would save, measured in one run:
 
     python bench/step_profile.py --out bench/single_view/step_profile.json [--repeats 3]

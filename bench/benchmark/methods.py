@@ -31,7 +31,8 @@ RETRIEVAL_SAMPLES = 10_000
 DEFAULT_NAME = "DR-KFS"  # the shipped default config, marked "default": true in results.json
 PAPER_NAME = "DR-KFS paper"  # PipelineConfig.paper(), marked "preset": "paper"
 STRUCTURE_NAME = "DR-KFS structure"  # PipelineConfig.structure(), marked "preset": "structure"
-PREVIOUS_NAME = "DR-KFS previous default"  # before issue 30: correspondence nets, global power 8
+# the first match choice's default: correspondence nets, global power 8
+PREVIOUS_NAME = "DR-KFS previous default"
 
 
 @dataclass

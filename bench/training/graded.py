@@ -1,13 +1,14 @@
 """Nets fine-tuned for the loss: graded series of edits, and an objective that asks the loss's
 descriptor distances to grow with the edit at least as fast as pixel MSE's do.
 
-The idea (issue 32): the scoring nets learn to ignore mild edits, while a loss must feel every
-step towards its target. Here one part of a base shape is shifted, thickened or shrunk away (its
-last grade: removed), or the whole surface is roughened, at GRADES strengths, from what a fit's
-last steps leave to what its first steps face. Rendered at the loss's config, each patch's
-squared aligned descriptor distance should grow at least ELASTICITY times as fast (log over log)
-as the patch's pixel change, and the loss's score should grow from one grade to the next.
-``bench/loss_nets.py`` measures the shipped and the fine-tuned nets (bench/records/fitting.md).
+The idea (bench/records/fitting.md, "Nets fine-tuned for the loss"): the scoring nets learn to
+ignore mild edits, while a loss must feel every step towards its target. Here one part of a base
+shape is shifted, thickened or shrunk away (its last grade: removed), or the whole surface is
+roughened, at GRADES strengths, from what a fit's last steps leave to what its first steps face.
+Rendered at the loss's config, each patch's squared aligned descriptor distance should grow at least
+ELASTICITY times as fast (log over log) as the patch's pixel change, and the loss's score should
+grow from one grade to the next. ``bench/loss_nets.py`` measures the shipped and the fine-tuned nets
+(bench/records/fitting.md).
 """
 
 from __future__ import annotations
