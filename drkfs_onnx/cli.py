@@ -104,11 +104,34 @@ def demo(
         typer.echo(f"{name:28} {value:10.3f} {time.perf_counter() - start:8.2f}  {change}")
 
 
+# an entry of ``drkfs_onnx.commands`` left out -> why (shown by every drkfs run)
+UNAVAILABLE: dict[str, str] = {}
+
+
 def add_installed_commands() -> None:
-    """Add the commands other installed distributions offer under ``drkfs_onnx.commands`` (the
-    lab's): each entry point names a typer app whose commands join this one's."""
+    """Add the commands of each installed ``drkfs_onnx.commands`` entry point (the lab's), each
+    naming a typer app; a command added before is not added again. An entry that fails to load,
+    or another command under a name this app has, is left out and named in ``UNAVAILABLE``: the
+    library's own commands never depend on another distribution loading."""
+    added = {command_name(command): command.callback for command in app.registered_commands}
     for entry in entry_points(group="drkfs_onnx.commands"):
-        app.registered_commands.extend(entry.load().registered_commands)
+        try:
+            commands = entry.load().registered_commands
+        except Exception as exc:  # a broken or half-removed install, whatever it raises
+            UNAVAILABLE[entry.name] = f"{entry.value} did not load ({type(exc).__name__}: {exc})"
+            continue
+        for command in commands:
+            name = command_name(command)
+            if name not in added:
+                app.registered_commands.append(command)
+                added[name] = command.callback
+            elif added[name] is not command.callback:
+                UNAVAILABLE[entry.name] = f"{entry.value} has a command named {name}, as drkfs"
+
+
+def command_name(command) -> str:
+    """A registered command's name on the command line."""
+    return command.name or command.callback.__name__.replace("_", "-")
 
 
 add_installed_commands()
@@ -117,6 +140,8 @@ add_installed_commands()
 def main() -> None:
     """The ``drkfs`` command: the app, with a missing torch named as the extra to install
     instead of a traceback (the base install is the torch-free server scorer)."""
+    for entry, reason in UNAVAILABLE.items():
+        typer.echo(f"warning: drkfs_onnx.commands entry {entry!r} left out: {reason}", err=True)
     try:
         app()
     except ModuleNotFoundError as exc:

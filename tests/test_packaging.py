@@ -116,6 +116,30 @@ def test_no_command_writes_into_shipped_files_by_default(monkeypatch):
         assert Path(result.exception.args[0]).parts[0] == RUNS.name
 
 
+def test_the_labs_commands_join_drkfs_once_and_a_broken_lab_leaves_the_librarys_own(tmp_path):
+    from drkfs_onnx import cli
+
+    names = [cli.command_name(command) for command in app.registered_commands]
+    assert {"train", "tune-tolerant", "bench", "choose-loss"} <= set(names)
+    cli.add_installed_commands()  # the lab's entry again: nothing is added twice
+    assert [cli.command_name(command) for command in app.registered_commands] == names
+    assert not cli.UNAVAILABLE
+    code = (
+        "import sys\n"
+        "sys.modules['drkfs_lab'] = None\n"  # an install whose lab no longer imports
+        "from drkfs_onnx import cli\n"
+        "sys.argv = ['drkfs', 'score', '--help']\n"
+        "cli.main()\n"
+    )
+    result = subprocess.run(
+        [sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True
+    )
+    assert result.returncode == 0 and "Score MESH_A against" in result.stdout, result.stderr
+    assert "warning: drkfs_onnx.commands entry 'lab' left out: drkfs_lab.cli:app did not load" in (
+        result.stderr
+    )
+
+
 def test_the_runtime_imports_from_the_repository_root_without_the_editable_finder():
     """What a plain `pip install .` meets at the repository root: ./drkfs_onnx shadows the
     installed package, and no finder maps export/ and runtime/ into it."""
