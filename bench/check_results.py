@@ -254,8 +254,8 @@ def version_sample_is_the_benchmarks(root: Path) -> str:
 
 def test_set_is_scored_at_each_release(root: Path) -> str:
     """bench/results/test_set.json holds the newest version's release, scored on the frozen set
-    (its digest), each method's shares recompute from its values, and docs/benchmark.md holds
-    the table."""
+    (its digest), each method's shares recompute from its values, docs/benchmark.md holds the
+    table and the README the newest version's synthetic shares."""
     results = _json(root, "bench/results/test_set.json")
     assert results["set"]["digest"] == test_set.DIGEST, "scored on another test set"
     assert LATEST in results["releases"], f"{LATEST} is not scored on the test set"
@@ -277,6 +277,11 @@ def test_set_is_scored_at_each_release(root: Path) -> str:
             assert {n: c["share"] for n, c in checks.items()} == row["asset_checks"], method
     doc = (root / "docs/benchmark.md").read_text()
     assert test_set_table(results) in doc, "docs/benchmark.md's test set table differs"
+    shares = results["releases"][LATEST]["methods"][LATEST][test_set.TIERS_GROUP]
+    quoted = " / ".join(f"{shares[pair]:.3f}" for pair in (
+        "invisible_vs_structural", "invisible_vs_surface", "surface_vs_structural"))  # fmt: skip
+    readme = " ".join((root / "README.md").read_text().split())
+    assert f"{quoted} on new synthetic shapes" in readme, "the README's test set figures differ"
     return f"releases {', '.join(results['releases'])}"
 
 

@@ -1,5 +1,6 @@
-"""Score the frozen test set (``drkfs_lab.benchmark.test_set``) for a metric version's release:
-once per version, never to choose anything.
+"""Score the frozen test set once, at a metric version's release, never to choose anything.
+
+The set is drkfs_lab.benchmark.test_set.
 
     python bench/test_set.py --release drkfs-1.1 --out bench/results/test_set.json
 
@@ -34,13 +35,16 @@ from drkfs_onnx.contract.versions import LATEST, VERSIONS, metric_config
 PEERS = ("pixel MSE", "Chamfer-L1", "LFD")
 
 
-def release_error(release: str, out: Path) -> str | None:
-    """Why ``release`` may not be scored into ``out`` (None when it may)."""
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def release_error(release: str, out: Path, bench) -> str | None:
+    """Why ``release`` may not be scored into ``out`` on ``bench`` (None when it may)."""
     if release != LATEST:
         return f"--release {release}: only the newest version ({LATEST}) is released"
     if out.is_file() and release in json.loads(out.read_text()).get("releases", {}):
         return f"{out}: {release} was scored at its release; its test figures are kept"
-    found = test_set.digest(test_set.build())
+    found = test_set.digest(bench)
     if found != test_set.DIGEST:
         return f"the test set moved (digest {found[:12]}, frozen {test_set.DIGEST[:12]})"
     return None
@@ -61,24 +65,31 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--release", required=True, help="the version released (the newest)")
     parser.add_argument("--out", type=Path, required=True, help="the results' JSON (appended)")
-    parser.add_argument("--threads", type=int, default=2)
-    parser.add_argument("--work", type=Path, default=Path("runs/test_set"))
+    parser.add_argument("--threads", type=int, default=2, help="onnxruntime and renderer threads")
+    parser.add_argument(
+        "--work", type=Path, default=Path("runs/test_set"), help="graphs exported if not shipped"
+    )
     args = parser.parse_args()
-    error = release_error(args.release, args.out)
-    if error:
-        sys.exit(f"error: {error}")
     start = time.perf_counter()
     bench = test_set.build()
+    error = release_error(args.release, args.out, bench)
+    if error:
+        sys.exit(f"error: {error}")
     methods = [DrkfsOnnx(name, metric_config(name), None, args.threads) for name in VERSIONS]
     methods += [m for m in build_methods(args.work / "models", args.threads)
                 if set(m.outputs) & set(PEERS)]  # fmt: skip
     scores, costs, notes = score_with_peers(bench, methods, print, [*VERSIONS, *PEERS])
     kept = {n: v for n, v in scores.comparisons.items() if n in VERSIONS or n in PEERS}
-    commit = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True)
+    git = ["git", "-C", str(ROOT)]
+    commit = subprocess.run([*git, "rev-parse", "HEAD"], capture_output=True, text=True)
+    changed = subprocess.run([*git, "status", "--porcelain", "--untracked-files=no"],
+                             capture_output=True, text=True)  # fmt: skip
     release = {
-        "command": f"python bench/test_set.py --release {args.release} --out {args.out}",
+        "command": f"python bench/test_set.py --release {args.release} --out {args.out} "
+        f"--threads {args.threads} --work {args.work}",
         "package": drkfs_onnx.__version__,
         "commit": commit.stdout.strip() or None,
+        "uncommitted_changes": bool(changed.stdout.strip()) if changed.returncode == 0 else None,
         "date": date.today().isoformat(),
         "platform": platform.platform(),
         "threads": args.threads,

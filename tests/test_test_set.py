@@ -1,5 +1,6 @@
 """The frozen test set: built by the benchmark's recipes at seeds nothing else uses, unchanged
-since it was made, imported by its release script alone, and scored once per released version."""
+since it was made, imported by its release script and the results' check alone, and scored once
+per released version."""
 
 import ast
 import json
@@ -8,6 +9,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from test_layout import every_module
 
 from drkfs_lab.benchmark import as_they_come, sets, test_set
 from drkfs_lab.studies import network, single_view
@@ -48,9 +50,9 @@ def test_its_seeds_are_no_other_sets_or_trainings():
     assert not used & {*test_set.TIER_SEEDS, *test_set.ASSET_SEEDS}
 
 
-def test_only_the_release_script_imports_it():
+def test_only_the_release_script_and_the_results_check_import_it():
     importers = []
-    for path in sorted([*(ROOT / "bench").rglob("*.py"), *(ROOT / "drkfs_onnx").rglob("*.py")]):
+    for path in every_module():
         for node in ast.walk(ast.parse(path.read_text())):
             names = []
             if isinstance(node, ast.ImportFrom) and node.module:
