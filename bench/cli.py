@@ -84,7 +84,7 @@ def train(
     from .training.run import train as run_training
 
     plan = replace(QUICK_TRAIN if quick else TrainPlan(), seed=seed)
-    command = f"drkfs train --out {out} --seed {seed}" + (" --quick" if quick else "")
+    command = f"drkfs train --out {out} --work {work} --seed {seed}" + (" --quick" if quick else "")
     manifest = run_training(plan, out, work, command)
     for row in manifest["detectors"]:
         typer.echo(f"detector {row['detector']:8} repeatability {row['repeatability']:.3f}")
