@@ -14,10 +14,14 @@ from drkfs_onnx.contract.config import (
     ONE_REACH,
     OWN_RING_ONLY,
     RENDER_FIELDS,
+    STAGE_SETTINGS,
     STAGES,
     TWO_SIDED,
     VIEW_FIELDS,
+    CameraSettings,
+    MatchSettings,
     PipelineConfig,
+    ShadingSettings,
 )
 
 
@@ -67,6 +71,37 @@ def test_every_setting_belongs_to_one_stage_and_the_artefacts_keys_come_from_the
     # the nets' weights and a feature graph serve other views: never another net or match
     for reused in (RENDER_FIELDS, GRAPH_FREE_FIELDS):
         assert set(reused) <= set(VIEW_FIELDS)
+
+
+def test_each_stages_settings_are_plain_frozen_data_with_the_configs_fields_and_defaults():
+    config = PipelineConfig.structure()
+    for stage, fields in STAGES.items():
+        settings = config.stage(stage)
+        assert isinstance(settings, STAGE_SETTINGS[stage])
+        assert dataclasses.asdict(settings) == {name: getattr(config, name) for name in fields}
+        assert dataclasses.asdict(STAGE_SETTINGS[stage]()) == {
+            name: getattr(PipelineConfig(), name) for name in fields
+        }
+        with pytest.raises(dataclasses.FrozenInstanceError):
+            settings.__setattr__(fields[0], None)
+    assert PipelineConfig.from_stages(*(config.stage(stage) for stage in STAGES)) == config
+
+
+def test_a_config_is_built_from_some_stages_settings_the_rest_at_their_defaults():
+    built = PipelineConfig.from_stages(
+        CameraSettings(num_views=6, turn_degrees=0.0), ShadingSettings(back_light=1.0)
+    )
+    assert built == PipelineConfig(num_views=6, turn_degrees=0.0, back_light=1.0)
+    with pytest.raises(ValueError, match="num_views must be at least 1"):
+        PipelineConfig.from_stages(CameraSettings(num_views=0))
+
+
+def test_differences_are_named_stage_by_stage():
+    made = PipelineConfig.from_stages(CameraSettings(num_views=6), MatchSettings(window=1))
+    assert made.differences(PipelineConfig()) == (
+        "cameras: num_views 6 (asked 5); match: window 1 (asked 0)"
+    )
+    assert PipelineConfig().differences(PipelineConfig()) == ""
 
 
 def test_config_is_frozen_and_round_trips_through_json():

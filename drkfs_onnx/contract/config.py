@@ -394,11 +394,29 @@ class PipelineConfig:
         """Screen distance beyond which a face's coverage is cut to zero (SoftRas' culling)."""
         return math.sqrt(self.sigma * math.log(1.0 / self.coverage_eps - 1.0))
 
+    def stage(self, name: str) -> Any:
+        """One stage's settings (``STAGES``) as plain data, e.g. ``config.stage("cameras")`` ->
+        ``CameraSettings(num_views=5, turn_degrees=2.5, image_size=144, ...)``."""
+        return STAGE_SETTINGS[name](**{field: getattr(self, field) for field in STAGES[name]})
+
+    @classmethod
+    def from_stages(cls, *settings: Any) -> PipelineConfig:
+        """The config of the stage settings given, every stage not given at its defaults:
+        ``PipelineConfig.from_stages(CameraSettings(num_views=6), MatchSettings(window=1))``."""
+        values: dict[str, Any] = {}
+        for stage in settings:
+            values.update(dataclasses.asdict(stage))
+        return cls(**values)
+
     def differences(self, asked: PipelineConfig) -> str:
-        """The settings where this config differs from ``asked``, for an error message."""
+        """The settings where this config differs from ``asked``, stage by stage, for an error
+        message: "cameras: num_views 6 (asked 5); match: window 1 (asked 0)"."""
         made, wanted = self.to_dict(), asked.to_dict()
-        changed = [name for name in made if made[name] != wanted[name]]
-        return ", ".join(f"{name} {made[name]!r} (asked {wanted[name]!r})" for name in changed)
+        return "; ".join(
+            f"{stage}: " + ", ".join(f"{n} {made[n]!r} (asked {wanted[n]!r})" for n in changed)
+            for stage, fields in STAGES.items()
+            if (changed := [n for n in fields if made[n] != wanted[n]])
+        )
 
     def to_dict(self) -> dict[str, Any]:
         return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
@@ -423,6 +441,34 @@ class PipelineConfig:
 
     def replace(self, **changes: Any) -> PipelineConfig:
         return dataclasses.replace(self, **changes)
+
+
+def _stage_settings(stage: str, name: str) -> type:
+    """A frozen dataclass of one stage's settings: ``PipelineConfig``'s fields of that stage,
+    with their types and defaults (one definition of each setting: the config's)."""
+    fields = {f.name: f for f in dataclasses.fields(PipelineConfig)}
+    settings = dataclasses.make_dataclass(
+        name,
+        [(n, fields[n].type, dataclasses.field(default=fields[n].default)) for n in STAGES[stage]],
+        frozen=True,
+    )
+    settings.__module__ = __name__  # where it is defined, for its repr and pickles
+    return settings
+
+
+# Each stage's settings as plain data (PyTorch3D's RasterizationSettings, BlendParams): what a
+# config says about one stage (``PipelineConfig.stage``), and what builds one
+# (``PipelineConfig.from_stages``).
+CameraSettings = _stage_settings("cameras", "CameraSettings")
+RasterSettings = _stage_settings("raster", "RasterSettings")
+ShadingSettings = _stage_settings("shading", "ShadingSettings")
+NetSettings = _stage_settings("nets", "NetSettings")
+MatchSettings = _stage_settings("match", "MatchSettings")
+SolidChangeSettings = _stage_settings("solid_change", "SolidChangeSettings")
+STAGE_SETTINGS = {
+    "cameras": CameraSettings, "raster": RasterSettings, "shading": ShadingSettings,
+    "nets": NetSettings, "match": MatchSettings, "solid_change": SolidChangeSettings,
+}  # fmt: skip
 
 
 @lru_cache(maxsize=64)
