@@ -49,9 +49,9 @@ def single_view(
     steps: Annotated[
         int | None,
         typer.Option(
-            help="Train --losses at the first of --seeds for this many steps (networks beside "
-            "the study's in OUT) and judge them beside the study's networks (writes "
-            "OUT/longer-<steps>-steps.json).",
+            help="Train --losses at each of --seeds for this many steps (networks beside the "
+            "study's in OUT) and judge them beside the study's networks of that seed (writes "
+            "OUT/longer-<steps>-steps-seed<seed>.json).",
             show_default=False,
         ),
     ] = None,
@@ -105,23 +105,25 @@ def single_view(
 
     progress = lambda line: typer.echo(line, err=True)  # noqa: E731
     out = out or RUNS / "single-view"
-    if steps is not None:
-        seed = int(seeds.split(",")[0])
-        try:
-            results = run_longer(
-                out, steps, losses.split(","), seed, quick, device, threads, progress
-            )
-        except ValueError as error:
-            raise typer.BadParameter(str(error), param_hint="--losses") from None
-        for name, row in results["means"]["mean"].items():
-            judged = [f"{judge} {value:.4g}" for judge, value in row.items() if value is not None]
-            typer.echo(f"{name}: {', '.join(judged)}")
-        return
     try:
         seed_list = tuple(int(s) for s in seeds.split(","))
     except ValueError:
         message = f"--seeds: expected integers like 0,1,2; got {seeds!r}"
         raise typer.BadParameter(message) from None
+    if steps is not None:
+        for seed in seed_list:
+            try:
+                results = run_longer(
+                    out, steps, losses.split(","), seed, quick, device, threads, progress
+                )
+            except ValueError as error:
+                raise typer.BadParameter(str(error), param_hint="--losses") from None
+            for name, row in results["means"]["mean"].items():
+                judged = [
+                    f"{judge} {value:.4g}" for judge, value in row.items() if value is not None
+                ]
+                typer.echo(f"seed {seed}, {name}: {', '.join(judged)}")
+        return
     if curve:
         results = run_curve(
             out, until, seed_list[0], state or CURVE_STATE, quick, device, threads, progress

@@ -240,7 +240,8 @@ def test_more_steps_train_beside_the_studys_networks_and_are_judged_with_them(qu
     args = ["--quick", "--out", str(out), "--steps", "3", "--seeds", "0"]
     result = CliRunner().invoke(app, [*args, "--losses", "SoftRas (silhouette IoU)"])
     assert result.exit_code == 0, result.output
-    longer = json.loads((out / "longer-3-steps.json").read_text())
+    assert "seed 0, SoftRas (silhouette IoU), 3 steps: " in result.output
+    longer = json.loads((out / "longer-3-steps-seed0.json").read_text())
     rows = {"SoftRas (silhouette IoU), 3 steps", "SoftRas (silhouette IoU), 2 steps",
             "DR-KFS, 2 steps"}  # fmt: skip
     assert set(longer["means"]["mean"]) == rows

@@ -110,7 +110,10 @@ CURVE_RECIPES = (SOFTRAS, PIXEL, "3 x Chamfer-L2", DRKFS_SHADED, RECIPE)
 CURVE_CONTROL = "silhouette IoU + 3 x Chamfer-L2"
 CURVE_STATE = Path.home() / ".cache" / "drkfs-onnx" / "single-view-curve"
 # trained only when asked (--steps ... --losses): the strongest attempt's other nets
-EXTRA = (Recipe(DRKFS_TUNED, ((1.0, DRKFS_TUNED),)),)
+EXTRA = (
+    Recipe(DRKFS_TUNED, ((1.0, DRKFS_TUNED),)),
+    Recipe(f"{DRKFS_TUNED} + 3 x Chamfer-L2", ((1.0, DRKFS_TUNED), (3.0, CHAMFER))),
+)
 # the fine-tuning protocol (--finetune, studies/finetune.py): a network trained with SoftRas'
 # loss or Chamfer's, trained as long again with its own loss, with DR-KFS beside it, or with
 # another image term of DR-KFS's weight beside it (the matched control)
@@ -707,7 +710,8 @@ def run_longer(
     """Whether more steps close a loss's gap, or how a loss the study leaves out does:
     ``names``' generators trained at ``seed`` for ``steps`` steps (OUT/networks-<steps>-steps,
     resumable), judged on the study's test shapes beside the study's networks of the same
-    losses and of SoftRas' and DR-KFS' (OUT/networks) -> OUT/longer-<steps>-steps.json."""
+    losses and of SoftRas' and DR-KFS' (OUT/networks) ->
+    OUT/longer-<steps>-steps-seed<seed>.json."""
     study_plan = QUICK if quick else FULL
     plan = replace(study_plan, steps=steps)
     dev = torch.device(device)
@@ -752,7 +756,7 @@ def run_longer(
             for challenger in rows
         },  # fmt: skip
     }
-    (out / f"longer-{steps}-steps.json").write_text(json.dumps(results, indent=1))
+    (out / f"longer-{steps}-steps-seed{seed}.json").write_text(json.dumps(results, indent=1))
     return results
 
 
