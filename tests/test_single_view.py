@@ -243,7 +243,7 @@ def test_more_steps_train_beside_the_studys_networks_and_are_judged_with_them(qu
     assert "seed 0, SoftRas (silhouette IoU), 3 steps: " in result.output
     longer = json.loads((out / "longer-3-steps-seed0.json").read_text())
     rows = {"SoftRas (silhouette IoU), 3 steps", "SoftRas (silhouette IoU), 2 steps",
-            "DR-KFS, 2 steps"}  # fmt: skip
+            "DR-KFS, 2 steps", "DR-KFS + 3 x Chamfer-L2, 2 steps"}  # fmt: skip
     assert set(longer["means"]["mean"]) == rows
     assert all(set(judged) == rows for judged in longer["table"].values())
     assert {p: p.read_bytes() for p in (out / "networks").rglob("*.pt")} == saved

@@ -710,7 +710,7 @@ def run_longer(
     """Whether more steps close a loss's gap, or how a loss the study leaves out does:
     ``names``' generators trained at ``seed`` for ``steps`` steps (OUT/networks-<steps>-steps,
     resumable), judged on the study's test shapes beside the study's networks of the same
-    losses and of SoftRas' and DR-KFS' (OUT/networks) ->
+    losses and of SoftRas', DR-KFS' and the recipe's (OUT/networks) ->
     OUT/longer-<steps>-steps-seed<seed>.json."""
     study_plan = QUICK if quick else FULL
     plan = replace(study_plan, steps=steps)
@@ -726,8 +726,8 @@ def run_longer(
             )
         saved = longer.get(seed, name)
         models[f"{name}, {steps} steps"], seconds[name] = saved["model"], saved["seconds_per_step"]
-    # beside them the study's networks of the same losses, and of SoftRas' and DR-KFS'
-    for name in dict.fromkeys([*names, SOFTRAS, DRKFS_SHADED]):
+    # beside them the study's networks of the same losses, and of SoftRas', DR-KFS' and the recipe
+    for name in dict.fromkeys([*names, SOFTRAS, DRKFS_SHADED, RECIPE]):
         saved, row = study.get(seed, name), f"{name}, {study_plan.steps} steps"
         if saved is not None and row not in models:
             models[row] = saved["model"]
