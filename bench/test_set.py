@@ -15,7 +15,6 @@ from __future__ import annotations
 import argparse
 import json
 import platform
-import subprocess
 import sys
 import time
 from datetime import date
@@ -30,12 +29,10 @@ from drkfs_lab.benchmark.run import (
     score_with_peers,
     tier_accuracy,
 )
+from drkfs_lab.training.run import git_commit
 from drkfs_onnx.contract.versions import LATEST, VERSIONS, metric_config
 
 PEERS = ("pixel MSE", "Chamfer-L1", "LFD")
-
-
-ROOT = Path(__file__).resolve().parents[1]
 
 
 def release_error(release: str, out: Path, bench) -> str | None:
@@ -80,16 +77,11 @@ def main() -> None:
                 if set(m.outputs) & set(PEERS)]  # fmt: skip
     scores, costs, notes = score_with_peers(bench, methods, print, [*VERSIONS, *PEERS])
     kept = {n: v for n, v in scores.comparisons.items() if n in VERSIONS or n in PEERS}
-    git = ["git", "-C", str(ROOT)]
-    commit = subprocess.run([*git, "rev-parse", "HEAD"], capture_output=True, text=True)
-    changed = subprocess.run([*git, "status", "--porcelain", "--untracked-files=no"],
-                             capture_output=True, text=True)  # fmt: skip
     release = {
         "command": f"python bench/test_set.py --release {args.release} --out {args.out} "
         f"--threads {args.threads} --work {args.work}",
         "package": drkfs_onnx.__version__,
-        "commit": commit.stdout.strip() or None,
-        "uncommitted_changes": bool(changed.stdout.strip()) if changed.returncode == 0 else None,
+        "commit": git_commit(),
         "date": date.today().isoformat(),
         "platform": platform.platform(),
         "threads": args.threads,

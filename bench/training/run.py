@@ -121,10 +121,13 @@ def plan_key(plan) -> str:
 
 
 def git_commit() -> str:
+    """The commit of the repository this lab lives in (not the working folder's), with "-dirty"
+    where tracked files differ from it; "unknown" outside a repository."""
+    git = ["git", "-C", str(Path(__file__).resolve().parents[1])]
     try:
-        head = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True)
+        head = subprocess.run([*git, "rev-parse", "HEAD"], capture_output=True, text=True)
         dirty = subprocess.run(
-            ["git", "status", "--porcelain", "--untracked-files=no"], capture_output=True, text=True
+            [*git, "status", "--porcelain", "--untracked-files=no"], capture_output=True, text=True
         )
     except OSError:
         return "unknown"
