@@ -6,7 +6,7 @@ the committed rows it came from, or holds the code's choices to the study that m
 Prints one line a check ("ok", or "FAILED" with the reason) and exits 1 when any failed. These
 checks read only committed files (bench/fit, bench/fit-network, bench/single_view,
 bench/results, the README, docs/benchmark.md, bench/records/single_view.md); the tests run the
-script (tests/test_check_results.py).
+script (tests/lab/test_check_results.py).
 """
 
 from __future__ import annotations

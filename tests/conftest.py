@@ -9,10 +9,13 @@ import trimesh
 
 from drkfs_lab.benchmark.sets import real_mesh
 
+# the repository's root, for tests at any depth of tests/
+ROOT = Path(__file__).resolve().parents[1]
+
 # Tests run the rasteriser's equations eagerly, their subprocesses too: compiling them for each
 # test's config would cost CI's 2 cores about 10 s a graph. The default, compiled where a
 # training step or a GPU asks (render.compile_policy.compiles), has its own tests in
-# test_render.py, and test_cuda.py runs under it.
+# render/test_renderer.py, and test_cuda.py runs under it.
 os.environ.setdefault("DRKFS_COMPILE", "0")
 
 

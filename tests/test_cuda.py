@@ -3,7 +3,7 @@ agree with the CPU (run where torch sees a GPU; skipped elsewhere, CI included).
 
 import pytest
 import torch
-from conftest import loss_case
+from conftest import ROOT, loss_case
 
 from drkfs_lab.benchmark.torch_checks import agreement, value_and_gradient
 from drkfs_onnx import DRKFS, PipelineConfig
@@ -102,9 +102,8 @@ def test_a_batch_on_cuda_equals_the_loop_there_with_few_host_waits():
 def test_the_readme_training_example_runs_on_cuda(monkeypatch):
     """The README's example picks the GPU where there is one, and runs there unchanged."""
     import re
-    from pathlib import Path
 
-    root = Path(__file__).resolve().parents[1]
+    root = ROOT
     text = (root / "README.md").read_text()
     code = re.search(r"<!-- training-loop example -->\s*```python\n(.*?)```", text, re.S).group(1)
     namespace: dict = {}

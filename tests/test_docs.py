@@ -4,15 +4,14 @@ real meshes in the repository, and a test run that says what it leaves out."""
 import re
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
 import tomllib
+from conftest import ROOT
 
 from drkfs_lab.benchmark import sets
 from drkfs_onnx.synthetic.examples import write_examples
 
-ROOT = Path(__file__).resolve().parents[1]
 QUICK_STARTS = ("Score your two meshes", "Run a server", "Train a network")
 RECORD_HEADINGS = ["Question", "Change", "Command", "Result", "Decision", "Metric version"]
 

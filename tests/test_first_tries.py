@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import trimesh
-from conftest import without
+from conftest import ROOT, without
 from typer.testing import CliRunner
 
 from drkfs_onnx.contract.config import PipelineConfig
@@ -18,7 +18,7 @@ from drkfs_onnx.contract.mesh import load_mesh
 from drkfs_onnx.runtime.cli import app
 from drkfs_onnx.runtime.scorer import MAX_FACES, Scorer
 
-EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+EXAMPLES = ROOT / "examples"
 CHAIR, NO_LEG = EXAMPLES / "chair.obj", EXAMPLES / "chair_no_leg.obj"
 FAST = ["--nets", "metric", "--width", "0.25"]
 

@@ -8,8 +8,8 @@ import sys
 from pathlib import Path
 
 import pytest
+from conftest import ROOT
 
-ROOT = Path(__file__).resolve().parents[1]
 PACKAGE = ROOT / "drkfs_onnx"
 LAB = ROOT / "bench"
 # layer -> the layers its modules may import (besides their own). A folder of the library or of
@@ -173,3 +173,30 @@ def test_a_stage_is_found_by_its_folder_and_file_name():
     for stage, files in stages.items():
         for file in files:
             assert (PACKAGE / file).is_file(), f"{stage}: {file}"
+
+
+# top-level test files that hold what crosses the modules: a device, the docs, a newcomer's
+# first tries, this layout, the installs, the torch path's failures
+CROSS_CUTTING = {
+    "test_cuda",
+    "test_docs",
+    "test_first_tries",
+    "test_layout",
+    "test_packaging",
+    "test_torch_edges",
+}
+
+
+def test_a_modules_tests_are_found_by_its_name():
+    """tests/ mirrors the library's folders, and tests/lab/ the lab's: tests/X/test_NAME.py holds
+    the module (or folder) X/NAME."""
+    tests = ROOT / "tests"
+    unmatched = []
+    for path in sorted(tests.rglob("test_*.py")):
+        parts = path.relative_to(tests).parts
+        folder, within = (LAB, parts[1:-1]) if parts[0] == "lab" else (PACKAGE, parts[:-1])
+        module = folder.joinpath(*within, path.stem.removeprefix("test_"))
+        named = module.with_suffix(".py").is_file() or module.is_dir()
+        if not named and path.stem not in CROSS_CUTTING:
+            unmatched.append(str(path.relative_to(tests)))
+    assert unmatched == [], f"test files that name no module where they lie: {unmatched}"

@@ -2,16 +2,15 @@
 README's training example."""
 
 import re
-from pathlib import Path
 
 import pytest
 import torch
+from conftest import ROOT
 
 from drkfs_onnx import PipelineConfig, load_mesh
 from drkfs_onnx.loss import COARSE_TO_FINE, DrkfsLoss, SoftMatch, Stage
 from drkfs_onnx.match import best_match_distances, soft_match_distances
 
-ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = ROOT / "examples"
 
 

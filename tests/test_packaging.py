@@ -13,14 +13,13 @@ import pytest
 import torch
 import trimesh
 import typer.main
+from conftest import ROOT
 from typer.testing import CliRunner
 
 from drkfs_lab.fit import app as fit_app
 from drkfs_onnx import DRKFS, PipelineConfig, load_mesh
 from drkfs_onnx.cli import RUNS, app
 from drkfs_onnx.synthetic.examples import example_meshes
-
-ROOT = Path(__file__).resolve().parents[1]
 
 
 def test_runtime_imports_where_torch_and_ray_cannot_be_imported():
@@ -155,7 +154,7 @@ def test_the_runtime_imports_from_the_repository_root_without_the_editable_finde
         "names = ('bench', 'docs', 'drkfs_onnx', 'tests', 'meshes', 'studies')\n"
         "print([u.find_spec(f'drkfs_onnx.{name}') for name in names])\n"
     )
-    root = Path(__file__).resolve().parents[1]
+    root = ROOT
     result = subprocess.run([sys.executable, "-c", code], cwd=root, capture_output=True, text=True)
     assert result.returncode == 0, result.stderr
     # nothing but the package's own modules imports as drkfs_onnx.*

@@ -9,7 +9,7 @@ surface variants, a small hole, a small part removed) at ``ASSET_SEEDS``. The re
 meshes have all chosen something, so none is here. ``DIGEST`` freezes the set: a change to the
 recipes that moves any of its meshes or labels fails the tests, and a new set takes new seeds.
 Only ``bench/test_set.py``, which scores it, and ``bench/check_results.py``, which reads the
-committed scores, import this module (``tests/test_test_set.py`` holds it).
+committed scores, import this module (``tests/lab/benchmark/test_test_set.py`` holds it).
 """
 
 from __future__ import annotations

@@ -2,9 +2,9 @@
 ``PipelineConfig()``, and every record names the version it was made under."""
 
 import json
-from pathlib import Path
 
 import pytest
+from conftest import ROOT
 
 from drkfs_onnx import PipelineConfig
 from drkfs_onnx.contract.cli_options import PRESETS, pick_config
@@ -16,8 +16,6 @@ from drkfs_onnx.contract.versions import (
     metric_name,
     views_version,
 )
-
-ROOT = Path(__file__).resolve().parents[1]
 
 
 def test_the_default_is_the_newest_version_so_a_default_change_must_name_a_new_one():

@@ -7,11 +7,11 @@ import hashlib
 import json
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 import torch
+from conftest import ROOT
 from typer.testing import CliRunner
 
 from drkfs_lab.benchmark.tiers import TIERS
@@ -23,7 +23,6 @@ from drkfs_onnx.metric import DRKFS
 from drkfs_onnx.synthetic.shapes import assemble, random_shape
 from drkfs_onnx.synthetic.variants import face_areas, salient_tip
 
-ROOT = Path(__file__).resolve().parents[1]
 CONFIG = PipelineConfig(
     turn_degrees=0.0, num_views=2, image_size=64, temperature=0.03, nets="metric"
 )

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import trimesh
-from conftest import without
+from conftest import ROOT, without
 from typer.testing import CliRunner
 
 from drkfs_onnx import PipelineConfig, load_mesh
@@ -20,7 +20,7 @@ from drkfs_onnx.contract.versions import LATEST, metric_config
 from drkfs_onnx.runtime.cli import app
 from drkfs_onnx.runtime.output_lock import lock_path
 
-EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+EXAMPLES = ROOT / "examples"
 CHAIR = EXAMPLES / "chair.obj"
 NO_LEG = EXAMPLES / "chair_no_leg.obj"
 NO_BACK = EXAMPLES / "chair_no_back.obj"
@@ -144,7 +144,7 @@ def test_a_mesh_no_camera_sees_is_an_error_not_a_perfect_score(tmp_path):
 def test_a_model_for_another_config_is_refused(tmp_path):
     asked = PipelineConfig().descriptor_width
     other = PipelineConfig(nets="metric", descriptor_width=0.5 if asked != 0.5 else 1.0)
-    shipped = Path(__file__).resolve().parents[1] / "models" / features_file(other)
+    shipped = ROOT / "models" / features_file(other)
     result = _run("pair", NO_LEG, CHAIR, "--model", shipped)
     assert result.exit_code == 2
     assert f"descriptor_width {other.descriptor_width!r} (asked {asked!r})" in result.output

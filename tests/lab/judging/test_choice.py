@@ -8,6 +8,7 @@ from pathlib import Path
 
 import pytest
 import trimesh
+from conftest import ROOT
 from typer.testing import CliRunner
 
 from drkfs_lab.judging.choice import JUDGE_CONFIG, judge_and_choose, read_reconstructions
@@ -16,7 +17,6 @@ from drkfs_lab.judging.rule import choose
 from drkfs_onnx.cli import app
 from drkfs_onnx.synthetic.examples import write_examples
 
-ROOT = Path(__file__).resolve().parents[1]
 QUICK_JUDGE = JUDGE_CONFIG.replace(num_views=2, image_size=64)
 
 

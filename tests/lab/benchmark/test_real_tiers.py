@@ -3,6 +3,7 @@ the benchmark reports on them."""
 
 import numpy as np
 import pytest
+from conftest import ROOT
 
 from drkfs_lab.benchmark import real_tiers, sets
 from drkfs_lab.benchmark.real_tiers import (
@@ -142,9 +143,8 @@ def test_the_parts_split_each_score_into_its_two_terms_and_name_every_misordered
     import json
     import subprocess
     import sys
-    from pathlib import Path
 
-    root = Path(__file__).resolve().parents[1]
+    root = ROOT
     out = tmp_path / "parts.json"
     done = subprocess.run(
         [sys.executable, "bench/real_tiers.py", "--parts", str(out), "--threads", "2"],
@@ -176,9 +176,8 @@ def test_the_shares_recomputed_without_some_variants_leave_out_exactly_their_pai
     import json
     import subprocess
     import sys
-    from pathlib import Path
 
-    root = Path(__file__).resolve().parents[1]
+    root = ROOT
     committed = json.loads((root / "bench/results/real_tiers.json").read_text())
 
     def shares(left_out: str) -> subprocess.CompletedProcess:
@@ -265,11 +264,10 @@ def test_the_third_sides_meshes_are_written_welded_from_a_clone(tmp_path):
     import subprocess
     import sys
     import zipfile
-    from pathlib import Path
 
     import trimesh
 
-    root = Path(__file__).resolve().parents[1]
+    root = ROOT
     data = tmp_path / "clone" / "data"
     data.mkdir(parents=True)
     cow = load_mesh(sets.real_mesh("cow"))

@@ -2,11 +2,11 @@
 method a training loop logs them with."""
 
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
 import torch
+from conftest import ROOT
 
 from drkfs_onnx import PipelineConfig, load_mesh
 from drkfs_onnx.contract import match_rules
@@ -16,7 +16,7 @@ from drkfs_onnx.runtime.explain import explain
 from drkfs_onnx.runtime.match import pairing_part, pairing_solid
 from drkfs_onnx.runtime.scorer import Scorer
 
-EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+EXAMPLES = ROOT / "examples"
 CHANGED = 0.05  # a pixel the removed leg changes by more than this is where the leg was
 
 

@@ -6,9 +6,9 @@ import ast
 import json
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
+from conftest import ROOT
 from test_layout import every_module
 
 from drkfs_lab.benchmark import as_they_come, sets, test_set
@@ -17,7 +17,6 @@ from drkfs_lab.training import graded, tolerance
 from drkfs_lab.training.run import TrainPlan
 from drkfs_onnx.contract.versions import LATEST, VERSIONS
 
-ROOT = Path(__file__).resolve().parents[1]
 RELEASE = ROOT / "bench" / "test_set.py"
 
 

@@ -1,14 +1,13 @@
 """Mesh input: every format trimesh reads, clear errors naming file and reason, normalisation."""
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 import trimesh
+from conftest import ROOT
 
 from drkfs_onnx.contract.mesh import Mesh, MeshError, check_mesh, load_mesh, normalize_pair
 
-EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+EXAMPLES = ROOT / "examples"
 
 
 @pytest.mark.parametrize("ext", ["obj", "ply", "stl", "off", "glb"])

@@ -3,12 +3,12 @@ need (empty patches, fine tessellation, repeated references) and refuses foreign
 
 import warnings
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pytest
 import torch
 import trimesh
+from conftest import ROOT
 
 from drkfs_lab.benchmark import sets
 from drkfs_onnx import DRKFS, PipelineConfig, load_mesh
@@ -21,7 +21,7 @@ from drkfs_onnx.contract.versions import metric_config
 from drkfs_onnx.runtime import MeshFeatures, ModelMismatch, Scorer
 from drkfs_onnx.runtime.scorer import WindingWarning
 
-EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+EXAMPLES = ROOT / "examples"
 VARIANTS = ["chair_retessellated.obj", "chair_leg_shifted.obj", "chair_no_leg.obj"]
 
 

@@ -3,12 +3,12 @@ chart, and the quick run end to end."""
 
 import json
 import shutil
-from pathlib import Path
 
 import numpy as np
 import pytest
 import torch
 import trimesh
+from conftest import ROOT
 
 from drkfs_lab.benchmark import human, peers, sets
 from drkfs_lab.benchmark import point_metrics as pm
@@ -37,7 +37,7 @@ from drkfs_onnx.synthetic.shapes import (
     subdivide,
 )
 
-EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+EXAMPLES = ROOT / "examples"
 
 
 def _placed(verts, faces):

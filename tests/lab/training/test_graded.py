@@ -6,16 +6,15 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
 import torch
+from conftest import ROOT
 
 from drkfs_lab.training import graded
 from drkfs_onnx.contract.config import PipelineConfig
 from drkfs_onnx.metric import DRKFS
 
-ROOT = Path(__file__).resolve().parents[1]
 CONFIG = PipelineConfig.loss(num_views=2, image_size=64)
 
 

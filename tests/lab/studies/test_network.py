@@ -6,12 +6,12 @@ import struct
 import subprocess
 import sys
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pytest
 import torch
 import trimesh
+from conftest import ROOT
 from typer.testing import CliRunner
 
 from drkfs_lab.benchmark.point_metrics import iou, is_watertight
@@ -36,8 +36,6 @@ from drkfs_lab.studies.network import (
 from drkfs_lab.studies.study import slug
 from drkfs_onnx.contract.cameras import make_cameras
 from drkfs_onnx.contract.config import PipelineConfig
-
-ROOT = Path(__file__).resolve().parents[1]
 
 # the studies' end to end checks: python -m pytest -m slow (.ci/run runs them)
 pytestmark = pytest.mark.slow

@@ -5,13 +5,11 @@ import json
 import shutil
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
+from conftest import ROOT
 
 from drkfs_lab import check_results
-
-ROOT = Path(__file__).resolve().parents[1]
 
 
 @pytest.mark.slow  # .ci/run runs the script itself too; 17 s of the default run's 5 minutes

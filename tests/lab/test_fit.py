@@ -7,12 +7,12 @@ import struct
 import subprocess
 import sys
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pytest
 import torch
 import trimesh
+from conftest import ROOT
 from typer.testing import CliRunner
 
 from drkfs_lab.fit import app as fit_app
@@ -52,8 +52,6 @@ from drkfs_lab.studies.study import (
 )
 from drkfs_onnx.geometry import Smoothness, chamfer, surface_points
 from drkfs_onnx.synthetic.shapes import Part, assemble, random_shape
-
-ROOT = Path(__file__).resolve().parents[1]
 
 # the studies' end to end checks: python -m pytest -m slow (.ci/run runs them)
 pytestmark = pytest.mark.slow

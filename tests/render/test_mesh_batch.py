@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import torch
 import trimesh
-from conftest import icosphere, loss_case
+from conftest import ROOT, icosphere, loss_case
 
 from drkfs_onnx import DRKFS, PipelineConfig
 from drkfs_onnx.contract.patch_grid import nonempty_patches as numpy_nonempty
@@ -271,9 +271,8 @@ def test_the_batch_benchmark_writes_its_rows(tmp_path):
     import json
     import subprocess
     import sys
-    from pathlib import Path
 
-    script = Path(__file__).resolve().parents[1] / "bench" / "torch_batch.py"
+    script = ROOT / "bench" / "torch_batch.py"
     out = tmp_path / "batch.json"
     args = ["--devices", "cpu", "--sizes", "2", "--stages", "fine", "--repeats", "1"]
     args += ["--no-before", "--loop-sizes", "", "--eager-sizes", "", "--out", str(out)]

@@ -6,12 +6,13 @@ import sys
 from pathlib import Path
 
 import pytest
+from conftest import ROOT
 from typer.testing import CliRunner
 
 from drkfs_onnx.runtime.cli import app
 
-EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
-BUNNY = Path(__file__).resolve().parents[1] / "meshes" / "stanford-bunny.obj"
+EXAMPLES = ROOT / "examples"
+BUNNY = ROOT / "meshes" / "stanford-bunny.obj"
 FAST = ["--nets", "metric", "--width", "0.25"]
 
 
