@@ -14,7 +14,9 @@ cameras and a softer renderer, so a patch sees a larger part of the shape and a 
 reaches further; then the loss preset itself. A soft best match (``SoftMatch``: a softmin over a
 patch's candidates whose temperature falls as training goes) is an option for windows of r1 or
 more, not the preset: fitting one mesh it ranked first, training networks it did far worse than
-the preset (bench/records/fitting.md).
+the preset (bench/records/fitting.md). ``view_groups`` scores each step from one group of a
+stage's cameras, drawn at random: a step that costs about that share of the render and the nets,
+and equals the loss on average over the groups.
 """
 
 from __future__ import annotations
@@ -77,6 +79,12 @@ class DrkfsLoss(nn.Module):
         metrics: one ``DRKFS`` per stage, at the stage's config.
         stages: each stage's config and the ``progress`` it runs until (the last to 1.0).
         soft: soft best matches whose temperature falls with ``progress``, or None (hard).
+        view_groups: each call scores from one of this many groups of each stage's cameras
+            (camera k in group k mod ``view_groups``), drawn at random: a cheaper step whose
+            mean over the groups is the loss (``DRKFS.score_to``'s ``cameras``); 1, every
+            camera each call. It must divide every stage's camera count.
+        generator: what draws the groups (a training's own, to repeat its draws); a new one
+            seeded 0 when None.
 
     Shape:
         - target(verts (V, 3), faces (F, 3)) -> ``StagedTarget``, one ``Target`` per stage; a
@@ -90,12 +98,26 @@ class DrkfsLoss(nn.Module):
     ``.to()``, ``.cuda()`` and ``state_dict()`` behave as for any module.
     """
 
-    def __init__(self, metrics: list[DRKFS], stages: tuple[Stage, ...], soft: SoftMatch | None):
+    def __init__(
+        self,
+        metrics: list[DRKFS],
+        stages: tuple[Stage, ...],
+        soft: SoftMatch | None,
+        view_groups: int = 1,
+        generator: torch.Generator | None = None,
+    ):
         super().__init__()
         if len(metrics) != len(stages) or stages[-1].until < 1.0:
             raise ValueError("one metric per stage, and the last stage must run to the end (1.0)")
+        counts = [s.config.num_views for s in stages]
+        if view_groups < 1 or any(count % view_groups for count in counts):
+            raise ValueError(
+                f"view_groups: a divisor of every stage's camera count ({counts}); "
+                f"got {view_groups}"
+            )
         self.metrics = nn.ModuleList(metrics)
-        self.stages, self.soft = stages, soft
+        self.stages, self.soft, self.view_groups = stages, soft, view_groups
+        self.generator = torch.Generator().manual_seed(0) if generator is None else generator
 
     @classmethod
     def pretrained(
@@ -104,6 +126,7 @@ class DrkfsLoss(nn.Module):
         soft: SoftMatch | None = None,
         normalization: str = "joint",
         conv_precision: str = "ieee",
+        view_groups: int = 1,
     ) -> DrkfsLoss:
         """The shipped nets at each stage's config (``DRKFS.pretrained``); ``conv_precision``
         as ``DRKFS``'s."""
@@ -111,7 +134,7 @@ class DrkfsLoss(nn.Module):
             DRKFS.pretrained(s.config, normalization=normalization, conv_precision=conv_precision)
             for s in stages
         ]
-        return cls(metrics, stages, soft)
+        return cls(metrics, stages, soft, view_groups)
 
     @classmethod
     def from_nets(
@@ -119,13 +142,14 @@ class DrkfsLoss(nn.Module):
         nets: DRKFS,
         stages: tuple[Stage, ...] = COARSE_TO_FINE,
         soft: SoftMatch | None = None,
+        view_groups: int = 1,
     ) -> DrkfsLoss:
         """Copies of ``nets``' detector and HardNet at each stage's config, with its
         normalisation and conv precision: nets of one's own (fine-tuned for the loss, say) in
         place of the shipped ones."""
         options = dict(normalization=nets.normalization, conv_precision=nets.conv_precision)
         metrics = [with_nets(s.config, nets.detector, nets.descriptor, **options) for s in stages]
-        return cls(metrics, stages, soft)
+        return cls(metrics, stages, soft, view_groups)
 
     def stage(self, progress: float) -> int:
         return next(i for i, s in enumerate(self.stages) if progress < s.until or s.until >= 1.0)
@@ -153,5 +177,9 @@ class DrkfsLoss(nn.Module):
             )
         index = self.stage(progress)
         temperature = None if self.soft is None else self.soft.temperature(progress)
-        metric = self.metrics[index]
-        return metric.score_to(verts, faces, target[index], batch_reduction, temperature)
+        metric, cameras = self.metrics[index], None
+        if self.view_groups > 1:
+            draw = dict(generator=self.generator, device=self.generator.device)
+            group = int(torch.randint(self.view_groups, (), **draw))
+            cameras = list(range(group, metric.config.num_views, self.view_groups))
+        return metric.score_to(verts, faces, target[index], batch_reduction, temperature, cameras)

@@ -75,6 +75,15 @@ class Target(NamedTuple):
         views = None if self.views is None else self.views.to(device)
         return Target(frame, self.features.to(device), views)
 
+    def of_views(self, views: list[int], config: PipelineConfig) -> Target:
+        """The reference as the cameras at ``views`` (of a one-ring ``config``'s K) see it:
+        those views' rows of its descriptors, and those views."""
+        per_view = config.patches_per_view
+        rows = torch.cat([torch.arange(k * per_view, (k + 1) * per_view) for k in views])
+        features = self.features.index_select(-2, rows.to(self.features.device))
+        seen = None if self.views is None else self.views[..., list(views), :, :]
+        return Target(self.frame, features, seen)
+
     @staticmethod
     def stack(targets: list[Target]) -> Target:
         """One reference each -> a batch of them, in order."""
@@ -230,10 +239,14 @@ class DRKFS(nn.Module):
         descriptors, views = self._described(meshes)
         return meshes.unbatch(descriptors), _unbatched(meshes, views)
 
-    def _described(self, meshes: MeshBatch) -> tuple[torch.Tensor, torch.Tensor | None]:
+    def _described(
+        self, meshes: MeshBatch, renderer: Renderer | None = None
+    ) -> tuple[torch.Tensor, torch.Tensor | None]:
         """(B, K * T * P, D) descriptors and, for a config with a solid change, the
-        (B, K * T, S, S) views they describe (else None)."""
-        images = self.renderer.render(meshes, mode=self.render_mode).unsqueeze(1)
+        (B, K * T, S, S) views they describe (else None); from ``renderer``'s cameras where
+        given, else the config's."""
+        renderer = self.renderer if renderer is None else renderer
+        images = renderer.render(meshes, mode=self.render_mode).unsqueeze(1)
         descriptors = self.describe(images)
         views = images.reshape(len(meshes), -1, *images.shape[-2:])
         return (
@@ -282,6 +295,7 @@ class DRKFS(nn.Module):
         target: Target,
         batch_reduction: str = "mean",
         temperature: float | None = None,
+        cameras: list[int] | None = None,
     ) -> torch.Tensor:
         """The score of mesh A against a prepared reference.
 
@@ -292,16 +306,48 @@ class DRKFS(nn.Module):
             batch_reduction: a batch's scores' 'mean', 'sum', or 'none'.
             temperature: soft best matches (``match.soft_match_distances``), a loss form;
                 None for the metric's hard ones.
+            cameras: the indices of some of a one-ring, window-matched config's K cameras:
+                the score from those views of both meshes alone (the rest are not rendered).
+                Under a mean reduction, the mean of such scores over a partition of the
+                cameras into equal groups is the score (``DrkfsLoss``'s ``view_groups``).
 
         Returns:
             () for one mesh; a batch's () mean or sum, or its (B,) scores.
         """
         meshes = self._meshes(verts, faces)
-        features, views = self._described_to(meshes, target)
+        if cameras is None:
+            features, views = self._described_to(meshes, target)
+            config, table = self.config, self._table
+        else:
+            config = self._subset_config(cameras)
+            renderer = Renderer(config, self.renderer.cameras.select(list(cameras)))
+            renderer = renderer.to(self.window_table.device)
+            features, views = self._described_to(meshes, target, renderer)
+            target = target.of_views(cameras, self.config)
+            table = window_index(config, self.window_table.device)
         scores = match_score(
-            features, target.features, self.config, temperature, self._table, views, target.views
+            features, target.features, config, temperature, table, views, target.views
         )
         return over_batch(scores, meshes.single, batch_reduction)
+
+    def _subset_config(self, cameras: list[int]) -> PipelineConfig:
+        """The config of a score from some of the cameras: one ring and a window match (within a
+        view), so that the score of every camera is the mean of a partition's, and each camera
+        once."""
+        config, count = self.config, self.config.num_views
+        if len(config.rings) > 1 or config.matching != "window":
+            raise ValueError(
+                "cameras: a score from some cameras needs one ring of them and a window match "
+                f"(the loss preset's); this config has {len(config.rings)} rings and "
+                f"{config.matching!r} matching"
+            )
+        if (
+            not cameras
+            or len(set(cameras)) != len(cameras)
+            or not set(cameras) <= set(range(count))
+        ):
+            raise ValueError(f"cameras: distinct indices of the config's {count}; got {cameras}")
+        return config.replace(num_views=len(cameras))
 
     @property
     def _table(self) -> torch.Tensor | None:
@@ -342,7 +388,7 @@ class DRKFS(nn.Module):
         return found
 
     def _described_to(
-        self, meshes: MeshBatch, target: Target
+        self, meshes: MeshBatch, target: Target, renderer: Renderer | None = None
     ) -> tuple[torch.Tensor, torch.Tensor | None]:
         self._check_target(target)
         if target.batch is not None and target.batch != len(meshes):
@@ -351,7 +397,8 @@ class DRKFS(nn.Module):
                 f"{len(meshes)} (prepare one reference to share it with a whole batch)"
             )
         return self._described(
-            meshes.moved(place_by(meshes.verts, self.normalization, target.frame, TORCH_OPS))
+            meshes.moved(place_by(meshes.verts, self.normalization, target.frame, TORCH_OPS)),
+            renderer,
         )
 
     def _check_target(self, target: Target) -> None:

@@ -76,6 +76,62 @@ def test_a_training_step_runs_every_convolution_at_the_asked_precision(monkeypat
         DrkfsLoss.pretrained(conv_precision="bf16")
 
 
+@pytest.mark.parametrize("stage", range(len(COARSE_TO_FINE)))
+def test_the_scores_from_equal_groups_of_cameras_average_to_the_score_and_its_gradient(stage):
+    """A step from some cameras (``view_groups``) is the loss in expectation: under the loss
+    preset's mean of a window match, each camera's patches count once and equally."""
+    loss = DrkfsLoss.pretrained()
+    metric = loss.metrics[stage]
+    verts, faces = _mesh("chair.obj")
+    target = loss.target(verts, faces)[stage]
+    count = metric.config.num_views
+
+    def value_and_gradient(cameras):
+        moved = (verts + torch.tensor([0.02, 0.01, 0.0])).requires_grad_(True)
+        value = metric.score_to(moved, faces, target, cameras=cameras)
+        value.backward()
+        return value.detach().double(), moved.grad.double()
+
+    every, every_grad = value_and_gradient(None)
+    parts = [value_and_gradient(list(range(g, count, 3))) for g in range(3)]
+    assert every > 0 and len({round(float(v), 6) for v, _ in parts}) == 3
+    assert torch.isclose(sum(v for v, _ in parts) / 3, every, rtol=1e-5)
+    assert torch.allclose(
+        sum(g for _, g in parts) / 3, every_grad, atol=1e-6 * every_grad.abs().max()
+    )
+
+
+def test_a_loss_over_view_groups_scores_each_call_from_one_group_drawn_by_its_seed():
+    verts, faces = _mesh("chair.obj")
+    moved = verts + torch.tensor([0.02, 0.0, 0.0])
+    runs = []
+    for _ in range(2):
+        loss = DrkfsLoss.pretrained(view_groups=2)
+        target = loss.target(verts, faces)
+        runs.append([loss(moved, faces, target, 1.0).item() for _ in range(6)])
+    metric, fine = loss.metrics[1], target[1]
+    groups = {metric.score_to(moved, faces, fine, cameras=[g, g + 2, g + 4]).item() for g in (0, 1)}
+    assert runs[0] == runs[1] and set(runs[0]) == groups  # the same draws, both groups drawn
+
+
+def test_view_groups_and_cameras_are_refused_where_they_would_not_average_to_the_score():
+    with pytest.raises(
+        ValueError,
+        match=r"view_groups: a divisor of every stage's camera count \(\[12, 6\]\); got 4",
+    ):
+        DrkfsLoss.pretrained(view_groups=4)
+    verts, faces = _mesh("chair.obj")
+    scoring = DrkfsLoss.pretrained((Stage(PipelineConfig(), 1.0),)).metrics[0]
+    target = scoring.target(verts, faces)
+    with pytest.raises(ValueError, match="needs one ring of them and a window match"):
+        scoring.score_to(verts, faces, target, cameras=[0, 1])
+    metric = DrkfsLoss.pretrained().metrics[1]
+    target = metric.target(verts, faces)
+    for cameras in ([], [0, 0], [6]):
+        with pytest.raises(ValueError, match="cameras: distinct indices of the config's 6"):
+            metric.score_to(verts, faces, target, cameras=cameras)
+
+
 def test_a_schedule_must_end_with_a_stage_that_runs_to_the_end():
     with pytest.raises(ValueError, match="last stage"):
         DrkfsLoss([], (Stage(PipelineConfig.loss(), 0.5),), None)
