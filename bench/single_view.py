@@ -8,6 +8,8 @@ seeds, judged on held-out shapes and views by metrics no loss computes.
     python bench/single_view.py --out bench/single_view --controls  # the matched controls
     python bench/single_view.py --out bench/single_view --curve --until 2000   # learning curve
     python bench/single_view.py --out bench/single_view --finetune  # the fine-tuning protocol
+    python bench/single_view.py --out bench/single_view --speed \
+        --losses "DR-KFS (a third of the cameras a step)"           # cheaper steps
     python bench/single_view.py --out bench/single_view --steps 400 --seeds 0 \
         --losses "SoftRas (silhouette IoU),DR-KFS"                          # more steps
 
@@ -82,6 +84,14 @@ def single_view(
             "beside the study's in OUT) and judge them (writes OUT/controls.json)."
         ),
     ] = False,
+    speed: Annotated[
+        bool,
+        typer.Option(
+            help="Time a step of each loss from every camera and from one group of them, in "
+            "one run; then train --losses (grouped ones) at every seed and judge them beside "
+            "the same losses from every camera on the validation shapes (writes OUT/speed.json)."
+        ),
+    ] = False,
     finetune: Annotated[
         bool,
         typer.Option(
@@ -129,6 +139,15 @@ def single_view(
             out, until, seed_list[0], state or CURVE_STATE, quick, device, threads, progress
         )
         typer.echo(curve_markdown(results))  # bench/records/single_view.md's table
+        return
+    if speed:
+        from drkfs_lab.studies.camera_groups import run_speed, speed_markdown
+
+        try:
+            results = run_speed(out, losses.split(","), seed_list, quick, device, threads, progress)
+        except ValueError as error:
+            raise typer.BadParameter(str(error), param_hint="--losses") from None
+        typer.echo(speed_markdown(results))  # bench/records/single_view.md's tables
         return
     if finetune:
         from drkfs_lab.studies.finetune import finetune_markdown, run_finetune

@@ -13,23 +13,20 @@ from pathlib import Path
 
 import torch
 
-from drkfs_lab.judging.judges import Judge
-from drkfs_onnx.contract.config import PipelineConfig
-
 from .single_view import (
-    COLUMNS,
     FINETUNE,
     FULL,
     QUICK,
     Networks,
     by_name,
-    judge_all,
+    judge_seeds,
     means,
+    means_table,
     run_header,
     shares,
-    table_cell,
     train,
     training_data,
+    wins_table,
     write_json,
 )
 
@@ -77,10 +74,8 @@ def run_finetune(
     seconds: dict = {}
     for seed in seeds:
         for start, recipes in FINETUNE.items():
-            if starts.get(seed, start) is None:
-                starts.put(seed, start, train(plan, by_name(start), seed, views["train"], terms,
-                                              progress))  # fmt: skip
-            weights = starts.get(seed, start)["model"].state_dict()
+            weights = starts.trained(seed, start, plan, views["train"], terms, progress)
+            weights = weights["model"].state_dict()
             for recipe in recipes:
                 name = arm(start, recipe)
                 if tuned.get(seed, name) is None:
@@ -91,17 +86,13 @@ def run_finetune(
                     "seconds_per_step"
                 ]
     names = judged()
-    judge = Judge(PipelineConfig(), threads, plan.unseen_views, plan.lfd, image_judges=False)
-    truths: dict = {}
-    try:
-        tables = {}
-        for seed in seeds:
-            models = {n: (tuned.get(seed, n) or starts.get(seed, n))["model"] for n in names}
-            tables[seed] = judge_all(judge, models, test_set, views["test"], truths, progress)
-    finally:
-        judge.close()
+    tables, lfd = judge_seeds(
+        plan, threads, seeds,
+        lambda seed: {n: (tuned.get(seed, n) or starts.get(seed, n))["model"] for n in names},
+        test_set, views["test"], progress,
+    )  # fmt: skip
     results = {
-        **run_header("--finetune", quick, seeds, dev, out, judge),
+        **run_header("--finetune", quick, seeds, dev, out, lfd),
         "steps": {"start": plan.steps, "fine-tuning": plan.steps},
         "arms": {start: [arm(start, r) for r in recipes] for start, recipes in FINETUNE.items()},
         "recipes": {
@@ -133,20 +124,6 @@ def finetune_markdown(results: dict) -> str:
     """bench/records/single_view.md's fine-tuning tables (OUT/finetune.json): every start's and
     arm's pooled means, and each arm's test cells closer than another's, pooled and (LFD,
     unseen silhouettes) per seed (bench/check_results.py checks the record holds them)."""
-    pooled = results["means"]["pooled"]
-    lines = ["| network | " + " | ".join(c[1] for c in COLUMNS) + " |",
-             "|---|" + "---:|" * len(COLUMNS)]  # fmt: skip
-    for name, row in pooled.items():
-        lines.append(f"| {name} | " + " | ".join(table_cell(row[m], s, d) for m, _, s, d in COLUMNS)
-                     + " |")  # fmt: skip
-    judged = ("LFD", "silhouette IoU", "Chamfer-L1", "F-score 1%")
-    seeds = [k for k in results["shares"] if k != "pooled"]
-    wins = ["| fine-tuned with | closer than | " + " | ".join(judged) + " | LFD by seed | "
-            "unseen sil. by seed |", "|---|---|" + "---:|" * (len(judged) + 2)]  # fmt: skip
-    for pair, row in results["shares"]["pooled"].items():
-        challenger, against = pair.split(" | ")
-        cells = " | ".join(f"{row[m]['wins']}/{row[m]['cells']}" for m in judged)
-        by_seed = [" / ".join(str(results["shares"][k][pair][m]["wins"]) for k in seeds)
-                   for m in judged[:2]]  # fmt: skip
-        wins.append(f"| {challenger} | {against} | {cells} | {' | '.join(by_seed)} |")
+    lines = means_table(results["means"]["pooled"], "network")
+    wins = wins_table(results["shares"], "fine-tuned with")
     return "\n\n".join("\n".join(block) for block in (lines, wins)) + "\n"

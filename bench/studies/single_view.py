@@ -114,6 +114,16 @@ EXTRA = (
     Recipe(DRKFS_TUNED, ((1.0, DRKFS_TUNED),)),
     Recipe(f"{DRKFS_TUNED} + 3 x Chamfer-L2", ((1.0, DRKFS_TUNED), (3.0, CHAMFER))),
 )
+# DR-KFS from one group of its cameras a step (``DrkfsLoss``'s view_groups), alone and in the
+# recipe: the speed work's cheaper steps (--speed, studies/camera_groups.py)
+CAMERA_GROUPS = {
+    "DR-KFS (half the cameras a step)": 2,
+    "DR-KFS (a third of the cameras a step)": 3,
+}
+GROUPED = (
+    *(Recipe(name, ((1.0, name),)) for name in CAMERA_GROUPS),
+    *(Recipe(f"{name} + 3 x Chamfer-L2", ((1.0, name), (3.0, CHAMFER))) for name in CAMERA_GROUPS),
+)
 # the fine-tuning protocol (--finetune, studies/finetune.py): a network trained with SoftRas'
 # loss or Chamfer's, trained as long again with its own loss, with DR-KFS beside it, or with
 # another image term of DR-KFS's weight beside it (the matched control)
@@ -128,7 +138,9 @@ FINETUNE_RECIPES = (
 
 
 def by_name(name: str) -> Recipe:
-    recipes = (*BASELINES, *DRKFS_RECIPES, *COMBINATIONS, *CONTROLS, *EXTRA, *FINETUNE_RECIPES)
+    recipes = (
+        *BASELINES, *DRKFS_RECIPES, *COMBINATIONS, *CONTROLS, *EXTRA, *FINETUNE_RECIPES, *GROUPED,
+    )  # fmt: skip
     for recipe in recipes:
         if recipe.name == name:
             return recipe
@@ -265,9 +277,11 @@ class Terms:
                 if term == DRKFS_TUNED:
                     loss = DrkfsLoss.from_nets(tuned_nets())
                 else:
-                    kind = DRKFS if term == DRKFS_SHADED else SilhouetteDRKFS
+                    # the groups are drawn by the training's generator: a seed repeats them
+                    kind = SilhouetteDRKFS if term == DRKFS_SILHOUETTE else DRKFS
                     metrics = [kind.pretrained(stage.config) for stage in COARSE_TO_FINE]
-                    loss = DrkfsLoss(metrics, COARSE_TO_FINE, None)
+                    groups = CAMERA_GROUPS.get(term, 1)
+                    loss = DrkfsLoss(metrics, COARSE_TO_FINE, None, groups, self.generator)
                 loss = loss.to(device)
                 targets = [
                     loss.target(torch.as_tensor(s.verts, dtype=torch.float32, device=device),
@@ -383,6 +397,15 @@ class Networks:
                                for k, v in saved["state"].items()})  # fmt: skip
         return {**saved, "model": model.to(self.device).eval()}
 
+    def trained(
+        self, seed: int, name: str, plan: Plan, views: torch.Tensor, terms: Terms, progress
+    ) -> dict:
+        """The saved network of loss ``name`` at ``seed`` (as ``get``), trained on ``views``
+        and saved first where there is none."""
+        if self.get(seed, name) is None:
+            self.put(seed, name, train(plan, by_name(name), seed, views, terms, progress))
+        return self.get(seed, name)
+
     def put(self, seed: int, name: str, result: dict) -> None:
         path = self.path(seed, name)
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -427,6 +450,20 @@ def judge_all(judge: Judge, models: dict, shapes, views, targets: dict, progress
             f"{n} LFD {r['LFD'] if r['LFD'] is None else round(r['LFD'])} "
             f"sil {r['silhouette IoU']:.3f}" for n, r in table[shape.name].items()))  # fmt: skip
     return table
+
+
+def judge_seeds(
+    plan: Plan, threads: int, seeds, models_at, shapes, views, progress
+) -> tuple[dict[int, dict], str]:
+    """seed -> ``judge_all``'s table of the networks ``models_at(seed)`` (name -> generator) on
+    ``shapes``, by one judge whose prepared truths serve every seed; and its LFD note."""
+    judge = Judge(PipelineConfig(), threads, plan.unseen_views, plan.lfd, image_judges=False)
+    truths: dict = {}
+    try:
+        tables = {s: judge_all(judge, models_at(s), shapes, views, truths, progress) for s in seeds}
+    finally:
+        judge.close()
+    return tables, judge.lfd_note
 
 
 def means(tables: list[dict], shapes: list[Shape], names: list[str]) -> dict:
@@ -626,14 +663,11 @@ def run_single_view(
         return results
 
     # each loss's seconds a step, timed apart from the trainings (which shared the cores with
-    # whatever else ran): TIMED_STEPS steps from seed 0's start, coarse and fine stages both
-    def timed(recipe: Recipe) -> float:
-        # one step first: it pays the loss's first compile of the rasteriser's equations
-        train(replace(plan, steps=1), recipe, 0, views["train"], terms, progress)
-        quiet = train(replace(plan, steps=TIMED_STEPS), recipe, 0, views["train"], terms, progress)
-        return quiet["seconds_per_step"]
-
-    timing = {r.name: timed(r) for r in (*BASELINES, *DRKFS_RECIPES, *COMBINATIONS)}
+    # whatever else ran)
+    timing = {
+        r.name: timed(plan, r, views["train"], terms, progress)
+        for r in (*BASELINES, *DRKFS_RECIPES, *COMBINATIONS)
+    }
     try:
         first = seeds[0]
         candidates = [BASELINES[0], DRKFS_RECIPES[0], *COMBINATIONS]
@@ -656,6 +690,15 @@ def run_single_view(
         judge.close()
 
 
+def timed(plan: Plan, recipe: Recipe, views: torch.Tensor, terms: Terms, progress) -> float:
+    """A loss's seconds a step: TIMED_STEPS steps from seed 0's start, coarse and fine stages
+    both, after one step that pays the loss's first compile of the rasteriser's equations."""
+    train(replace(plan, steps=1), recipe, 0, views, terms, progress)
+    return train(replace(plan, steps=TIMED_STEPS), recipe, 0, views, terms, progress)[
+        "seconds_per_step"
+    ]
+
+
 def judge_saved(out: Path, test_seed: int, threads: int = 2, progress=print) -> dict:
     """The networks a finished study saved under OUT, judged on test shapes of seeds from
     ``test_seed`` on (as many a family as the study's plan) -> OUT/test-seeds-<seed>.json."""
@@ -665,20 +708,15 @@ def judge_saved(out: Path, test_seed: int, threads: int = 2, progress=print) -> 
     views = views_of(test_set, out / "data" / "views.pt", ViewRenderer())
     networks = Networks(out / "networks", plan, torch.device("cpu"))
     names = study["plan"]["losses"]
-    judge = Judge(PipelineConfig(), threads, plan.unseen_views, plan.lfd, image_judges=False)
-    truths: dict = {}
-    try:
-        tables = {
-            seed: judge_all(judge, {n: networks.get(seed, n, any_key=True)["model"] for n in names},
-                            test_set, views, truths, progress)
-            for seed in study["plan"]["seeds"]
-        }  # fmt: skip
-    finally:
-        judge.close()
+    tables, lfd = judge_seeds(
+        plan, threads, study["plan"]["seeds"],
+        lambda seed: {n: networks.get(seed, n, any_key=True)["model"] for n in names},
+        test_set, views, progress,
+    )  # fmt: skip
     results = {
         "command": f"python bench/single_view.py --out {out} --test-seeds {test_seed}",
         "test_seeds": [test_seed, test_seed + plan.test_per_family - 1],
-        "lfd": judge.lfd_note,
+        "lfd": lfd,
         "tables": {f"seed {s}": t for s, t in tables.items()},
         **summarise(tables, test_set, names),
     }
@@ -806,24 +844,14 @@ def run_controls(
     seconds: dict = {}
     for seed in seeds:
         for name in names:
-            if networks.get(seed, name) is None:
-                trained = train(plan, by_name(name), seed, views["train"], terms, progress)
-                networks.put(seed, name, trained)
-            seconds.setdefault(name, {})[f"seed {seed}"] = networks.get(seed, name)[
-                "seconds_per_step"
-            ]
-    judge = Judge(PipelineConfig(), threads, plan.unseen_views, plan.lfd, image_judges=False)
-    truths: dict = {}
-    try:
-        tables = {
-            seed: judge_all(judge, {n: networks.get(seed, n)["model"] for n in names}, test_set,
-                            views["test"], truths, progress)
-            for seed in seeds
-        }  # fmt: skip
-    finally:
-        judge.close()
+            saved = networks.trained(seed, name, plan, views["train"], terms, progress)
+            seconds.setdefault(name, {})[f"seed {seed}"] = saved["seconds_per_step"]
+    tables, lfd = judge_seeds(
+        plan, threads, seeds, lambda seed: {n: networks.get(seed, n)["model"] for n in names},
+        test_set, views["test"], progress,
+    )  # fmt: skip
     results = {
-        **run_header("--controls", quick, seeds, dev, out, judge),
+        **run_header("--controls", quick, seeds, dev, out, lfd),
         "steps": plan.steps,
         "matched": {d: list(cs) for d, cs in MATCHED.items()},
         "recipes": {n: [list(t) for t in by_name(n).terms] for n in names},
@@ -836,16 +864,16 @@ def run_controls(
 
 
 def run_header(
-    flag: str, quick: bool, seeds: tuple[int, ...], dev: torch.device, out: Path, judge: Judge
+    flag: str, quick: bool, seeds: tuple[int, ...], dev: torch.device, out: Path, lfd: str
 ) -> dict:
     """What every seeded run's JSON opens with: its command, the machine and device, the LFD
-    judge it had and its seeds."""
+    judge it had (``Judge.lfd_note``) and its seeds."""
     return {
         "command": f"python bench/single_view.py{' --quick' if quick else ''} {flag} "
         f"--seeds {','.join(map(str, seeds))} --device {dev.type} --out {out}",
         **machine(),
         "device": "cpu" if dev.type == "cpu" else torch.cuda.get_device_name(dev),
-        "lfd": judge.lfd_note,
+        "lfd": lfd,
         "seeds": list(seeds),
     }
 
@@ -1001,6 +1029,33 @@ COLUMNS = (  # the paper's table's order: CD, F-score, NC, IoU, LFD; then unseen
 
 def table_cell(value: float | None, scale: float, digits: int) -> str:
     return "n/a" if value is None else f"{value * scale:,.{digits}f}"
+
+
+def means_table(pooled: dict, first: str) -> list[str]:
+    """The rows of a table of each network's pooled means (loss -> judge -> mean), in
+    ``COLUMNS``' order, under a first column headed ``first``."""
+    lines = [f"| {first} | " + " | ".join(c[1] for c in COLUMNS) + " |",
+             "|---|" + "---:|" * len(COLUMNS)]  # fmt: skip
+    for name, row in pooled.items():
+        lines.append(f"| {name} | " + " | ".join(table_cell(row[m], s, d) for m, _, s, d in COLUMNS)
+                     + " |")  # fmt: skip
+    return lines
+
+
+def wins_table(shares_by: dict, first: str) -> list[str]:
+    """The rows of a table of each "challenger | against" pair's cells closer, pooled and (LFD,
+    unseen silhouettes) per seed, from {"pooled" or "seed S": {pair: judge -> share}}."""
+    judged = ("LFD", "silhouette IoU", "Chamfer-L1", "F-score 1%")
+    seeds = [k for k in shares_by if k != "pooled"]
+    lines = [f"| {first} | closer than | " + " | ".join(judged) + " | LFD by seed | "
+             "unseen sil. by seed |", "|---|---|" + "---:|" * (len(judged) + 2)]  # fmt: skip
+    for pair, row in shares_by["pooled"].items():
+        challenger, against = pair.split(" | ")
+        cells = " | ".join(f"{row[m]['wins']}/{row[m]['cells']}" for m in judged)
+        by_seed = [" / ".join(str(shares_by[k][pair][m]["wins"]) for k in seeds)
+                   for m in judged[:2]]  # fmt: skip
+        lines.append(f"| {challenger} | {against} | {cells} | {' | '.join(by_seed)} |")
+    return lines
 
 
 def markdown(results: dict) -> str:

@@ -1,0 +1,127 @@
+"""The single-view study's speed work (``python bench/single_view.py --speed``): what a training
+step costs with DR-KFS from every camera and from one group of its cameras a step (``DrkfsLoss``'s
+``view_groups``: half or a third of each stage's cameras, drawn at random, the loss on average),
+timed in one run beside SoftRas' IoU; then whether a cheaper step loses anything: the grouped
+losses asked for trained at every seed for the study's steps and judged on the validation shapes
+beside the study's networks of the same losses from every camera."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import torch
+
+from .shape_generator import ShapeGenerator
+from .single_view import (
+    CAMERA_GROUPS,
+    DRKFS_SHADED,
+    FULL,
+    QUICK,
+    RECIPE,
+    SOFTRAS,
+    TIMED_STEPS,
+    VALIDATION_SEED,
+    Networks,
+    Terms,
+    by_name,
+    judge_seeds,
+    means,
+    means_table,
+    run_header,
+    shares,
+    study_sets,
+    timed,
+    views_of,
+    wins_table,
+    write_json,
+)
+from .views import CHANNELS, IMAGE_SIZE, ViewRenderer
+
+# each grouped loss -> the same loss from every camera
+EVERY_CAMERA = {
+    **dict.fromkeys(CAMERA_GROUPS, DRKFS_SHADED),
+    **{f"{name} + 3 x Chamfer-L2": RECIPE for name in CAMERA_GROUPS},
+}
+TIMED = (SOFTRAS, DRKFS_SHADED, *CAMERA_GROUPS, RECIPE, *list(EVERY_CAMERA)[len(CAMERA_GROUPS) :])
+
+
+def judged_rows(names: list[str]) -> list[str]:
+    """Each grouped loss of ``names`` after its every-camera loss, each once."""
+    return list(dict.fromkeys(n for name in names for n in (EVERY_CAMERA[name], name)))
+
+
+def run_speed(
+    out: Path,
+    names: list[str],
+    seeds: tuple[int, ...] = (0, 1, 2),
+    quick: bool = False,
+    device: str = "cpu",
+    threads: int = 2,
+    progress=print,
+) -> dict:
+    """Every ``TIMED`` loss's seconds a step in one run; then ``names`` (grouped losses) and
+    their every-camera losses at each seed (OUT/networks, the study's; trained there if
+    missing), judged on the validation shapes -> OUT/speed.json."""
+    unknown = [n for n in names if n not in EVERY_CAMERA]
+    if unknown:
+        raise ValueError(f"not a grouped loss: {unknown}; the grouped: {', '.join(EVERY_CAMERA)}")
+    began = time.perf_counter()
+    plan = QUICK if quick else FULL
+    dev = torch.device(device)
+    train_set, validation_set, _ = study_sets(plan)
+    cache, renderer = out / "data" / "views.pt", ViewRenderer()
+    sets = {"train": train_set, "validation": validation_set}
+    views = {name: views_of(shapes, cache, renderer) for name, shapes in sets.items()}
+    terms = Terms(train_set, views["train"], ShapeGenerator(CHANNELS, IMAGE_SIZE).faces.to(dev), 0)
+    timing = {name: timed(plan, by_name(name), views["train"], terms, progress) for name in TIMED}
+    networks = Networks(out / "networks", plan, dev)
+    rows = judged_rows(names)
+    for seed in seeds:
+        for name in rows:
+            networks.trained(seed, name, plan, views["train"], terms, progress)
+    tables, lfd = judge_seeds(
+        plan, threads, seeds, lambda seed: {n: networks.get(seed, n)["model"] for n in rows},
+        validation_set, views["validation"], progress,
+    )  # fmt: skip
+    results = {
+        **run_header(f"--speed --losses '{','.join(names)}'", quick, seeds, dev, out, lfd),
+        "steps": plan.steps,
+        "timed_steps": TIMED_STEPS,
+        "camera_groups": CAMERA_GROUPS,
+        "seconds_per_step": timing,
+        "validation_seeds": [VALIDATION_SEED, VALIDATION_SEED + plan.validation_per_family - 1],
+        "losses": names,
+        "tables": {f"seed {s}": t for s, t in tables.items()},
+        **summarise_speed(tables, validation_set, names),
+        "seconds_total": time.perf_counter() - began,
+    }
+    return write_json(out / "speed.json", results)
+
+
+def summarise_speed(tables: dict[int, dict], shapes, names: list[str]) -> dict:
+    """Each grouped loss's and its every-camera loss's means on the validation shapes, and the
+    grouped one's cells closer than the other's, per seed and pooled."""
+    rows = judged_rows(names)
+    per = {"pooled": list(tables.values()), **{f"seed {s}": [t] for s, t in tables.items()}}
+    return {
+        "means": {key: means(ts, shapes, rows)["mean"] for key, ts in per.items()},
+        "shares": {
+            key: {f"{n} | {EVERY_CAMERA[n]}": shares(ts, n, EVERY_CAMERA[n]) for n in names}
+            for key, ts in per.items()
+        },
+    }
+
+
+def speed_markdown(results: dict) -> str:
+    """bench/records/single_view.md's speed tables (OUT/speed.json): each loss's seconds a step
+    against SoftRas' IoU's in the same run; the grouped and every-camera losses' pooled means on
+    the validation shapes; the grouped one's cells closer, pooled and per seed (LFD, unseen
+    silhouettes)."""
+    timing = results["seconds_per_step"]
+    lines = ["| loss | s a step | x SoftRas' IoU |", "|---|---:|---:|"]
+    for name, seconds in timing.items():
+        lines.append(f"| {name} | {seconds:.2f} | {seconds / timing[SOFTRAS]:.1f} |")
+    table = means_table(results["means"]["pooled"], "loss (validation shapes)")
+    wins = wins_table(results["shares"], "grouped")
+    return "\n\n".join("\n".join(block) for block in (lines, table, wins)) + "\n"

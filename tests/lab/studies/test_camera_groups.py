@@ -1,0 +1,40 @@
+"""The speed work (``python bench/single_view.py --speed``, studies.camera_groups): every loss
+timed in one run, a grouped loss trained and judged on validation shapes beside the same loss
+from every camera."""
+
+import json
+
+import pytest
+from typer.testing import CliRunner
+
+from drkfs_lab.single_view import app
+from drkfs_lab.studies.camera_groups import EVERY_CAMERA, TIMED, speed_markdown, summarise_speed
+from drkfs_lab.studies.single_view import CAMERA_GROUPS, DRKFS_SHADED, RECIPE, SOFTRAS, Shape
+
+
+def test_each_grouped_loss_is_set_against_the_same_loss_from_every_camera():
+    assert set(CAMERA_GROUPS.values()) == {2, 3}  # divisors of the stages' 12 and 6 cameras
+    for name, every in EVERY_CAMERA.items():
+        assert every == (RECIPE if name.endswith(" + 3 x Chamfer-L2") else DRKFS_SHADED)
+        assert name.startswith("DR-KFS (") and name in TIMED
+    assert TIMED[0] == SOFTRAS  # the timings' baseline, in the same run
+
+
+@pytest.mark.slow
+def test_the_speed_run_times_every_loss_and_judges_a_grouped_loss_on_validation(tmp_path):
+    out = tmp_path / "out"
+    grouped = "DR-KFS (a third of the cameras a step)"
+    args = ["--quick", "--speed", "--losses", grouped, "--seeds", "0", "--out", str(out)]
+    result = CliRunner().invoke(app, args)
+    assert result.exit_code == 0, result.output
+    found = json.loads((out / "speed.json").read_text())
+    assert list(found["seconds_per_step"]) == list(TIMED)
+    assert all(seconds > 0 for seconds in found["seconds_per_step"].values())
+    assert list(found["means"]["pooled"]) == [DRKFS_SHADED, grouped]
+    tables = {int(key.split()[1]): table for key, table in found["tables"].items()}
+    shapes = [Shape(n, n.split()[0], None, None) for n in tables[0]]
+    again = summarise_speed(tables, shapes, found["losses"])
+    assert again["means"] == found["means"] and again["shares"] == found["shares"]
+    assert f"| {grouped} | {DRKFS_SHADED} |" in speed_markdown(found)
+    refused = CliRunner().invoke(app, [*args[:3], "DR-KFS", *args[4:]])
+    assert refused.exit_code == 2 and "not a grouped loss" in refused.output
