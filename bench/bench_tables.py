@@ -3,7 +3,7 @@ preset and the outside metrics a reader compares with) and docs/benchmark.md's (
 the run, tiers split by synthetic and shared meshes, people's four subsets, the bars; the
 targets; what the human check lets a scorer reach; each method's verdict on the stability cases;
 "meshes as they come", from bench/as_they_come.py's JSON; the frozen test set's releases, from
-bench/test_set.py's).
+bench/test_set.py's); docs/training.md's nets, from models/manifest.json.
 
     python bench/bench_tables.py [--results bench/results/results.json]
 
@@ -211,6 +211,47 @@ def test_set_table(results: dict) -> str:
     return "\n".join(lines)
 
 
+# the detectors' names in the manifest -> in docs/training.md
+DETECTOR_NAMES = {"harris": "Harris", "dog": "DoG"}
+
+
+def nets_tables(manifest: dict) -> str:
+    """docs/training.md's tables of the correspondence stage's nets (models/manifest.json):
+    each detector's size, cost and held-out repeatability, trained and untrained, the best in
+    bold and the shipped one named; each HardNet width's size, cost and FPR95."""
+
+    def bold(value: str, best: bool) -> str:
+        return f"**{value}**" if best else value
+
+    def flops(count: int) -> str:
+        millions = count / 1e6
+        return f"{millions:.0f} M" if millions >= 10 else f"{millions:.1f} M"
+
+    detectors, widths = manifest["detectors"], manifest["descriptors"]
+    best = max(d["repeatability"] for d in detectors)
+    lines = ["| detector | params | FLOPs / view | repeatability | untrained |",
+             "|---|---:|---:|---:|---:|"]  # fmt: skip
+    for d in detectors:
+        name = d["detector"]
+        if name in DETECTOR_NAMES:
+            label = DETECTOR_NAMES[name]
+        else:  # "n4m4k9": TILDE's n (sums), m (maxes) and kernel size
+            label = "TILDE " + name.replace("m", " m").replace("k", " k")
+            label += " (shipped)" if name == manifest["choice"]["detector"] else ""
+        cells = [f"{d['params']:,}", flops(d["flops_per_view"])] if "params" in d else ["–", "–"]
+        untrained = f"{d['repeatability_untrained']:.3f}" if "params" in d else "–"
+        score = bold(f"{d['repeatability']:.3f}", d["repeatability"] == best)
+        lines.append(f"| {label} | {' | '.join(cells)} | {score} | {untrained} |")
+    lowest = min(w["fpr95"] for w in widths)
+    table = ["| HardNet width | params | FLOPs / patch | FPR95 trained | FPR95 untrained |",
+             "|---|---:|---:|---:|---:|"]  # fmt: skip
+    for w in widths:
+        fpr = bold(f"{w['fpr95']:.1f}%", w["fpr95"] == lowest)
+        table.append(f"| {w['width']:g} | {w['params']:,} | {flops(w['flops_per_patch'])} | "
+                     f"{fpr} | {w['fpr95_untrained']:.1f}% |")  # fmt: skip
+    return "\n".join(lines) + "\n\n" + "\n".join(table) + "\n"
+
+
 def _fmt3(value: float | None) -> str:
     return "n/a" if value is None else f"{value:.3f}"
 
@@ -230,6 +271,7 @@ def main() -> None:
         print("", as_they_come_table(json.loads(args.as_they_come.read_text())), sep="\n")
     if args.test_set.is_file():
         print("", test_set_table(json.loads(args.test_set.read_text())), sep="\n")
+    print("", nets_tables(json.loads((ROOT / "models" / "manifest.json").read_text())), sep="\n")
 
 
 if __name__ == "__main__":

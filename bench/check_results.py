@@ -22,6 +22,7 @@ from pathlib import Path
 from drkfs_lab.bench_tables import (
     as_they_come_table,
     ceiling_table,
+    nets_tables,
     readme_table,
     results_table,
     stability_table,
@@ -232,6 +233,13 @@ def benchmark_tables_are_the_benchmarks(root: Path) -> None:
     assert as_they_come_table(section) in doc, "docs/benchmark.md's meshes as they come differ"
 
 
+def training_tables_are_the_manifests(root: Path) -> None:
+    """docs/training.md's tables of the detectors and HardNet widths are
+    bench/bench_tables.py's, from the shipped nets' manifest (models/manifest.json)."""
+    tables = nets_tables(_json(root, "models/manifest.json"))
+    assert tables in (root / "docs/training.md").read_text(), "docs/training.md's nets differ"
+
+
 def version_sample_is_the_benchmarks(root: Path) -> str:
     """Each named version's scores of bench/version_sample.py's sample are the committed
     benchmark's, for every DR-KFS row of the benchmark that is a named version."""
@@ -293,6 +301,7 @@ CHECKS: list[Callable[[Path], str | None]] = [
     single_view_curve_recomputes_and_the_doc_holds_it,
     readme_score_scale_is_the_benchmarks,
     benchmark_tables_are_the_benchmarks,
+    training_tables_are_the_manifests,
     version_sample_is_the_benchmarks,
     test_set_is_scored_at_each_release,
 ]
