@@ -40,6 +40,30 @@ def test_the_readme_opens_with_the_two_commands_and_has_a_short_quick_start_per_
         assert len(lines) < 30, (name, len(lines))
 
 
+def test_the_readme_table_of_examples_is_what_its_first_command_writes(tmp_path):
+    """Each example's DR-KFS score in the README's first table, to the digits it shows, is the
+    score ``drkfs-score batch examples/pairs.csv`` writes."""
+    import csv
+
+    from typer.testing import CliRunner
+
+    from drkfs_onnx.runtime.cli import app
+
+    out = tmp_path / "scores.csv"
+    result = CliRunner().invoke(
+        app, ["batch", str(ROOT / "examples" / "pairs.csv"), "--out", str(out)]
+    )
+    assert result.exit_code == 0, result.output
+    scores = {row["mesh_a"]: float(row["score"]) for row in csv.DictReader(out.open())}
+    rows = re.findall(
+        r"^\| (\S+\.obj) \| [^|]+ \| ([0-9.]+) \|", (ROOT / "README.md").read_text(), re.M
+    )
+    assert sorted(name for name, _ in rows) == sorted(scores)
+    for name, shown in rows:
+        digits = len(shown.partition(".")[2])
+        assert abs(scores[name] - float(shown)) <= 0.5 * 10**-digits, (name, shown, scores[name])
+
+
 def test_the_docs_name_no_issue_and_no_command_that_no_longer_exists():
     for path in [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]:
         text = path.read_text()
