@@ -34,6 +34,7 @@ from drkfs_lab.benchmark.sets import BenchSet, Comparison
 from drkfs_lab.judging.judges import VISUAL
 from drkfs_lab.judging.rule import brief_share, chamfer_ratios, share
 from drkfs_lab.score_scale import markdown, scale
+from drkfs_lab.studies.camera_groups import speed_markdown, summarise_speed
 from drkfs_lab.studies.finetune import finetune_markdown, summarise_finetune
 from drkfs_lab.studies.losses import CHAMFER, FORMS, PIXEL, SHIPPED, with_chamfer
 from drkfs_lab.studies.network import FULL, choose_loss
@@ -214,6 +215,18 @@ def single_view_curve_recomputes_and_the_doc_holds_it(root: Path) -> None:
     assert curve_markdown(results) in doc, "single_view.md's learning-curve table differs"
 
 
+def single_view_speed_recomputes_and_the_doc_holds_it(root: Path) -> None:
+    """The speed run's validation means and shares recompute from its per-seed tables, and
+    bench/records/single_view.md holds its tables (the timings among them)."""
+    results = _json(root, "bench/single_view/speed.json")
+    tables = {int(seed.split()[1]): table for seed, table in results["tables"].items()}
+    again = summarise_speed(tables, _test_set(next(iter(tables.values()))), results["losses"])
+    for key in ("means", "shares"):
+        assert again[key] == results[key], f"speed.json's {key} do not recompute"
+    doc = (root / "bench/records/single_view.md").read_text()
+    assert speed_markdown(results) in doc, "single_view.md's speed tables differ"
+
+
 def readme_score_scale_is_the_benchmarks(root: Path) -> None:
     """The README's table of what a score means is bench/score_scale.py's, from the committed
     benchmark."""
@@ -299,6 +312,7 @@ CHECKS: list[Callable[[Path], str | None]] = [
     single_view_controls_recompute_and_the_doc_holds_them,
     single_view_finetuning_recomputes_and_the_doc_holds_it,
     single_view_curve_recomputes_and_the_doc_holds_it,
+    single_view_speed_recomputes_and_the_doc_holds_it,
     readme_score_scale_is_the_benchmarks,
     benchmark_tables_are_the_benchmarks,
     training_tables_are_the_manifests,

@@ -53,7 +53,7 @@ def single_view(
         typer.Option(
             help="Train --losses at each of --seeds for this many steps (networks beside the "
             "study's in OUT) and judge them beside the study's networks of that seed (writes "
-            "OUT/longer-<steps>-steps-seed<seed>.json).",
+            "OUT/longer-<steps>-steps-seed<seed>.json); with --speed, the grouped losses' steps.",
             show_default=False,
         ),
     ] = None,
@@ -120,6 +120,17 @@ def single_view(
     except ValueError:
         message = f"--seeds: expected integers like 0,1,2; got {seeds!r}"
         raise typer.BadParameter(message) from None
+    if speed:
+        from drkfs_lab.studies.camera_groups import run_speed, speed_markdown
+
+        try:
+            results = run_speed(
+                out, losses.split(","), seed_list, quick, device, threads, progress, steps
+            )
+        except ValueError as error:
+            raise typer.BadParameter(str(error), param_hint="--losses") from None
+        typer.echo(speed_markdown(results))  # bench/records/single_view.md's tables
+        return
     if steps is not None:
         for seed in seed_list:
             try:
@@ -139,15 +150,6 @@ def single_view(
             out, until, seed_list[0], state or CURVE_STATE, quick, device, threads, progress
         )
         typer.echo(curve_markdown(results))  # bench/records/single_view.md's table
-        return
-    if speed:
-        from drkfs_lab.studies.camera_groups import run_speed, speed_markdown
-
-        try:
-            results = run_speed(out, losses.split(","), seed_list, quick, device, threads, progress)
-        except ValueError as error:
-            raise typer.BadParameter(str(error), param_hint="--losses") from None
-        typer.echo(speed_markdown(results))  # bench/records/single_view.md's tables
         return
     if finetune:
         from drkfs_lab.studies.finetune import finetune_markdown, run_finetune

@@ -8,6 +8,7 @@ beside the study's networks of the same losses from every camera."""
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import torch
@@ -59,10 +60,14 @@ def run_speed(
     device: str = "cpu",
     threads: int = 2,
     progress=print,
+    steps: int | None = None,
 ) -> dict:
     """Every ``TIMED`` loss's seconds a step in one run; then ``names`` (grouped losses) and
     their every-camera losses at each seed (OUT/networks, the study's; trained there if
-    missing), judged on the validation shapes -> OUT/speed.json."""
+    missing), judged on the validation shapes -> OUT/speed.json. With ``steps``, the grouped
+    losses trained for that many steps instead (OUT/networks-<steps>-steps; as many as take
+    the every-camera loss's time at the study's steps compare them at equal cost) ->
+    OUT/speed-<steps>-steps.json."""
     unknown = [n for n in names if n not in EVERY_CAMERA]
     if unknown:
         raise ValueError(f"not a grouped loss: {unknown}; the grouped: {', '.join(EVERY_CAMERA)}")
@@ -75,18 +80,27 @@ def run_speed(
     views = {name: views_of(shapes, cache, renderer) for name, shapes in sets.items()}
     terms = Terms(train_set, views["train"], ShapeGenerator(CHANNELS, IMAGE_SIZE).faces.to(dev), 0)
     timing = {name: timed(plan, by_name(name), views["train"], terms, progress) for name in TIMED}
-    networks = Networks(out / "networks", plan, dev)
+    grouped_plan = plan if steps is None else replace(plan, steps=steps)
+    study = Networks(out / "networks", plan, dev)
+    longer = Networks(out / f"networks-{steps}-steps", grouped_plan, dev) if steps else study
+
+    def store(name: str) -> Networks:
+        return longer if name in EVERY_CAMERA else study
+
     rows = judged_rows(names)
     for seed in seeds:
         for name in rows:
-            networks.trained(seed, name, plan, views["train"], terms, progress)
+            at = grouped_plan if name in EVERY_CAMERA else plan
+            store(name).trained(seed, name, at, views["train"], terms, progress)
     tables, lfd = judge_seeds(
-        plan, threads, seeds, lambda seed: {n: networks.get(seed, n)["model"] for n in rows},
+        plan, threads, seeds, lambda seed: {n: store(n).get(seed, n)["model"] for n in rows},
         validation_set, views["validation"], progress,
     )  # fmt: skip
+    flag = f"--speed --losses '{','.join(names)}'" + (f" --steps {steps}" if steps else "")
     results = {
-        **run_header(f"--speed --losses '{','.join(names)}'", quick, seeds, dev, out, lfd),
+        **run_header(flag, quick, seeds, dev, out, lfd),
         "steps": plan.steps,
+        **({} if steps is None else {"grouped_steps": steps}),
         "timed_steps": TIMED_STEPS,
         "camera_groups": CAMERA_GROUPS,
         "seconds_per_step": timing,
@@ -96,7 +110,8 @@ def run_speed(
         **summarise_speed(tables, validation_set, names),
         "seconds_total": time.perf_counter() - began,
     }
-    return write_json(out / "speed.json", results)
+    name = "speed.json" if steps is None else f"speed-{steps}-steps.json"
+    return write_json(out / name, results)
 
 
 def summarise_speed(tables: dict[int, dict], shapes, names: list[str]) -> dict:
@@ -122,6 +137,10 @@ def speed_markdown(results: dict) -> str:
     lines = ["| loss | s a step | x SoftRas' IoU |", "|---|---:|---:|"]
     for name, seconds in timing.items():
         lines.append(f"| {name} | {seconds:.2f} | {seconds / timing[SOFTRAS]:.1f} |")
-    table = means_table(results["means"]["pooled"], "loss (validation shapes)")
+    first = "loss (validation shapes)"
+    if "grouped_steps" in results:
+        first = f"loss (validation shapes; every camera {results['steps']} steps, grouped "
+        first += f"{results['grouped_steps']})"
+    table = means_table(results["means"]["pooled"], first)
     wins = wins_table(results["shares"], "grouped")
     return "\n\n".join("\n".join(block) for block in (lines, table, wins)) + "\n"

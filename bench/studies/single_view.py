@@ -692,8 +692,9 @@ def run_single_view(
 
 def timed(plan: Plan, recipe: Recipe, views: torch.Tensor, terms: Terms, progress) -> float:
     """A loss's seconds a step: TIMED_STEPS steps from seed 0's start, coarse and fine stages
-    both, after one step that pays the loss's first compile of the rasteriser's equations."""
-    train(replace(plan, steps=1), recipe, 0, views, terms, progress)
+    both, after two steps, one at each stage, that pay the first compile of each stage's
+    rasteriser equations (which the timed steps' first fine one paid before)."""
+    train(replace(plan, steps=2), recipe, 0, views, terms, progress)
     return train(replace(plan, steps=TIMED_STEPS), recipe, 0, views, terms, progress)[
         "seconds_per_step"
     ]

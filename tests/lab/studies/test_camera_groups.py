@@ -38,3 +38,10 @@ def test_the_speed_run_times_every_loss_and_judges_a_grouped_loss_on_validation(
     assert f"| {grouped} | {DRKFS_SHADED} |" in speed_markdown(found)
     refused = CliRunner().invoke(app, [*args[:3], "DR-KFS", *args[4:]])
     assert refused.exit_code == 2 and "not a grouped loss" in refused.output
+    # at equal cost: the grouped loss trained for more steps, beside the same networks
+    longer = CliRunner().invoke(app, [*args, "--steps", "3"])
+    assert longer.exit_code == 0, longer.output
+    found = json.loads((out / "speed-3-steps.json").read_text())
+    assert (found["steps"], found["grouped_steps"]) == (2, 3)
+    assert "every camera 2 steps, grouped 3" in speed_markdown(found)
+    assert (out / "networks-3-steps" / "seed0").is_dir()
