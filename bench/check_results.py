@@ -43,8 +43,10 @@ from drkfs_lab.studies.single_view import (
     controls_markdown,
     curve_markdown,
     means,
+    steps_markdown,
     summarise,
     summarise_controls,
+    tuned_nets_markdown,
     validation_choice,
 )
 from drkfs_lab.studies.single_view import markdown as single_view_tables
@@ -227,6 +229,19 @@ def single_view_speed_recomputes_and_the_doc_holds_it(root: Path) -> None:
     assert speed_markdown(results) in doc, "single_view.md's speed tables differ"
 
 
+def single_view_steps_runs_are_the_docs(root: Path) -> str:
+    """bench/records/single_view.md's tables of the nets fine-tuned for the loss are
+    ``tuned_nets_markdown``'s, pooled over every seed's --steps run at the study's steps, and
+    its table of 400 steps ``steps_markdown``'s."""
+    paths = sorted((root / "bench/single_view").glob("longer-200-steps-seed*.json"))
+    runs = [json.loads(path.read_text()) for path in paths]
+    doc = (root / "bench/records/single_view.md").read_text()
+    assert tuned_nets_markdown(runs) in doc, "single_view.md's fine-tuned nets' tables differ"
+    longer = _json(root, "bench/single_view/longer-400-steps-seed0.json")
+    assert steps_markdown(longer) in doc, "single_view.md's more-steps table differs"
+    return f"seeds {', '.join(str(run['seed']) for run in runs)}"
+
+
 def readme_score_scale_is_the_benchmarks(root: Path) -> None:
     """The README's table of what a score means is bench/score_scale.py's, from the committed
     benchmark."""
@@ -313,6 +328,7 @@ CHECKS: list[Callable[[Path], str | None]] = [
     single_view_finetuning_recomputes_and_the_doc_holds_it,
     single_view_curve_recomputes_and_the_doc_holds_it,
     single_view_speed_recomputes_and_the_doc_holds_it,
+    single_view_steps_runs_are_the_docs,
     readme_score_scale_is_the_benchmarks,
     benchmark_tables_are_the_benchmarks,
     training_tables_are_the_manifests,

@@ -1059,6 +1059,46 @@ def wins_table(shares_by: dict, first: str) -> list[str]:
     return lines
 
 
+def steps_markdown(run: dict) -> str:
+    """bench/records/single_view.md's table of one --steps run (OUT/longer-<steps>-steps-
+    seed<S>.json): each network's means over the test shapes, a loss's rows together, fewer
+    steps first."""
+    judged = (("Chamfer-L1", "CD-L1 ×100", 100.0, 2), ("F-score 1%", "F-score 1% ×100", 100.0, 1),
+              ("LFD", "LFD", 1.0, 0), ("silhouette IoU", "unseen sil. IoU", 1.0, 3))  # fmt: skip
+    rows = run["means"]["mean"]
+    losses = list(dict.fromkeys(name.rsplit(", ", 1)[0] for name in rows))
+    order = sorted(rows, key=lambda n: (losses.index(n.rsplit(", ", 1)[0]), int(n.split()[-2])))
+    head = f"| seed {run['seed']}, {len(run['table'])} test shapes | "
+    lines = [head + " | ".join(c[1] for c in judged) + " |", "|---|" + "---:|" * len(judged)]
+    for name in order:
+        cells = " | ".join(table_cell(rows[name][m], s, d) for m, _, s, d in judged)
+        lines.append(f"| {name} | {cells} |")
+    return "\n".join(lines) + "\n"
+
+
+def tuned_nets_markdown(runs: list[dict]) -> str:
+    """bench/records/single_view.md's tables of the nets fine-tuned for the loss, from the
+    --steps runs at the study's steps of ``EXTRA`` (OUT/longer-200-steps-seed<S>.json, one a
+    seed): every network's means pooled over the runs' seeds, and each tuned loss's cells
+    closer than the same loss with the shipped nets and than SoftRas', pooled and per seed."""
+    steps = runs[0]["steps"][1]
+
+    def at(name: str) -> str:  # the runs' row names
+        return f"{name}, {steps} steps"
+
+    tuned = [r.name for r in EXTRA]
+    shipped = {tuned[0]: DRKFS_SHADED, tuned[1]: RECIPE}
+    rows = [at(n) for n in (SOFTRAS, DRKFS_SHADED, tuned[0], RECIPE, tuned[1])]
+    tables = {run["seed"]: run["table"] for run in runs}
+    shapes = [Shape(n, n.split()[0], None, None) for n in runs[0]["table"]]
+    pairs = [(at(n), at(against)) for n in tuned for against in (shipped[n], SOFTRAS)]
+    per = {"pooled": list(tables.values()), **{f"seed {s}": [t] for s, t in tables.items()}}
+    wins = {key: {f"{c} | {a}": shares(ts, c, a) for c, a in pairs} for key, ts in per.items()}
+    pooled = means(per["pooled"], shapes, rows)["mean"]
+    blocks = (means_table(pooled, "network"), wins_table(wins, "network"))
+    return "\n\n".join("\n".join(block) for block in blocks) + "\n"
+
+
 def markdown(results: dict) -> str:
     """bench/records/single_view.md's tables from a results.json: the paper's form pooled over
     seeds, per family and per seed, and the shares of test shapes where each DR-KFS network is
