@@ -132,15 +132,16 @@ def speed_markdown(results: dict) -> str:
     """bench/records/single_view.md's speed tables (OUT/speed.json): each loss's seconds a step
     against SoftRas' IoU's in the same run; the grouped and every-camera losses' pooled means on
     the validation shapes; the grouped one's cells closer, pooled and per seed (LFD, unseen
-    silhouettes)."""
+    silhouettes). A run at equal cost (OUT/speed-<steps>-steps.json): the last two."""
     timing = results["seconds_per_step"]
     lines = ["| loss | s a step | x SoftRas' IoU |", "|---|---:|---:|"]
     for name, seconds in timing.items():
         lines.append(f"| {name} | {seconds:.2f} | {seconds / timing[SOFTRAS]:.1f} |")
-    first = "loss (validation shapes)"
-    if "grouped_steps" in results:
+    first, blocks = "loss (validation shapes)", [lines]
+    if "grouped_steps" in results:  # the timings are the run at equal steps'
         first = f"loss (validation shapes; every camera {results['steps']} steps, grouped "
         first += f"{results['grouped_steps']})"
-    table = means_table(results["means"]["pooled"], first)
-    wins = wins_table(results["shares"], "grouped")
-    return "\n\n".join("\n".join(block) for block in (lines, table, wins)) + "\n"
+        blocks = []
+    blocks.append(means_table(results["means"]["pooled"], first))
+    blocks.append(wins_table(results["shares"], "grouped"))
+    return "\n\n".join("\n".join(block) for block in blocks) + "\n"
