@@ -1063,8 +1063,7 @@ def steps_markdown(run: dict) -> str:
     """bench/records/single_view.md's table of one --steps run (OUT/longer-<steps>-steps-
     seed<S>.json): each network's means over the test shapes, a loss's rows together, fewer
     steps first."""
-    judged = (("Chamfer-L1", "CD-L1 ×100", 100.0, 2), ("F-score 1%", "F-score 1% ×100", 100.0, 1),
-              ("LFD", "LFD", 1.0, 0), ("silhouette IoU", "unseen sil. IoU", 1.0, 3))  # fmt: skip
+    judged = [c for c in COLUMNS if c[0] not in ("normal consistency", "volumetric IoU")]
     rows = run["means"]["mean"]
     losses = list(dict.fromkeys(name.rsplit(", ", 1)[0] for name in rows))
     order = sorted(rows, key=lambda n: (losses.index(n.rsplit(", ", 1)[0]), int(n.split()[-2])))
