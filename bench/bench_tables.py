@@ -3,7 +3,8 @@ preset and the outside metrics a reader compares with) and docs/benchmark.md's (
 the run, tiers split by synthetic and shared meshes, people's four subsets, the bars; the
 targets; what the human check lets a scorer reach; each method's verdict on the stability cases;
 "meshes as they come", from bench/as_they_come.py's JSON; the frozen test set's releases, from
-bench/test_set.py's); docs/training.md's nets, from models/manifest.json.
+bench/test_set.py's); docs/training.md's nets, from models/manifest.json; the README's loss on a
+batch, from bench/torch_batch.py's runs.
 
     python bench/bench_tables.py [--results bench/results/results.json]
 
@@ -252,6 +253,45 @@ def nets_tables(manifest: dict) -> str:
     return "\n".join(lines) + "\n\n" + "\n".join(table) + "\n"
 
 
+# the README's batch table's runs of bench/torch_batch.py, in its order
+BATCH_RUNS = ("torch_batch_cuda.json", "torch_batch.json")
+# the loss's stages as bench/torch_batch.py names them -> what each renders
+LOSS_STAGES = {"coarse": "12 views, 64 px", "fine": "6 views, 128 px"}
+
+
+def _batch_time(seconds: float, gpu: bool) -> str:
+    """A GPU's time in ms, a CPU's in s."""
+    if gpu:
+        return f"{seconds * 1e3:,.0f} ms" if seconds >= 0.01 else f"{seconds * 1e3:.1f} ms"
+    return f"{seconds:.1f} s" if seconds >= 1 else f"{seconds:.2f} s"
+
+
+def batch_table(runs: list[dict], batch: int = 32) -> str:
+    """The README's table of the loss on a batch (bench/torch_batch.py's JSON, one run per
+    device): each stage's one batched call forward and backward, a mesh's share of it, the
+    per-mesh loop before batches, the peak memory and the call over the batch's Chamfer-L2, all
+    of one run."""
+    lines = ["| device, stage | one batched call | per mesh | before: the per-mesh loop "
+             "| peak memory | over Chamfer-L2 of the batch |",
+             "|---|---:|---:|---:|---:|---:|"]  # fmt: skip
+    for run in runs:
+        gpu = run["machine"]["gpu"]
+        device = (
+            gpu.removeprefix("NVIDIA ") if gpu else f"{run['machine']['cpu_threads']} CPU cores"
+        )
+        for row in run["rows"]:
+            if row["batch"] != batch:
+                continue
+            call, ratio = row["batched"], row["batched_over_chamfer"]
+            times = (call["seconds"], call["seconds_per_mesh"], row["before"]["seconds"])
+            cells = [*(_batch_time(t, bool(gpu)) for t in times),
+                     f"{call['peak_memory_bytes'] / 1e9:.1f} GB",
+                     f"{ratio:.1f}×" if ratio >= 1 else f"{ratio:.2f}×"]  # fmt: skip
+            stage = f"{row['stage']} ({LOSS_STAGES[row['stage']]})"
+            lines.append(f"| {device}, {stage} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
 def _fmt3(value: float | None) -> str:
     return "n/a" if value is None else f"{value:.3f}"
 
@@ -272,6 +312,8 @@ def main() -> None:
     if args.test_set.is_file():
         print("", test_set_table(json.loads(args.test_set.read_text())), sep="\n")
     print("", nets_tables(json.loads((ROOT / "models" / "manifest.json").read_text())), sep="\n")
+    runs = [json.loads((ROOT / "bench/results" / name).read_text()) for name in BATCH_RUNS]
+    print("", batch_table(runs), sep="\n")
 
 
 if __name__ == "__main__":

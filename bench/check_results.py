@@ -20,7 +20,9 @@ from collections.abc import Callable
 from pathlib import Path
 
 from drkfs_lab.bench_tables import (
+    BATCH_RUNS,
     as_they_come_table,
+    batch_table,
     ceiling_table,
     nets_tables,
     readme_table,
@@ -52,7 +54,7 @@ from drkfs_lab.studies.single_view import (
 from drkfs_lab.studies.single_view import markdown as single_view_tables
 from drkfs_lab.test_set import summary as test_set_summary
 from drkfs_onnx import PipelineConfig
-from drkfs_onnx.contract.versions import LATEST, metric_name
+from drkfs_onnx.contract.versions import LATEST, VERSIONS, metric_name
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -317,6 +319,32 @@ def test_set_is_scored_at_each_release(root: Path) -> str:
     return f"releases {', '.join(results['releases'])}"
 
 
+def readme_batch_table_is_torch_batchs(root: Path) -> None:
+    """The README's table of the loss on a batch is bench/bench_tables.py's, from
+    bench/torch_batch.py's committed runs."""
+    runs = [_json(root, f"bench/results/{name}") for name in BATCH_RUNS]
+    assert batch_table(runs) in (root / "README.md").read_text(), "README's batch table differs"
+
+
+def readme_versions_table_names_every_version(root: Path) -> str:
+    """The README's table of metric versions names every version of
+    drkfs_onnx/contract/versions.py once, and each row's constructor makes its version."""
+    readme = (root / "README.md").read_text()
+    block = readme[readme.index("| version | config |") :].split("\n\n", 1)[0]
+    rows = [line.split(" | ") for line in block.splitlines()[2:]]
+    named = [name for row in rows for name in re.findall(r"`(drkfs[^`]*)`", row[0])]
+    assert sorted(named) == sorted(VERSIONS), (
+        f"README's versions {named}, the code's {list(VERSIONS)}"
+    )
+    for row in rows:
+        made = re.fullmatch(r"`PipelineConfig(\.\w+)?\(\)`", row[1].strip())
+        versions = re.findall(r"`(drkfs[^`]*)`", row[0])
+        if made and versions:
+            config = getattr(PipelineConfig, made[1][1:])() if made[1] else PipelineConfig()
+            assert metric_name(config) == versions[0], f"README: {row[1]} is not {versions[0]}"
+    return f"{len(named)} versions"
+
+
 CHECKS: list[Callable[[Path], str | None]] = [
     fitting_study_fitted_the_shipped_form,
     ideas_recompute_from_their_rows,
@@ -331,6 +359,8 @@ CHECKS: list[Callable[[Path], str | None]] = [
     single_view_speed_recomputes_and_the_doc_holds_it,
     single_view_steps_runs_are_the_docs,
     readme_score_scale_is_the_benchmarks,
+    readme_batch_table_is_torch_batchs,
+    readme_versions_table_names_every_version,
     benchmark_tables_are_the_benchmarks,
     training_tables_are_the_manifests,
     version_sample_is_the_benchmarks,

@@ -32,3 +32,21 @@ def test_a_share_that_does_not_follow_from_its_table_fails_its_check(tmp_path):
         check_results.network_studies_shares_recompute(tmp_path)
     shutil.copy(ROOT / "bench/fit-network/results.json", study / "results.json")
     check_results.network_studies_shares_recompute(tmp_path)  # the committed file passes
+
+
+def test_a_readme_that_drops_a_version_or_retypes_a_batch_figure_fails_its_check(tmp_path):
+    shutil.copytree(ROOT / "bench" / "results", tmp_path / "bench" / "results")
+    readme = (ROOT / "README.md").read_text()
+    check_results.readme_versions_table_names_every_version(ROOT)
+    paper = next(line for line in readme.splitlines() if line.startswith("| `drkfs-paper` |"))
+    (tmp_path / "README.md").write_text(readme.replace(paper + "\n", ""))
+    with pytest.raises(AssertionError, match="versions"):
+        check_results.readme_versions_table_names_every_version(tmp_path)
+    swapped = paper.replace("PipelineConfig.paper()", "PipelineConfig.structure()")
+    (tmp_path / "README.md").write_text(readme.replace(paper, swapped))
+    with pytest.raises(AssertionError, match="is not drkfs-paper"):
+        check_results.readme_versions_table_names_every_version(tmp_path)
+    check_results.readme_batch_table_is_torch_batchs(ROOT)
+    (tmp_path / "README.md").write_text(readme.replace("| 0.14 s |", "| 0.15 s |"))
+    with pytest.raises(AssertionError, match="batch table"):
+        check_results.readme_batch_table_is_torch_batchs(tmp_path)
