@@ -17,7 +17,7 @@ from .match import best_match_distances, match_score, pairing_scores, window_ind
 from .nets.detector import PoIDetector
 from .nets.hardnet import HardNet
 from .nets.patches import nonempty_patches_on_device, select_patches
-from .nets.precision import check_conv_precision, conv_precision
+from .nets.precision import check_conv_precision, conv_dtype, conv_precision
 from .nets.weights import RANDOM_SEED, load_shipped_state
 from .render.mesh_batch import MeshBatch, over_batch
 from .render.renderer import Renderer, RenderMode
@@ -102,8 +102,10 @@ class DRKFS(nn.Module):
             ``PipelineConfig()`` by default, ``PipelineConfig.paper()`` the paper's recipe.
         normalization: 'joint' places both meshes by the reference B's bounding box, 'each'
             each by its own, 'none' leaves them.
-        conv_precision: the nets' convolutions on a GPU: 'ieee' (float32; a batch's gradient
-            that of the per-mesh loop) or 'tf32' (faster, less exact).
+        conv_precision: the nets' convolutions: 'ieee' (float32; a batch's gradient that of
+            the per-mesh loop), 'tf32' (on a GPU: faster, less exact) or 'bfloat16' (HardNet's
+            convolutions in bfloat16 on either device: a cheaper training step on a CPU with
+            AVX-512 BF16 or AMX, the loss near float32's, not equal to it).
 
     Shape:
         - verts_a, verts_b: (V, 3) one mesh, or a batch in any form ``MeshBatch.of`` takes
@@ -210,11 +212,12 @@ class DRKFS(nn.Module):
         blank = torch.full(
             (1, 1, size, size), self.config.background, dtype=dtype, device=images.device
         )
-        empty = self.descriptor(self.detector(blank))
+        convs = conv_dtype(self.conv_precision)
+        empty = self.descriptor(self.detector(blank), None, convs)
         if images.is_cuda:
             every = torch.arange(len(seen), device=images.device)
             patches = select_patches(self.detector(images), every, self.config)
-            described = self.descriptor(patches, GPU_PATCH_GROUP)
+            described = self.descriptor(patches, GPU_PATCH_GROUP, convs)
             return torch.where(seen[:, None], described, empty)
         index = torch.nonzero(seen).squeeze(1)
         descriptors = empty.expand(len(seen), -1)
@@ -222,7 +225,7 @@ class DRKFS(nn.Module):
             return descriptors
         patches = select_patches(self.detector(images), index, self.config)
         # on a CPU in groups whose activations stay in cache, forward and backward
-        described = self.descriptor(patches, CPU_PATCH_GROUP)
+        described = self.descriptor(patches, CPU_PATCH_GROUP, convs)
         return descriptors.index_put((index,), described)
 
     @_without_autocast

@@ -161,12 +161,16 @@ class HardNet(nn.Module):
         ]
         self.features = nn.Sequential(*layers)
 
-    def forward(self, patches: torch.Tensor, group: int | None = None) -> torch.Tensor:
+    def forward(
+        self, patches: torch.Tensor, group: int | None = None, dtype: torch.dtype | None = None
+    ) -> torch.Tensor:
         """``group``: in evaluation mode, the convs run on that many patches at a time (on a CPU
-        a group's activations can stay in cache); None: all at once."""
+        a group's activations can stay in cache); None: all at once. ``dtype``: in evaluation
+        mode, the convs run in it (``precision.conv_dtype``), the descriptors come back in the
+        patches' dtype; None: the patches' dtype throughout."""
         x = nn.functional.instance_norm(patches, eps=self.patch_norm_eps)
-        features = self.features(x) if self.training else self._folded(x, group)
-        return l2_normalize(features.flatten(1))
+        features = self.features(x) if self.training else self._folded(x, group, dtype)
+        return l2_normalize(features.flatten(1).to(patches.dtype))
 
     def folded_layers(self) -> dict[int, tuple]:
         """Each conv's index in ``features`` -> (W / sqrt(var + eps), -mean / sqrt(var + eps),
@@ -181,14 +185,19 @@ class HardNet(nn.Module):
                 layers[k] = (weight, bias, conv.stride, conv.padding)
         return layers
 
-    def _folded(self, x: torch.Tensor, group: int | None) -> torch.Tensor:
+    def _folded(
+        self, x: torch.Tensor, group: int | None, dtype: torch.dtype | None = None
+    ) -> torch.Tensor:
         """The evaluation-mode layers with each BatchNorm folded into the conv before it:
         (x - mean) / sqrt(var + eps) of W * x is (W / sqrt(var + eps)) * x - mean / sqrt(var +
         eps). One conv per layer instead of a conv and a normalisation, forward and backward.
-        Dropout is the identity in evaluation mode."""
+        Dropout is the identity in evaluation mode. ``dtype``: the convs' (None: x's)."""
+        dtype = dtype or x.dtype
+        x = x.to(dtype)
+        layout = precision.conv_layout(x.device)
         layers = [
-            (weight.contiguous(memory_format=precision.conv_layout(weight.device)), *rest)
-            for weight, *rest in self.folded_layers().values()
+            (weight.to(dtype).contiguous(memory_format=layout), bias.to(dtype), *rest)
+            for weight, bias, *rest in self.folded_layers().values()
         ]
         # fixed nets on an input that needs a gradient (a training loss): the lean backward
         if x.requires_grad and not any(p.requires_grad for p in self.parameters()):

@@ -72,6 +72,28 @@ def test_fixed_nets_backward_equals_autograds(size, group):
     assert found[True].abs().max() > 0
 
 
+@pytest.mark.parametrize("frozen", [False, True])
+def test_convs_in_bfloat16_give_float32_descriptors_near_float32s(frozen):
+    """``dtype`` runs the evaluation convs in bfloat16 (the cheaper training step's HardNet):
+    float32 unit descriptors within bfloat16's rounding of float32's, forward and, for fixed
+    nets, backward; the patches' gradient in float32."""
+    torch.manual_seed(0)
+    net = HardNet(PipelineConfig(descriptor_width=0.5)).eval().requires_grad_(not frozen)
+    patches = torch.rand(6, 1, 32, 32, requires_grad=True)
+    upstream = torch.randn(6, 128)
+    found = {}
+    for dtype in (None, torch.bfloat16):
+        described = net(patches, 4, dtype)
+        (grad,) = torch.autograd.grad((described * upstream).sum(), patches)
+        found[dtype] = described, grad
+    (exact, exact_grad), (cheap, cheap_grad) = found[None], found[torch.bfloat16]
+    assert cheap.dtype == cheap_grad.dtype == torch.float32
+    torch.testing.assert_close(cheap.norm(dim=1), torch.ones(6))
+    assert (cheap - exact).abs().max() < 0.02 * exact.abs().max()
+    assert not torch.equal(cheap, exact)  # the convs did run in bfloat16
+    assert F.cosine_similarity(cheap_grad.flatten(), exact_grad.flatten(), dim=0) > 0.97
+
+
 def test_hardnet_ignores_patch_brightness_and_contrast():
     torch.manual_seed(0)
     net = HardNet(CONFIG).eval()
