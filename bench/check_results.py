@@ -36,7 +36,6 @@ from drkfs_lab.benchmark.sets import BenchSet, Comparison
 from drkfs_lab.judging.judges import VISUAL
 from drkfs_lab.judging.rule import brief_share, chamfer_ratios, share
 from drkfs_lab.score_scale import markdown, scale
-from drkfs_lab.studies.camera_groups import speed_markdown, summarise_speed
 from drkfs_lab.studies.finetune import finetune_markdown, summarise_finetune
 from drkfs_lab.studies.losses import CHAMFER, FORMS, PIXEL, SHIPPED, with_chamfer
 from drkfs_lab.studies.network import FULL, choose_loss
@@ -52,6 +51,7 @@ from drkfs_lab.studies.single_view import (
     validation_choice,
 )
 from drkfs_lab.studies.single_view import markdown as single_view_tables
+from drkfs_lab.studies.speed import speed_markdown, summarise_speed
 from drkfs_lab.test_set import summary as test_set_summary
 from drkfs_onnx import PipelineConfig
 from drkfs_onnx.contract.versions import LATEST, VERSIONS, metric_name

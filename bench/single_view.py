@@ -53,7 +53,7 @@ def single_view(
         typer.Option(
             help="Train --losses at each of --seeds for this many steps (networks beside the "
             "study's in OUT) and judge them beside the study's networks of that seed (writes "
-            "OUT/longer-<steps>-steps-seed<seed>.json); with --speed, the grouped losses' steps.",
+            "OUT/longer-<steps>-steps-seed<seed>.json); with --speed, the cheaper losses' steps.",
             show_default=False,
         ),
     ] = None,
@@ -87,9 +87,10 @@ def single_view(
     speed: Annotated[
         bool,
         typer.Option(
-            help="Time a step of each loss from every camera and from one group of them, in "
-            "one run; then train --losses (grouped ones) at every seed and judge them beside "
-            "the same losses from every camera on the validation shapes (writes OUT/speed.json)."
+            help="Time a step of each loss at a full step and at each cheaper one (a group of "
+            "the cameras, HardNet in bfloat16), in one run; then train --losses (cheaper ones) "
+            "at every seed and judge them beside the same losses at a full step on the "
+            "validation shapes (writes OUT/speed.json)."
         ),
     ] = False,
     finetune: Annotated[
@@ -121,7 +122,7 @@ def single_view(
         message = f"--seeds: expected integers like 0,1,2; got {seeds!r}"
         raise typer.BadParameter(message) from None
     if speed:
-        from drkfs_lab.studies.camera_groups import run_speed, speed_markdown
+        from drkfs_lab.studies.speed import run_speed, speed_markdown
 
         try:
             results = run_speed(

@@ -114,15 +114,18 @@ EXTRA = (
     Recipe(DRKFS_TUNED, ((1.0, DRKFS_TUNED),)),
     Recipe(f"{DRKFS_TUNED} + 3 x Chamfer-L2", ((1.0, DRKFS_TUNED), (3.0, CHAMFER))),
 )
-# DR-KFS from one group of its cameras a step (``DrkfsLoss``'s view_groups), alone and in the
-# recipe: the speed work's cheaper steps (--speed, studies/camera_groups.py)
+# the speed work's cheaper DR-KFS steps, alone and in the recipe (--speed, studies/speed.py):
+# from one group of its cameras a step (``DrkfsLoss``'s view_groups), or with HardNet's convs in
+# bfloat16 (its conv_precision)
 CAMERA_GROUPS = {
     "DR-KFS (half the cameras a step)": 2,
     "DR-KFS (a third of the cameras a step)": 3,
 }
-GROUPED = (
-    *(Recipe(name, ((1.0, name),)) for name in CAMERA_GROUPS),
-    *(Recipe(f"{name} + 3 x Chamfer-L2", ((1.0, name), (3.0, CHAMFER))) for name in CAMERA_GROUPS),
+BFLOAT16 = "DR-KFS (HardNet in bfloat16)"
+CHEAPER = (*CAMERA_GROUPS, BFLOAT16)
+CHEAPER_RECIPES = (
+    *(Recipe(name, ((1.0, name),)) for name in CHEAPER),
+    *(Recipe(f"{name} + 3 x Chamfer-L2", ((1.0, name), (3.0, CHAMFER))) for name in CHEAPER),
 )
 # the fine-tuning protocol (--finetune, studies/finetune.py): a network trained with SoftRas'
 # loss or Chamfer's, trained as long again with its own loss, with DR-KFS beside it, or with
@@ -139,7 +142,8 @@ FINETUNE_RECIPES = (
 
 def by_name(name: str) -> Recipe:
     recipes = (
-        *BASELINES, *DRKFS_RECIPES, *COMBINATIONS, *CONTROLS, *EXTRA, *FINETUNE_RECIPES, *GROUPED,
+        *BASELINES, *DRKFS_RECIPES, *COMBINATIONS, *CONTROLS, *EXTRA, *FINETUNE_RECIPES,
+        *CHEAPER_RECIPES,
     )  # fmt: skip
     for recipe in recipes:
         if recipe.name == name:
@@ -279,7 +283,9 @@ class Terms:
                 else:
                     # the groups are drawn by the training's generator: a seed repeats them
                     kind = SilhouetteDRKFS if term == DRKFS_SILHOUETTE else DRKFS
-                    metrics = [kind.pretrained(stage.config) for stage in COARSE_TO_FINE]
+                    precision = "bfloat16" if term == BFLOAT16 else "ieee"
+                    metrics = [kind.pretrained(stage.config, conv_precision=precision)
+                               for stage in COARSE_TO_FINE]  # fmt: skip
                     groups = CAMERA_GROUPS.get(term, 1)
                     loss = DrkfsLoss(metrics, COARSE_TO_FINE, None, groups, self.generator)
                 loss = loss.to(device)

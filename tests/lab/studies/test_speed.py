@@ -1,6 +1,6 @@
-"""The speed work (``python bench/single_view.py --speed``, studies.camera_groups): every loss
-timed in one run, a grouped loss trained and judged on validation shapes beside the same loss
-from every camera."""
+"""The speed work (``python bench/single_view.py --speed``, studies.speed): every loss timed in
+one run, a cheaper loss trained and judged on validation shapes beside the same loss at a full
+step."""
 
 import json
 
@@ -8,14 +8,23 @@ import pytest
 from typer.testing import CliRunner
 
 from drkfs_lab.single_view import app
-from drkfs_lab.studies.camera_groups import EVERY_CAMERA, TIMED, speed_markdown, summarise_speed
-from drkfs_lab.studies.single_view import CAMERA_GROUPS, DRKFS_SHADED, RECIPE, SOFTRAS, Shape
+from drkfs_lab.studies.single_view import (
+    BFLOAT16,
+    CAMERA_GROUPS,
+    CHEAPER,
+    DRKFS_SHADED,
+    RECIPE,
+    SOFTRAS,
+    Shape,
+)
+from drkfs_lab.studies.speed import FULL_STEP, TIMED, speed_markdown, summarise_speed
 
 
-def test_each_grouped_loss_is_set_against_the_same_loss_from_every_camera():
+def test_each_cheaper_loss_is_set_against_the_same_loss_at_a_full_step():
     assert set(CAMERA_GROUPS.values()) == {2, 3}  # divisors of the stages' 12 and 6 cameras
-    for name, every in EVERY_CAMERA.items():
-        assert every == (RECIPE if name.endswith(" + 3 x Chamfer-L2") else DRKFS_SHADED)
+    assert set(CHEAPER) == {*CAMERA_GROUPS, BFLOAT16}
+    for name, full in FULL_STEP.items():
+        assert full == (RECIPE if name.endswith(" + 3 x Chamfer-L2") else DRKFS_SHADED)
         assert name.startswith("DR-KFS (") and name in TIMED
     assert TIMED[0] == SOFTRAS  # the timings' baseline, in the same run
 
@@ -37,11 +46,11 @@ def test_the_speed_run_times_every_loss_and_judges_a_grouped_loss_on_validation(
     assert again["means"] == found["means"] and again["shares"] == found["shares"]
     assert f"| {grouped} | {DRKFS_SHADED} |" in speed_markdown(found)
     refused = CliRunner().invoke(app, [*args[:3], "DR-KFS", *args[4:]])
-    assert refused.exit_code == 2 and "not a grouped loss" in refused.output
+    assert refused.exit_code == 2 and "not a cheaper loss" in refused.output
     # at equal cost: the grouped loss trained for more steps, beside the same networks
     longer = CliRunner().invoke(app, [*args, "--steps", "3"])
     assert longer.exit_code == 0, longer.output
     found = json.loads((out / "speed-3-steps.json").read_text())
     assert (found["steps"], found["grouped_steps"]) == (2, 3)
-    assert "every camera 2 steps, grouped 3" in speed_markdown(found)
+    assert "full step 2 steps, cheaper 3" in speed_markdown(found)
     assert (out / "networks-3-steps" / "seed0").is_dir()
