@@ -104,8 +104,8 @@ class DRKFS(nn.Module):
             each by its own, 'none' leaves them.
         conv_precision: the nets' convolutions: 'ieee' (float32; a batch's gradient that of
             the per-mesh loop), 'tf32' (on a GPU: faster, less exact) or 'bfloat16' (HardNet's
-            convolutions in bfloat16 on either device: a cheaper training step on a CPU with
-            AVX-512 BF16 or AMX, the loss near float32's, not equal to it).
+            convolutions in bfloat16: a cheaper training step on a CPU with AVX-512 BF16 or
+            AMX, the loss near float32's, not equal to it; untested on a GPU).
 
     Shape:
         - verts_a, verts_b: (V, 3) one mesh, or a batch in any form ``MeshBatch.of`` takes

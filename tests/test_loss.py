@@ -56,7 +56,7 @@ def test_a_training_step_runs_every_convolution_at_the_asked_precision(monkeypat
     def recording(name, conv):
         def call(*args, **kwargs):
             seen.append((name, setting.fp32_precision))
-            dtypes.add(args[0].dtype)
+            dtypes.add((name, args[0].dtype))
             return conv(*args, **kwargs)
 
         return call
@@ -73,8 +73,9 @@ def test_a_training_step_runs_every_convolution_at_the_asked_precision(monkeypat
     expected = "tf32" if asked == "tf32" else "ieee"
     # the convs forward, their transposes backward
     assert set(seen) == {("conv2d", expected), ("conv_transpose2d", expected)}
-    both = {torch.float32, torch.bfloat16}
-    assert dtypes == (both if asked == "bfloat16" else {torch.float32})
+    kinds = (torch.float32, torch.bfloat16) if asked == "bfloat16" else (torch.float32,)
+    # HardNet's convs and the transposes of its own backward in bfloat16, the detector's not
+    assert dtypes == {(name, kind) for name in ("conv2d", "conv_transpose2d") for kind in kinds}
     assert setting.fp32_precision == before
     with pytest.raises(ValueError, match="conv_precision 'bf16'; use one of ieee, tf32, bfloat16"):
         DrkfsLoss.pretrained(conv_precision="bf16")
@@ -82,8 +83,8 @@ def test_a_training_step_runs_every_convolution_at_the_asked_precision(monkeypat
 
 def test_hardnet_in_bfloat16_keeps_the_loss_and_turns_its_gradient_little():
     """The cheaper CPU step (HardNet's convs in bfloat16): at both stages the loss within 0.2%
-    of float32's and its gradient within a few degrees (measured: 3e-5 and 2e-4 of the value,
-    cosine 0.999 and 0.994)."""
+    of float32's and its gradient at cosine > 0.98 to float32's (measured on this CPU: 2.5e-5
+    and 2e-4 of the value, cosine 0.999 and 0.994)."""
     verts, faces = _mesh("chair.obj")
     other, other_faces = _mesh("chair_no_leg.obj")
     found = {}

@@ -1,4 +1,4 @@
-"""How the nets' convolutions run on a GPU: their precision and their memory layout."""
+"""How the nets' convolutions run: their precision and their memory layout."""
 
 from __future__ import annotations
 
@@ -10,9 +10,9 @@ import torch
 # 'ieee': float32 throughout; 'tf32': cuDNN rounds a convolution's inputs to TF32's 10-bit
 # mantissa (torch's own default): faster, and a batch's gradient no longer the per-mesh loop's
 # to float32 rounding (docs/design_notes.md); 'bfloat16': HardNet's convolutions, forward and
-# backward, in bfloat16 on either device (a CPU with AVX-512 BF16 or AMX runs them natively,
-# about 2.3x faster), its descriptors back in float32 before their normalisation, the detector
-# in float32: a cheaper training step whose values are no longer float32's (docs/usage.md)
+# backward, in bfloat16 (a CPU with AVX-512 BF16 or AMX runs them natively; untested on a GPU),
+# its descriptors back in float32 before their normalisation, the detector in float32: a
+# cheaper training step whose values are no longer float32's (docs/usage.md)
 CONV_PRECISIONS = ("ieee", "tf32", "bfloat16")
 
 
@@ -38,10 +38,10 @@ def current() -> str:
 def conv_precision(precision: str) -> Iterator[None]:
     """cuDNN's float32 convolutions at ``precision`` inside (no effect on a CPU); the setting
     is process-wide while it lasts. ``precision`` is any of torch's values ('none' too, as a
-    backward restores what its forward ran at); a user's choice is checked where it is made
+    backward restores what its forward ran at) or 'bfloat16', under which the float32
+    convolutions left run in IEEE float32; a user's choice is checked where it is made
     (``check_conv_precision``)."""
     before = current()
-    # under 'bfloat16' the float32 convs left (the detector's) run in IEEE float32
     torch.backends.cudnn.conv.fp32_precision = "ieee" if precision == "bfloat16" else precision
     try:
         yield
