@@ -320,10 +320,14 @@ def test_set_is_scored_at_each_release(root: Path) -> str:
 
 
 def readme_batch_table_is_torch_batchs(root: Path) -> None:
-    """The README's table of the loss on a batch is bench/bench_tables.py's, from
-    bench/torch_batch.py's committed runs."""
+    """The README's table of the loss on a batch is bench/bench_tables.py's, and its TF32
+    figure the GPU run's, from bench/torch_batch.py's committed runs."""
     runs = [_json(root, f"bench/results/{name}") for name in BATCH_RUNS]
-    assert batch_table(runs) in (root / "README.md").read_text(), "README's batch table differs"
+    readme = (root / "README.md").read_text()
+    assert batch_table(runs) in readme, "README's batch table differs"
+    gpu = next(r for run in runs if run["machine"]["gpu"] for r in run["rows"] if r["batch"] == 32)
+    tf32 = f'(`conv_precision="tf32"`: {gpu["batched_tf32"]["seconds"] * 1e3:.0f} ms)'
+    assert tf32 in readme, "README's TF32 figure differs"
 
 
 def readme_versions_table_names_every_version(root: Path) -> str:

@@ -5,19 +5,25 @@ step."""
 import json
 
 import pytest
+import torch
 from typer.testing import CliRunner
 
 from drkfs_lab.single_view import app
+from drkfs_lab.studies.shape_generator import ShapeGenerator
 from drkfs_lab.studies.single_view import (
     BFLOAT16,
     CAMERA_GROUPS,
     CHEAPER,
     DRKFS_SHADED,
+    QUICK,
     RECIPE,
     SOFTRAS,
     Shape,
+    Terms,
+    study_sets,
 )
 from drkfs_lab.studies.speed import FULL_STEP, TIMED, speed_markdown, summarise_speed
+from drkfs_lab.studies.views import CHANNELS, IMAGE_SIZE
 
 
 def test_each_cheaper_loss_is_set_against_the_same_loss_at_a_full_step():
@@ -27,6 +33,23 @@ def test_each_cheaper_loss_is_set_against_the_same_loss_at_a_full_step():
         assert full == (RECIPE if name.endswith(" + 3 x Chamfer-L2") else DRKFS_SHADED)
         assert name.startswith("DR-KFS (") and name in TIMED
     assert TIMED[0] == SOFTRAS  # the timings' baseline, in the same run
+
+
+def test_each_cheaper_loss_is_built_as_its_name_says():
+    """A third of the cameras: the loss's view_groups 3, its nets in float32; HardNet in
+    bfloat16: every camera, every stage's nets at conv_precision 'bfloat16'."""
+    shapes = study_sets(QUICK)[0][:1]
+    faces = ShapeGenerator(CHANNELS, IMAGE_SIZE).faces
+    terms = Terms(shapes, torch.zeros(1), faces, 0)
+    built = {}
+    for name in (DRKFS_SHADED, *CHEAPER):
+        loss, _ = terms.prepare(name)
+        built[name] = (loss.view_groups, {m.conv_precision for m in loss.metrics})
+    assert built == {
+        DRKFS_SHADED: (1, {"ieee"}),
+        **{name: (groups, {"ieee"}) for name, groups in CAMERA_GROUPS.items()},
+        BFLOAT16: (1, {"bfloat16"}),
+    }
 
 
 @pytest.mark.slow
