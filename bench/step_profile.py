@@ -1,15 +1,15 @@
-"""Where a DR-KFS training step of the single-view study goes, and what
-running HardNet in bfloat16 would save, measured in one run:
+"""Where a DR-KFS training step of the single-view study goes, and what HardNet in bfloat16
+saves, measured in one run:
 
     python bench/step_profile.py --out bench/single_view/step_profile.json [--repeats 3]
 
 The study's generator makes a batch of 16 shapes from their views; at each stage of the loss
 (coarse: 12 views of 64 px; fine: the loss preset) the step's parts are timed apart: render
 (forward), describe (detector and HardNet, forward), match, the describe's backward and the
-render's backward (best of ``--repeats`` batches after one warm-up). Then HardNet's convolutions
-on the fine stage's patches, forward and backward, in float32 and in bfloat16 (a CPU with
-AVX-512 BF16 or AMX runs them natively), with the descriptors' largest difference: bfloat16 would
-change the loss's values, so it is a candidate cut, not one made.
+render's backward (best of ``--repeats`` batches after one warm-up). Then HardNet on the fine
+stage's non-empty patches as a step runs it, forward and backward, its convs in float32 and in
+bfloat16 (``conv_precision="bfloat16"``; a CPU with AVX-512 BF16 or AMX runs them natively), with
+the descriptors' largest difference.
 """
 
 from __future__ import annotations
@@ -29,8 +29,8 @@ from drkfs_lab.studies.views import CHANNELS, IMAGE_SIZE
 from drkfs_onnx.contract.mesh import place_by
 from drkfs_onnx.loss import COARSE_TO_FINE, StagedTarget
 from drkfs_onnx.match import match_score
-from drkfs_onnx.nets.hardnet import conv_stack
-from drkfs_onnx.nets.patches import select_patches
+from drkfs_onnx.metric import CPU_PATCH_GROUP
+from drkfs_onnx.nets.patches import nonempty_patches_on_device, select_patches
 from drkfs_onnx.render.mesh_batch import MeshBatch
 from drkfs_onnx.render.torch_ops import TORCH_OPS
 
@@ -69,22 +69,19 @@ def step_parts(metric, model, views, targets, faces, rng, stage: int, repeats: i
 
 
 def hardnet_dtypes(metric, patches: torch.Tensor, repeats: int) -> dict:
-    """HardNet's folded convs on ``patches``, forward and backward, float32 against bfloat16."""
+    """HardNet on ``patches`` as a training step runs it (the fixed nets' backward, groups of
+    ``CPU_PATCH_GROUP``), forward and backward, its convs in float32 against bfloat16."""
     found, outputs = {}, {}
     for dtype in (torch.float32, torch.bfloat16):
-        layers = [(w.detach().to(dtype).contiguous(memory_format=torch.channels_last),
-                   b.detach().to(dtype), s, p)
-                  for w, b, s, p in metric.descriptor.folded_layers().values()]  # fmt: skip
-        x = patches.to(dtype).contiguous(memory_format=torch.channels_last)
         times = []
         for _ in range(repeats + 1):
-            inputs = x.clone().requires_grad_()
+            inputs = patches.clone().requires_grad_()
             start = time.perf_counter()
-            out = torch.cat([conv_stack(part, layers) for part in inputs.split(256)])
-            out.float().square().sum().backward()
+            out = metric.descriptor(inputs, CPU_PATCH_GROUP, dtype)
+            out.square().sum().backward()
             times.append(time.perf_counter() - start)
         found[str(dtype).removeprefix("torch.")] = min(times[1:])
-        outputs[dtype] = out.detach().float()
+        outputs[dtype] = out.detach()
     found["bfloat16_over_float32"] = found["bfloat16"] / found["float32"]
     scale = outputs[torch.float32].abs().max()
     found["largest_difference_over_largest_value"] = float(
@@ -117,9 +114,8 @@ def main() -> None:
     with torch.no_grad():
         verts = model(views["train"][:16, 0])
         images = fine.render(verts, faces)
-    maps = fine.detector(images.to(torch.float32))
-    every = torch.arange(len(maps) * fine.config.patches_per_view)
-    patches = select_patches(maps, every, fine.config)
+    seen = torch.nonzero(nonempty_patches_on_device(images, fine.config)).squeeze(1)
+    patches = select_patches(fine.detector(images), seen, fine.config)
     results = {
         "command": f"python bench/step_profile.py --repeats {args.repeats} --threads "
         f"{args.threads}" + (f" --out {args.out}" if args.out else ""),
