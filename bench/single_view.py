@@ -6,7 +6,7 @@ seeds, judged on held-out shapes and views by metrics no loss computes.
     python bench/single_view.py --out bench/single_view      # the study (resumable)
     python bench/single_view.py --out bench/single_view --test-seeds 6000   # other test shapes
     python bench/single_view.py --out bench/single_view --controls  # the matched controls
-    python bench/single_view.py --out bench/single_view --curve --until 2000   # learning curve
+    python bench/single_view.py --out bench/single_view --curve --until 3000   # learning curve
     python bench/single_view.py --out bench/single_view --finetune  # the fine-tuning protocol
     python bench/single_view.py --out bench/single_view --speed \
         --losses "DR-KFS (a third of the cameras a step)"           # cheaper steps
@@ -64,11 +64,11 @@ def single_view(
         bool,
         typer.Option(
             help="The learning curve: the main losses trained at the first of --seeds and "
-            "judged at 200, 500, 1,000 and 2,000 steps up to --until (writes OUT/curve.json "
-            "and OUT/curve.png; resumes from --state)."
+            "judged at 200, 500, 1,000, 2,000 and 3,000 steps up to --until (writes "
+            "OUT/curve.json and OUT/curve.png; resumes from --state)."
         ),
     ] = False,
-    until: Annotated[int, typer.Option(help="With --curve: the last step judged.")] = 2000,
+    until: Annotated[int, typer.Option(help="With --curve: the last step judged.")] = 3000,
     state: Annotated[
         Path | None,
         typer.Option(

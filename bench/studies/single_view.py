@@ -104,7 +104,10 @@ MATCHED = {  # a DR-KFS recipe -> its controls, SoftRas' own loss beside each
 }  # fmt: skip
 # the learning curve (--curve): one run of each to the last point at seed 0, judged at every
 # point; the recipe's best control is read from OUT/controls.json (by pooled LFD), else this
-CURVE_POINTS = (200, 500, 1000, 2000)
+CURVE_POINTS = (200, 500, 1000, 2000, 3000)
+# the staged DR-KFS loss's progress is a step over these (coarse views until 800); the points
+# past them go on at its fine stage
+CURVE_PLAN_STEPS = 2000
 CURVE_SAVE_EVERY = 50  # steps between a curve run's saved training states
 CURVE_RECIPES = (SOFTRAS, PIXEL, "3 x Chamfer-L2", DRKFS_SHADED, RECIPE)
 CURVE_CONTROL = "silhouette IoU + 3 x Chamfer-L2"
@@ -914,14 +917,18 @@ def run_curve(
     progress=print,
 ) -> dict:
     """The learning curve: each of ``CURVE_RECIPES`` and the recipe's best control trained in
-    one run to the last of ``CURVE_POINTS`` (at most ``until``), judged on the study's test
-    shapes at each point -> OUT/curve.json and OUT/curve.png, rewritten after every point. Each
+    one run to the last of ``CURVE_POINTS`` (at most ``until``; the staged loss's progress over
+    ``CURVE_PLAN_STEPS``), judged on the study's test shapes at each point -> OUT/curve.json and
+    OUT/curve.png, rewritten after every point. Each
     run's training state and its network at each point are kept in ``state`` (outside the
     repository: 15 MB a state), so a stopped curve goes on where it stopped, bit for bit as a
     straight run, in this session or a later one on the same machine."""
     study_plan = QUICK if quick else FULL
-    points = [p for p in CURVE_POINTS if p <= until] if not quick else [1, 2]
-    plan = replace(study_plan, steps=points[-1] if quick else CURVE_POINTS[-1])
+    # quick: a point past the staged loss's steps too
+    points, staged = (
+        ([1, 2, 3], 2) if quick else ([p for p in CURVE_POINTS if p <= until], CURVE_PLAN_STEPS)
+    )
+    plan = replace(study_plan, steps=staged)
     dev = torch.device(device)
     test_set, views, terms = training_data(out, plan, dev)
     names = [*CURVE_RECIPES, curve_control(out)]
@@ -974,8 +981,8 @@ def run_curve(
                 "key": key,
                 "seed": seed,
                 "losses": names,
-                "schedule": f"one run of {plan.steps} steps, judged at each point; the staged "
-                "DR-KFS loss's progress is the step over the run's steps",
+                "schedule": f"one run, judged at each point; the staged DR-KFS loss's "
+                f"progress is the step over {plan.steps} steps, its fine stage past them",
                 "points": dict(sorted(rows.items(), key=lambda kv: int(kv[0]))),
             }
             out.mkdir(parents=True, exist_ok=True)
@@ -1000,6 +1007,9 @@ def draw_curve(path: Path, results: dict) -> None:
             if any(v is not None for v in values):
                 axes.plot(steps, values, marker="o", label=name)
         axes.set_xscale("log")
+        # the judged points as plain numbers, without log scale's minor labels between them
+        axes.set_xticks(steps, [f"{s:,}" for s in steps], fontsize=7)
+        axes.minorticks_off()
         axes.set_xlabel("training steps")
         title = "unseen silhouette IoU" if metric == "silhouette IoU" else metric
         arrow = "higher is better" if metric in HIGHER_IS_BETTER else "lower is better"
