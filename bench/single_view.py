@@ -25,7 +25,7 @@ import typer
 
 from drkfs_onnx.contract.cli_options import RUNS
 
-app = typer.Typer(add_completion=False)
+app = typer.Typer(add_completion=False, rich_markup_mode=None)  # plain help: flags without <bool>
 
 
 @app.command()

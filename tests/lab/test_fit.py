@@ -477,3 +477,10 @@ def test_each_ideas_three_term_fit_is_judged_beside_the_studys_reproduced_rows(
     }
     assert reran["rivals_reused"] == ["pixel MSE", three]
     assert reran["table"] == results["table"] and reran["here"] == results["here"]
+
+
+def test_the_fit_scripts_help_shows_flags_plainly():
+    """A flag takes no value, so its help shows none (typer's rich help printed <bool>)."""
+    result = CliRunner().invoke(fit_app, ["--help"])
+    assert result.exit_code == 0 and "--quick" in result.output
+    assert "<bool>" not in result.output

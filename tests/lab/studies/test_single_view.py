@@ -61,6 +61,13 @@ from drkfs_onnx.metric import DRKFS
 from drkfs_onnx.render.renderer import Renderer
 
 
+def test_the_scripts_help_shows_flags_plainly():
+    """A flag takes no value, so its help shows none (typer's rich help printed <bool>)."""
+    result = CliRunner().invoke(app, ["--help"])
+    assert result.exit_code == 0 and "--curve / --no-curve" in result.output
+    assert "<bool>" not in result.output
+
+
 def test_the_generator_starts_as_a_sphere_every_vertex_can_leave_and_every_weight_learns():
     torch.manual_seed(0)
     model = ShapeGenerator(CHANNELS, IMAGE_SIZE)
