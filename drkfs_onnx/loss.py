@@ -90,7 +90,8 @@ class DrkfsLoss(nn.Module):
         - target(verts (V, 3), faces (F, 3)) -> ``StagedTarget``, one ``Target`` per stage; a
           batch of B truths (any form ``MeshBatch.of`` takes) -> B targets, one per prediction.
         - forward(verts, faces, target, progress=1.0, batch_reduction='mean'): verts (V, 3) and
-          faces (F, 3), or a batch; ``progress`` in [0, 1] is how far training has come.
+          faces (F, 3), or a batch; ``progress`` in [0, 1] is how far training has come
+          (past 1: the last stage, for a training run on past its schedule).
         - output: () for one mesh; a batch's () mean or sum, or its (B,) values ('none').
           Differentiable with respect to ``verts``.
 
