@@ -297,6 +297,14 @@ def test_the_controls_and_the_curve_judge_each_recipe_beside_its_controls(tmp_pa
     curve = json.loads((out / "curve.json").read_text())
     # the last point past the staged loss's 2 steps, at its fine stage
     assert list(curve["points"]) == ["1", "2", "3"] and (out / "curve.png").stat().st_size > 0
+    # each point's network goes on from the one before: one run (a run a point, each on its
+    # own schedule, would keep DR-KFS coarse a step longer at point 3)
+    staged = replace(study.QUICK, steps=2)
+    at = {p: study.Networks(state / f"networks-{p}-steps", staged, torch.device("cpu"))
+          for p in (2, 3)}  # fmt: skip
+    for name in curve["losses"]:
+        two, three = (at[p].get(0, name, any_key=True)["history"] for p in (2, 3))
+        assert len(three) == 3 and three[:2] == two
     again = CliRunner().invoke(app, args)  # every point trained and judged: nothing to do
     assert again.exit_code == 0 and json.loads((out / "curve.json").read_text()) == curve
 
