@@ -253,8 +253,9 @@ def nets_tables(manifest: dict) -> str:
     return "\n".join(lines) + "\n\n" + "\n".join(table) + "\n"
 
 
-# the README's batch table's runs of bench/torch_batch.py, in its order
+# the README's batch table's runs of bench/torch_batch.py, in its order, and its batch size
 BATCH_RUNS = ("torch_batch_cuda.json", "torch_batch.json")
+README_BATCH = 32
 # the loss's stages as bench/torch_batch.py names them -> what each renders
 LOSS_STAGES = {"coarse": "12 views, 64 px", "fine": "6 views, 128 px"}
 
@@ -266,7 +267,7 @@ def _batch_time(seconds: float, gpu: bool) -> str:
     return f"{seconds:.1f} s" if seconds >= 1 else f"{seconds:.2f} s"
 
 
-def batch_table(runs: list[dict], batch: int = 32) -> str:
+def batch_table(runs: list[dict], batch: int = README_BATCH) -> str:
     """The README's table of the loss on a batch (bench/torch_batch.py's JSON, one run per
     device): each stage's one batched call forward and backward, a mesh's share of it, the
     per-mesh loop before batches, the peak memory and the call over the batch's Chamfer-L2, all

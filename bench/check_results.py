@@ -21,6 +21,7 @@ from pathlib import Path
 
 from drkfs_lab.bench_tables import (
     BATCH_RUNS,
+    README_BATCH,
     as_they_come_table,
     batch_table,
     ceiling_table,
@@ -325,7 +326,8 @@ def readme_batch_table_is_torch_batchs(root: Path) -> None:
     runs = [_json(root, f"bench/results/{name}") for name in BATCH_RUNS]
     readme = (root / "README.md").read_text()
     assert batch_table(runs) in readme, "README's batch table differs"
-    gpu = next(r for run in runs if run["machine"]["gpu"] for r in run["rows"] if r["batch"] == 32)
+    gpu_rows = next(run["rows"] for run in runs if run["machine"]["gpu"])
+    gpu = next(row for row in gpu_rows if row["batch"] == README_BATCH)
     tf32 = f'(`conv_precision="tf32"`: {gpu["batched_tf32"]["seconds"] * 1e3:.0f} ms)'
     assert tf32 in readme, "README's TF32 figure differs"
 
@@ -336,13 +338,13 @@ def readme_versions_table_names_every_version(root: Path) -> str:
     readme = (root / "README.md").read_text()
     block = readme[readme.index("| version | config |") :].split("\n\n", 1)[0]
     rows = [line.split(" | ") for line in block.splitlines()[2:]]
-    named = [name for row in rows for name in re.findall(r"`(drkfs[^`]*)`", row[0])]
+    versions_by_row = [re.findall(r"`(drkfs[^`]*)`", row[0]) for row in rows]
+    named = [name for versions in versions_by_row for name in versions]
     assert sorted(named) == sorted(VERSIONS), (
         f"README's versions {named}, the code's {list(VERSIONS)}"
     )
-    for row in rows:
+    for row, versions in zip(rows, versions_by_row, strict=True):
         made = re.fullmatch(r"`PipelineConfig(\.\w+)?\(\)`", row[1].strip())
-        versions = re.findall(r"`(drkfs[^`]*)`", row[0])
         if made and versions:
             config = getattr(PipelineConfig, made[1][1:])() if made[1] else PipelineConfig()
             assert metric_name(config) == versions[0], f"README: {row[1]} is not {versions[0]}"
