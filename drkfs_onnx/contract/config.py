@@ -74,8 +74,7 @@ STAGES = {
 # serve another that agrees on these;
 VIEW_FIELDS = STAGES["cameras"] + STAGES["raster"] + STAGES["shading"]
 # the match of two meshes' descriptors and views, not the descriptors: a feature graph or
-# features file serves every value of these (one written before it kept its views serves no
-# solid change);
+# features file serves every value of these (one without its views serves no solid change);
 MATCH_FIELDS = STAGES["match"] + STAGES["solid_change"]
 # what the nets are shown but not the nets: other cameras, a reduced config (fitting, a quick
 # run), the softer training renderer (``PipelineConfig.training()``) or another light on faces
@@ -91,20 +90,21 @@ GRAPH_FREE_FIELDS = ("num_views", "turn_degrees", "back_light", "back_push", "wi
 
 @dataclass(frozen=True)
 class PipelineConfig:
-    """Pipeline numbers. The renderer, detector and patch numbers follow the DR-KFS paper and
-    SoftRas; the cameras, image size, HardNet width, nets and match were chosen on the project's
-    benchmark by the rule of ``bench/match_study.py`` (the most of its goals met on the three
-    tiers of change, people's judgments, retrieval and the bars test; bench/records/matching.md);
-    the nets were then fine-tuned for a viewer's tolerance (``drkfs tune-tolerant``, chosen on the
-    synthetic tiers, the real tiers' training side and people's judgments;
-    bench/records/real_levers.md), and the cameras, view size and softmax temperature moved to 5
-    views of 144 px at t = 0.05 (``bench/real_levers.py``: a finer view for about the same pixels a
-    mesh, chosen on the same sides and kept only where the bars test, retrieval and the slide check
-    held), and a second ring of the cameras turned by 2.5° let the score forgive a turn a viewer
-    does not see, and a solid change of the views made it see a small hole or a removed tip, from
-    both rings' views where the two meshes are compared unturned (the same study and rule).
-    ``PipelineConfig.paper()`` is the paper's recipe, ``structure()`` the same nets with the
-    previous default's match, ``loss()`` the form a training loss takes.
+    """Pipeline numbers; the newest named metric version (``contract.versions``). The renderer,
+    detector and patch numbers follow the DR-KFS paper and SoftRas. The rest were chosen on the
+    project's benchmark (each field's comment names its record):
+    - the HardNet width, nets and match by the rule of ``bench/match_study.py`` (the most of its
+      goals met on the three tiers of change, people's judgments, retrieval and the bars test;
+      bench/records/matching.md), the nets fine-tuned for a viewer's tolerance (``drkfs
+      tune-tolerant``);
+    - the cameras (5 views of 144 px, a finer view for about the same pixels a mesh), the softmax
+      temperature, a second ring of the cameras turned by 2.5° that forgives a turn a viewer does
+      not see, a solid change of the views that sees a small hole or a removed tip, the shadow of
+      an opening and each face's outside read from the surface, on the synthetic tiers and the
+      real tiers' training side, kept only where the bars test, retrieval and the slide check held
+      (``bench/real_levers.py``, bench/records/real_levers.md).
+    ``PipelineConfig.paper()`` is the paper's recipe, ``structure()`` the same nets with a global
+    match, ``loss()`` the form a training loss takes.
 
     Geometry is in a y-up world where a normalised mesh fits the unit sphere. Cameras sit on the
     upper hemisphere at ``camera_distance`` looking at the origin. Screen distances (``sigma``)
@@ -209,7 +209,7 @@ class PipelineConfig:
     # moved bar for a removed one, and a single reach of 1 inside the mesh raised the chair
     # leg's slide in one step; the ramp (reaches 2-3, 1-2 inside) keeps it smooth. Chosen on the
     # synthetic tiers and the real tiers' training side with the bench's targets kept
-    # (bench/records/real_levers.md); the weight 1.2 with the own-ring pairing below, 0.7 before it.
+    # (bench/records/real_levers.md); the weight 1.2 was chosen with the own-ring pairing below.
     solid_weight: float = 1.2
     solid_shift: int = 3
     solid_block: int = 3
@@ -229,7 +229,7 @@ class PipelineConfig:
     # and ``moderate_to`` and in full elsewhere (``match_rules.moderated_part``): a moderate
     # part (a crumpled, faceted or smoothed surface) counts less against the solid change,
     # which sees a small hole or a removed tip, while a slight turn's small part and two large
-    # parts' difference (another shape) count as before. Chosen among 120 windows, each the
+    # parts' difference (another shape) count in full. Chosen among 120 windows, each the
     # default's parts transformed, by the synthetic tiers and the real tiers' training side
     # with every synthetic pair and the bench's targets kept (``bench/part_transforms.py``,
     # bench/records/real_levers.md); a window reaching above 0.18 lost a synthetic pair, one
@@ -317,16 +317,16 @@ class PipelineConfig:
 
     @classmethod
     def structure(cls, **changes: Any) -> PipelineConfig:
-        """The default's nets, cameras and solid change of the views with the previous default's
-        match: every patch searches all of the other mesh's (global, both directions) and the
+        """The default's nets, cameras and solid change of the views with a global match: every
+        patch searches all of the other mesh's (global, both directions) and the
         best-match distances are reduced by their power mean of order 8, which listens to the
         few patches a missing part changes. With the tolerant nets it ranks a missing part as
         the default does, surface defects and people's judgments lower (docs/benchmark.md; with
         the metric nets it ranked structure higher than the default, bench/records/matching.md)."""
-        previous = dict(
+        match = dict(
             matching="global", direction="both", reduction="power", power=8.0, **FULL_PARTS
         )
-        return cls(**{**previous, **changes})
+        return cls(**{**match, **changes})
 
     @classmethod
     def training(cls, **changes: Any) -> PipelineConfig:
