@@ -111,10 +111,10 @@ class PipelineConfig:
     are in normalised device units, where the image spans [-1, 1].
     """
 
-    # Cameras: 5 views of 144 px cost a new mesh what 6 views of 128 px did (104k pixels against
-    # 98k), and a small part or a surface defect covers 1.27x the pixels in each view; 4 views of
-    # 192 px saw small parts better still but took a moved part for a removed one (the bars
-    # test, bench/records/real_levers.md)
+    # Cameras: 5 views of 144 px cost a new mesh about what 6 views of 128 px cost (104k pixels
+    # against 98k), and a small part or a surface defect covers 1.27x the pixels in each view;
+    # 4 views of 192 px see small parts better still but take a moved part for a removed one
+    # (the bars test, bench/records/real_levers.md)
     num_views: int = 5
     image_size: int = 144
     # A second ring of the same cameras turned by ``turn_degrees`` about the vertical (0: none).
@@ -300,8 +300,7 @@ class PipelineConfig:
     def paper(cls, **changes: Any) -> PipelineConfig:
         """The DR-KFS paper's recipe: 25 views at 256 px, full-width HardNet trained on view-pair
         correspondences, every patch of A searches all of B's, and the best-match distances are
-        summed; faces seen from behind lit as their front (``TWO_SIDED``), as this preset always
-        had them."""
+        summed; faces seen from behind lit as their front (``TWO_SIDED``)."""
         recipe = dict(
             num_views=25,
             image_size=256,
@@ -330,8 +329,8 @@ class PipelineConfig:
 
     @classmethod
     def training(cls, **changes: Any) -> PipelineConfig:
-        """The first studies' DR-KFS as a loss: the correspondence nets and the previous
-        default's match (global, both, power mean of order 8) with a softer renderer, SoftRas'
+        """DR-KFS as the loss studies trained with: the correspondence nets and a global match
+        (both directions, power mean of order 8) with a softer renderer, SoftRas'
         reconstruction sigma (1e-4) and a depth blend of gamma 0.1 instead of SoftRas' 1e-4,
         under which the nearest face takes a pixel almost outright and a step that reorders two
         faces jumps the loss. ``loss()`` is what the loss study chose over it
