@@ -13,6 +13,7 @@ from drkfs_onnx.contract import match_rules
 from drkfs_onnx.contract.array_ops import NUMPY_OPS
 from drkfs_onnx.contract.config import PipelineConfig
 from drkfs_onnx.contract.solid_change import view_range
+from drkfs_onnx.contract.versions import views_version
 
 from .nearest import lift, row_hashes
 
@@ -154,6 +155,7 @@ class MeshFeatures:
             normalization=self.normalization,
             model=self.model,
             config=self.config.features_part().to_json(),
+            metric=views_version(self.config),  # for a reader; loading derives it from config
             **({} if self.views is None else {"views": self.views}),
         )
 

@@ -17,7 +17,7 @@ from drkfs_onnx.contract.config import TWO_SIDED
 from drkfs_onnx.contract.mesh import Mesh, frame_of, place
 from drkfs_onnx.contract.model_files import features_file, models_dir
 from drkfs_onnx.contract.render_equations import opposed_edges
-from drkfs_onnx.contract.versions import metric_config
+from drkfs_onnx.contract.versions import LATEST, metric_config
 from drkfs_onnx.runtime import MeshFeatures, ModelMismatch, Scorer
 from drkfs_onnx.runtime.scorer import WindingWarning
 
@@ -88,6 +88,8 @@ def test_precomputed_reference_features_round_trip(scorer, tmp_path):
     config = PipelineConfig()
     assert len(loaded.descriptors) + loaded.empty == config.views_per_mesh * config.patches_per_view
     assert np.array_equal(loaded.views, scorer.features(reference).views)  # the solid change's
+    with np.load(tmp_path / "chair.npz") as saved:  # a reader sees which version it serves
+        assert str(saved["metric"]) == LATEST
 
 
 def test_a_features_file_without_views_serves_no_solid_change_and_says_so(scorer, tmp_path):
