@@ -8,7 +8,7 @@ from pathlib import Path
 
 import onnxruntime as ort
 
-from drkfs_onnx.contract.config import GRAPH_FREE_FIELDS, PipelineConfig
+from drkfs_onnx.contract.config import PipelineConfig
 from drkfs_onnx.contract.model_files import (
     CONFIG_KEY,
     VERSION_KEY,
@@ -85,13 +85,11 @@ def open_features(
     graph = Graph.open(*_read(path, features_file(config)), threads)
     if CONFIG_KEY not in graph.metadata:
         raise ModelMismatch(f"{graph.source}: no {CONFIG_KEY} metadata; not a DR-KFS feature graph")
-    built = PipelineConfig.from_json(graph.metadata[CONFIG_KEY])
-    views = {name: getattr(config, name) for name in GRAPH_FREE_FIELDS}
-    built = built.features_part().replace(**views)
-    if built != config.features_part():
+    built = PipelineConfig.from_json(graph.metadata[CONFIG_KEY]).shaping("graph")
+    if built != config.shaping("graph"):
         raise ModelMismatch(
             f"{graph.source} was built for another pipeline config: "
-            f"{built.differences(config.features_part())}; "
+            f"{built.differences(config.shaping('graph'))}; "
             "export a model for this config or score with the model's config"
         )
     return graph

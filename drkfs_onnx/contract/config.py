@@ -86,6 +86,13 @@ RENDER_FIELDS = (
 # and what a feature graph never sees: it describes views from any number of cameras, however
 # lit.
 GRAPH_FREE_FIELDS = ("num_views", "turn_degrees", "back_light", "back_push", "winding")
+# The fields that do not shape each artefact (``PipelineConfig.shaping``): a features file's
+# descriptors and views, a feature graph, the nets' weights.
+FREE_FIELDS = {
+    "features": MATCH_FIELDS,
+    "graph": MATCH_FIELDS + GRAPH_FREE_FIELDS,
+    "weights": MATCH_FIELDS + RENDER_FIELDS,
+}
 
 
 @dataclass(frozen=True)
@@ -351,10 +358,17 @@ class PipelineConfig:
         (``python bench/fit.py``, bench/records/fitting.md)."""
         return cls.training(**{"matching": "window", "window": 0, "reduction": "mean", **changes})
 
-    def features_part(self) -> PipelineConfig:
-        """This config with the match settings at their defaults: what shapes the descriptors."""
+    def shaping(self, artefact: str) -> PipelineConfig:
+        """This config with the fields that do not shape ``artefact`` (``FREE_FIELDS``:
+        'features', 'graph' or 'weights') at their defaults: an artefact made under one config
+        serves another whose ``shaping`` is the same."""
         defaults = PipelineConfig.__dataclass_fields__
-        return dataclasses.replace(self, **{name: defaults[name].default for name in MATCH_FIELDS})
+        free = FREE_FIELDS[artefact]
+        return dataclasses.replace(self, **{name: defaults[name].default for name in free})
+
+    def features_part(self) -> PipelineConfig:
+        """``shaping("features")``: what shapes a mesh's descriptors and views."""
+        return self.shaping("features")
 
     @property
     def rings(self) -> tuple[float, ...]:

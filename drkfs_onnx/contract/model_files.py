@@ -9,7 +9,7 @@ import json
 from importlib import resources
 from pathlib import Path
 
-from .config import RENDER_FIELDS, PipelineConfig
+from .config import PipelineConfig
 
 MATCH_FILE = "match.onnx"
 CONFIG_KEY = "drkfs_config"
@@ -53,8 +53,8 @@ def shipped_weights() -> list[dict]:
 def shipped_entry(config: PipelineConfig, any_rendering: bool = False) -> dict | None:
     """The manifest's weights entry trained for ``config``, or None when none is shipped.
 
-    any_rendering: also accept weights trained at other RENDER_FIELDS values. The match
-    settings never matter: they do not touch the nets.
+    any_rendering: also accept weights trained at other RENDER_FIELDS values
+    (``shaping("weights")``). The match settings never matter: they do not touch the nets.
     """
     return entry_for(shipped_weights(), config, any_rendering)
 
@@ -62,10 +62,8 @@ def shipped_entry(config: PipelineConfig, any_rendering: bool = False) -> dict |
 def entry_for(entries: list[dict], config: PipelineConfig, any_rendering: bool) -> dict | None:
     """The first of a manifest's weights ``entries`` trained for ``config`` (as
     ``shipped_entry``), or None."""
+    shaping = "weights" if any_rendering else "features"
     for entry in entries:
-        trained = PipelineConfig.from_dict(entry["config"])
-        if any_rendering:
-            trained = trained.replace(**{name: getattr(config, name) for name in RENDER_FIELDS})
-        if trained.features_part() == config.features_part():
+        if PipelineConfig.from_dict(entry["config"]).shaping(shaping) == config.shaping(shaping):
             return entry
     return None

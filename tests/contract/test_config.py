@@ -5,6 +5,7 @@ import dataclasses
 import pytest
 
 from drkfs_onnx.contract.config import (
+    FREE_FIELDS,
     FULL_PARTS,
     GRAPH_FREE_FIELDS,
     MATCH_FIELDS,
@@ -69,6 +70,33 @@ def test_every_setting_belongs_to_one_stage_and_the_artefacts_keys_come_from_the
     # the nets' weights and a feature graph serve other views: never another net or match
     for reused in (RENDER_FIELDS, GRAPH_FREE_FIELDS):
         assert set(reused) <= set(VIEW_FIELDS)
+
+
+# a value other than the default's for every field some artefact is free of
+OTHER_VALUES = {
+    "back_light": 1.0, "back_push": 0.0, "direction": "forward", "gamma": 0.1, "image_size": 128,
+    "matching": "global", "moderate_from": 0.05, "moderate_slope": 1.0, "moderate_to": 0.2,
+    "num_views": 6, "power": 4.0, "reduction": "sum", "sigma": 1e-4, "solid_block": 5,
+    "solid_both_rings": False, "solid_inner_drop": 0, "solid_inner_power": 1.0, "solid_ramp": 0,
+    "solid_shift": 2, "solid_weight": 0.0, "tail_fraction": 0.1, "temperature": 0.1,
+    "turn_degrees": 0.0, "turned_part_share": 0.0, "winding": "file", "window": 1,
+}  # fmt: skip
+
+
+def test_an_artefact_serves_every_config_that_differs_from_its_own_in_free_fields_alone():
+    config = PipelineConfig()
+    for artefact, free in FREE_FIELDS.items():
+        for name in free:
+            other = dataclasses.replace(config, **{name: OTHER_VALUES[name]})
+            assert other.shaping(artefact) == config.shaping(artefact), (artefact, name)
+    assert config.features_part() == config.shaping("features")
+    # what shapes the descriptors is never free for a graph or the weights
+    for artefact in ("graph", "weights"):
+        other = config.replace(descriptor_width=1.0)
+        assert other.shaping(artefact) != config.shaping(artefact)
+    # a graph describes views of any cameras' count, the weights views of any size too
+    assert config.replace(image_size=128).shaping("graph") != config.shaping("graph")
+    assert config.replace(image_size=128).shaping("weights") == config.shaping("weights")
 
 
 def test_each_stages_settings_are_plain_frozen_data_with_the_configs_fields_and_defaults():
