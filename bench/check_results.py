@@ -41,6 +41,10 @@ from drkfs_lab.studies.finetune import finetune_markdown, summarise_finetune
 from drkfs_lab.studies.losses import CHAMFER, FORMS, PIXEL, SHIPPED, with_chamfer
 from drkfs_lab.studies.network import FULL, choose_loss
 from drkfs_lab.studies.single_view import (
+    DRKFS_SHADED,
+    RECIPE,
+    RECIPE_IOU,
+    SOFTRAS,
     Shape,
     controls_markdown,
     curve_markdown,
@@ -332,6 +336,34 @@ def readme_batch_table_is_torch_batchs(root: Path) -> None:
     assert tf32 in readme, "README's TF32 figure differs"
 
 
+def readme_as_a_loss_is_the_single_view_studys(root: Path) -> None:
+    """The README's "As a loss" figures are the single-view study's committed runs': the learning
+    curve's LFD at 2,000 and 3,000 steps, the recipe's cells against its silhouette-IoU control,
+    and the fine-tuning protocol's cells."""
+    curve = _json(root, "bench/single_view/curve.json")["points"]
+    controls = _json(root, "bench/single_view/controls.json")["shares"]["pooled"]
+    tuned = _json(root, "bench/single_view/finetune.json")["shares"]["pooled"]
+
+    def lfd(point: str, name: str) -> str:
+        return f"{curve[point]['means'][name]['LFD']:,.0f}"
+
+    def arm(then: str) -> str:
+        return f"{SOFTRAS}, then {then}"
+
+    against_iou = controls[RECIPE]["silhouette IoU + 3 x Chamfer-L2"]["LFD"]
+    by_iou = tuned[f"{arm(RECIPE_IOU)} | {arm(SOFTRAS)}"]
+    by_mse = tuned[f"{arm(RECIPE_IOU)} | {arm('silhouette IoU + 1 x pixel MSE')}"]
+    readme = (root / "README.md").read_text()
+    for figure in (
+        f"(LFD {lfd('2000', DRKFS_SHADED)} against {lfd('2000', SOFTRAS)})",
+        f"({lfd('3000', DRKFS_SHADED)} against {lfd('3000', SOFTRAS)})",
+        f"({against_iou['wins']} of {against_iou['cells']} test cells",
+        f"on {by_iou['LFD']['wins']} of {by_iou['LFD']['cells']} cells by LFD, "
+        f"{by_iou['Chamfer-L1']['wins']} by Chamfer-L1 (IoU + pixel MSE: {by_mse['LFD']['wins']})",
+    ):
+        assert figure in readme.replace("\n", " "), f"README's 'As a loss' differs at {figure!r}"
+
+
 def readme_versions_table_names_every_version(root: Path) -> str:
     """The README's table of metric versions names every version of
     drkfs_onnx/contract/versions.py once, and each row's constructor makes its version."""
@@ -366,6 +398,7 @@ CHECKS: list[Callable[[Path], str | None]] = [
     single_view_steps_runs_are_the_docs,
     readme_score_scale_is_the_benchmarks,
     readme_batch_table_is_torch_batchs,
+    readme_as_a_loss_is_the_single_view_studys,
     readme_versions_table_names_every_version,
     benchmark_tables_are_the_benchmarks,
     training_tables_are_the_manifests,

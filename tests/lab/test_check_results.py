@@ -50,3 +50,15 @@ def test_a_readme_that_drops_a_version_or_retypes_a_batch_figure_fails_its_check
     (tmp_path / "README.md").write_text(readme.replace("| 0.14 s |", "| 0.15 s |"))
     with pytest.raises(AssertionError, match="batch table"):
         check_results.readme_batch_table_is_torch_batchs(tmp_path)
+
+
+def test_a_readme_that_retypes_a_figure_of_the_loss_study_fails_its_check(tmp_path):
+    shutil.copytree(ROOT / "bench" / "single_view", tmp_path / "bench" / "single_view",
+                    ignore=shutil.ignore_patterns("networks*", "data"))  # fmt: skip
+    readme = (ROOT / "README.md").read_text()
+    check_results.readme_as_a_loss_is_the_single_view_studys(ROOT)
+    curve = json.loads((ROOT / "bench/single_view/curve.json").read_text())["points"]
+    lfd = f"{curve['2000']['means']['DR-KFS']['LFD']:,.0f}"
+    (tmp_path / "README.md").write_text(readme.replace(f"(LFD {lfd}", "(LFD 1,234"))
+    with pytest.raises(AssertionError, match="As a loss"):
+        check_results.readme_as_a_loss_is_the_single_view_studys(tmp_path)
