@@ -136,10 +136,21 @@ def machine() -> dict:
     """Where a study ran: its fits repeat bit for bit only on one torch build and thread count."""
     return {
         "cpu_count": os.cpu_count(),
+        "processor": processor(),
         "torch_threads": torch.get_num_threads(),
         "platform": platform.platform(),
         "torch": torch.__version__,
     }
+
+
+def processor() -> str:
+    """The CPU's model name (Linux's /proc/cpuinfo), else what ``platform`` knows of it."""
+    cpuinfo = Path("/proc/cpuinfo")
+    if cpuinfo.is_file():
+        for line in cpuinfo.read_text().splitlines():
+            if line.startswith("model name"):
+                return line.partition(":")[2].strip()
+    return platform.processor() or "unknown"
 
 
 def resume_key(plan) -> str:

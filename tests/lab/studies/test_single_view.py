@@ -289,6 +289,7 @@ def test_the_controls_and_the_curve_judge_each_recipe_beside_its_controls(tmp_pa
     result = CliRunner().invoke(app, ["--quick", "--controls", "--seeds", "0", "--out", str(out)])
     assert result.exit_code == 0, result.output
     controls = json.loads((out / "controls.json").read_text())
+    assert controls["processor"] and controls["cpu_count"] >= 1  # the machine it ran on
     for recipe, against in MATCHED.items():
         assert set(controls["shares"]["pooled"][recipe]) == set(against)
         assert controls["goal"][recipe]["met"] in (True, False)
