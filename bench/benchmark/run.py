@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from drkfs_onnx.contract.mesh import frame_of, place
+from drkfs_onnx.contract.versions import metric_name
 from drkfs_onnx.synthetic.variants import structural_wins
 
 from . import as_they_come, sets
@@ -418,7 +419,11 @@ def run_bench(
     configs = {m.outputs[0]: m.scorer.config for m in methods if isinstance(m, DrkfsOnnx)}
     for name, values in scores.comparisons.items():
         summary[name] = {
-            **({"config": configs[name].to_dict()} if name in configs else {}),
+            **(
+                {"config": configs[name].to_dict(), "metric": metric_name(configs[name])}
+                if name in configs
+                else {}
+            ),
             **({"default": True} if name == DEFAULT_NAME else {}),
             **({"preset": "paper"} if name == PAPER_NAME else {}),
             **({"preset": "structure"} if name == STRUCTURE_NAME else {}),

@@ -27,6 +27,7 @@ from drkfs_lab.benchmark.tiers import (
 from drkfs_lab.benchmark.torch_checks import agreement, value_and_gradient
 from drkfs_onnx.contract.config import TWO_SIDED, PipelineConfig
 from drkfs_onnx.contract.mesh import frame_of, load_mesh, place
+from drkfs_onnx.contract.versions import CUSTOM, LATEST, metric_name
 from drkfs_onnx.runtime.render import NumpyRenderer
 from drkfs_onnx.synthetic.shapes import (
     ALL_FAMILIES,
@@ -182,6 +183,14 @@ def quick(tmp_path_factory):
 def test_quick_bench_writes_results_chart_and_the_variant_set(quick):
     out, results = quick
     assert json.loads((out / "results.json").read_text())["quick"] is True
+    # each DR-KFS row names the metric version of its config (custom where a setting differs)
+    rows = [m for m in results["methods"].values() if "config" in m]
+    assert all(m["metric"] == metric_name(PipelineConfig.from_dict(m["config"])) for m in rows)
+    assert results["methods"]["DR-KFS"]["metric"] == LATEST
+    assert results["methods"]["DR-KFS paper"]["metric"] == CUSTOM  # capped by the quick set
+    full = drkfs_configs()
+    assert metric_name(full["DR-KFS"]) == LATEST
+    assert metric_name(full["DR-KFS paper"]) == "drkfs-paper"
     assert _png(out / "speed_accuracy.png").shape[:2] == (704, 1100)
     index = json.loads((out / "set" / "index.json").read_text())
     for key, name in index["files"].items():
