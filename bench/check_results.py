@@ -364,6 +364,48 @@ def readme_as_a_loss_is_the_single_view_studys(root: Path) -> None:
         assert figure in readme.replace("\n", " "), f"README's 'As a loss' differs at {figure!r}"
 
 
+def architecture_numbers_are_the_configs(root: Path) -> None:
+    """docs/architecture.md's equation and stage table give the newest version's settings
+    (and the paper preset's and the loss's beside them) as ``PipelineConfig`` has them."""
+    c, paper, loss = PipelineConfig(), PipelineConfig.paper(), PipelineConfig.loss()
+    kept = 1 - c.turned_part_share
+    figures = (
+        # the equation
+        f"the K = {c.num_views}\ncameras of two rings",
+        f"turned {c.turn_degrees:g}° about the vertical",
+        f"each view's {round(c.patches_per_view**0.5)} × {round(c.patches_per_view**0.5)} patches",
+        f"m(P_ij) + {c.solid_weight:g} · S_ij",
+        f"t = {c.temperature:g}",
+        f"{kept:g} · P_00 + {c.turned_part_share:g} · P_11",
+        f"m(P) = P − {1 - c.moderate_slope:g} · clip(P − {c.moderate_from:g}, 0, "
+        f"{c.moderate_to - c.moderate_from:g})",
+        f"slope of {c.moderate_slope:g} between {c.moderate_from:g} and {c.moderate_to:g}",
+        f"{c.solid_block} × {c.solid_block} block",
+        f"{paper.num_views} views of {paper.image_size} px",
+        # the stage table
+        f"| {c.num_views} (paper: {paper.num_views}; the nets' training and the loss: "
+        f"{loss.num_views})",
+        f"at distance {c.camera_distance:g}; {c.image_size} px (paper: {paper.image_size}; "
+        f"training and loss: {loss.image_size})",
+        f"{c.fov_degrees:g}° pinhole",
+        f"(ambient {c.ambient:g}, diffuse {c.diffuse:g},",
+        f"`back_push` {c.back_push:g}",
+        f"N=M={c.detector_n}, {c.detector_kernel}×{c.detector_kernel}",
+        f"{c.patch_size}×{c.patch_size} at stride {c.patch_stride} → {c.patches_per_view} per "
+        f"view at {c.image_size} px",
+        f"width multiplier {c.descriptor_width:g}",
+        f"eps {c.patch_norm_eps:.0e}".replace("e-0", "e-"),
+        f"at temperature {c.temperature:g}",
+        f"{c.solid_weight:g} × the mean over the views",
+        f"raised to the power {c.solid_inner_power:g}",
+        f"takes {c.turned_part_share:g} of its descriptors' part",
+    )
+    doc = (root / "docs/architecture.md").read_text()
+    flat = " ".join(doc.split())
+    for figure in figures:
+        assert " ".join(figure.split()) in flat, f"docs/architecture.md differs at {figure!r}"
+
+
 def readme_versions_table_names_every_version(root: Path) -> str:
     """The README's table of metric versions names every version of
     drkfs_onnx/contract/versions.py once, and each row's constructor makes its version."""
@@ -400,6 +442,7 @@ CHECKS: list[Callable[[Path], str | None]] = [
     readme_batch_table_is_torch_batchs,
     readme_as_a_loss_is_the_single_view_studys,
     readme_versions_table_names_every_version,
+    architecture_numbers_are_the_configs,
     benchmark_tables_are_the_benchmarks,
     training_tables_are_the_manifests,
     version_sample_is_the_benchmarks,

@@ -62,3 +62,12 @@ def test_a_readme_that_retypes_a_figure_of_the_loss_study_fails_its_check(tmp_pa
     (tmp_path / "README.md").write_text(readme.replace(f"(LFD {lfd}", "(LFD 1,234"))
     with pytest.raises(AssertionError, match="As a loss"):
         check_results.readme_as_a_loss_is_the_single_view_studys(tmp_path)
+
+
+def test_an_architecture_page_with_a_stale_setting_fails_its_check(tmp_path):
+    check_results.architecture_numbers_are_the_configs(ROOT)
+    page = (ROOT / "docs" / "architecture.md").read_text()
+    (tmp_path / "docs").mkdir()
+    (tmp_path / "docs" / "architecture.md").write_text(page.replace("t = 0.05", "t = 0.1"))
+    with pytest.raises(AssertionError, match="architecture"):
+        check_results.architecture_numbers_are_the_configs(tmp_path)
