@@ -52,6 +52,7 @@ from drkfs_lab.studies.single_view import (
     steps_markdown,
     summarise,
     summarise_controls,
+    test_seeds_markdown,
     tuned_nets_markdown,
     validation_choice,
 )
@@ -199,6 +200,30 @@ def single_view_controls_recompute_and_the_doc_holds_them(root: Path) -> None:
         assert again[key] == results[key], f"controls.json's {key} do not recompute"
     doc = (root / "bench/records/single_view.md").read_text()
     assert controls_markdown(results) in doc, "single_view.md's controls tables differ"
+
+
+def single_view_other_test_seeds_recompute_and_the_doc_holds_them(root: Path) -> None:
+    """The saved networks judged on other test shapes: the study's losses' and (where judged)
+    the controls' means, shares and goals recompute from their per-seed tables, and
+    bench/records/single_view.md holds their tables."""
+    results = _json(root, "bench/single_view/test-seeds-6000.json")
+
+    def by_seed(part: dict) -> dict[int, dict]:
+        return {int(seed.split()[1]): table for seed, table in part["tables"].items()}
+
+    study = by_seed(results)
+    first = next(iter(study.values()))  # shape -> loss -> judge
+    shapes, losses = _test_set(first), list(next(iter(first.values())))
+    recomputed = [(results, summarise(study, shapes, losses))]
+    if "controls" in results:
+        recomputed.append(
+            (results["controls"], summarise_controls(by_seed(results["controls"]), shapes))
+        )
+    for part, again in recomputed:
+        for key in ("means", "shares", "goal"):
+            assert again[key] == part[key], f"test-seeds-6000.json's {key} do not recompute"
+    doc = (root / "bench/records/single_view.md").read_text()
+    assert test_seeds_markdown(results) in doc, "single_view.md's other test shapes' tables differ"
 
 
 def single_view_finetuning_recomputes_and_the_doc_holds_it(root: Path) -> None:
@@ -434,6 +459,7 @@ CHECKS: list[Callable[[Path], str | None]] = [
     network_studies_shares_recompute,
     single_view_study_recomputes_and_the_doc_holds_its_tables,
     single_view_controls_recompute_and_the_doc_holds_them,
+    single_view_other_test_seeds_recompute_and_the_doc_holds_them,
     single_view_finetuning_recomputes_and_the_doc_holds_it,
     single_view_curve_recomputes_and_the_doc_holds_it,
     single_view_speed_recomputes_and_the_doc_holds_it,

@@ -710,8 +710,9 @@ def timed(plan: Plan, recipe: Recipe, views: torch.Tensor, terms: Terms, progres
 
 
 def judge_saved(out: Path, test_seed: int, threads: int = 2, progress=print) -> dict:
-    """The networks a finished study saved under OUT, judged on test shapes of seeds from
-    ``test_seed`` on (as many a family as the study's plan) -> OUT/test-seeds-<seed>.json."""
+    """The networks a finished study saved under OUT, and those of its matched controls where
+    they ran (OUT/controls.json), judged on test shapes of seeds from ``test_seed`` on (as many
+    a family as the study's plan) -> OUT/test-seeds-<seed>.json."""
     study = json.loads((out / "results.json").read_text())
     plan = QUICK if study["quick"] else FULL
     _, _, test_set = study_sets(plan, test_seed)
@@ -730,6 +731,19 @@ def judge_saved(out: Path, test_seed: int, threads: int = 2, progress=print) -> 
         "tables": {f"seed {s}": t for s, t in tables.items()},
         **summarise(tables, test_set, names),
     }
+    if (out / "controls.json").exists():
+        ran = json.loads((out / "controls.json").read_text())
+        controls = Networks(out / CONTROLS_NETWORKS, plan, torch.device("cpu"))
+        tables, _ = judge_seeds(
+            plan, threads, ran["seeds"],
+            lambda seed: {n: controls.get(seed, n, any_key=True)["model"] for n in ran["recipes"]},
+            test_set, views, progress,
+        )  # fmt: skip
+        results["controls"] = {
+            "recipes": ran["recipes"],
+            "tables": {f"seed {s}": t for s, t in tables.items()},
+            **summarise_controls(tables, test_set),
+        }
     (out / f"test-seeds-{test_seed}.json").write_text(json.dumps(results, indent=1))
     return results
 
@@ -1163,18 +1177,40 @@ def markdown(results: dict) -> str:
     return "\n\n".join(blocks) + "\n"
 
 
-def controls_markdown(results: dict) -> str:
-    """bench/records/single_view.md's tables of the matched controls (OUT/controls.json): each
-    recipe's and control's pooled means; each DR-KFS recipe's test cells closer than each of its
-    controls, pooled and (LFD, unseen silhouettes) per seed; the goal (bench/check_results.py
-    checks the docs hold them)."""
-    names = list(results["recipes"])
-    pooled = results["means"]["pooled"]["mean"]
+def _pooled_means(pooled: dict, names: list[str]) -> list[str]:
+    """A markdown table's lines: each loss's means (``COLUMNS``) pooled over the seeds."""
     lines = ["| loss | " + " | ".join(c[1] for c in COLUMNS) + " |",
              "|---|" + "---:|" * len(COLUMNS)]  # fmt: skip
     for name in names:
         lines.append(f"| {name} | " + " | ".join(table_cell(pooled[name][m], s, d)
                                                    for m, _, s, d in COLUMNS) + " |")  # fmt: skip
+    return lines
+
+
+def test_seeds_markdown(results: dict) -> str:
+    """bench/records/single_view.md's tables of the saved networks judged on other test shapes
+    (OUT/test-seeds-<seed>.json): the study's losses' pooled means and each DR-KFS network's
+    cells closer than each baseline; then the controls' tables (``controls_markdown``) where
+    they were judged (bench/check_results.py checks the docs hold them)."""
+    pooled = results["means"]["pooled"]["mean"]
+    lines = _pooled_means(pooled, list(pooled))
+    judged = ("LFD", "silhouette IoU", "Chamfer-L1")
+    wins = ["| DR-KFS network | against | " + " | ".join(judged) + " |",
+            "|---|---|" + "---:|" * len(judged)]  # fmt: skip
+    for network, against in results["shares"]["pooled"].items():
+        for baseline, row in against.items():
+            cells = " | ".join(f"{row[m]['wins']}/{row[m]['cells']}" for m in judged)
+            wins.append(f"| {network} | {baseline} | {cells} |")
+    study = "\n\n".join("\n".join(block) for block in (lines, wins)) + "\n"
+    return study + ("\n" + controls_markdown(results["controls"]) if "controls" in results else "")
+
+
+def controls_markdown(results: dict) -> str:
+    """bench/records/single_view.md's tables of the matched controls (OUT/controls.json): each
+    recipe's and control's pooled means; each DR-KFS recipe's test cells closer than each of its
+    controls, pooled and (LFD, unseen silhouettes) per seed; the goal (bench/check_results.py
+    checks the docs hold them)."""
+    lines = _pooled_means(results["means"]["pooled"]["mean"], list(results["recipes"]))
     judged = ("LFD", "silhouette IoU", "Chamfer-L1", "F-score 1%")
     seeds = [k for k in results["shares"] if k != "pooled"]
     wins = ["| DR-KFS recipe | against | " + " | ".join(judged) + " | LFD by seed | unseen sil."

@@ -241,6 +241,23 @@ def test_a_rerun_resumes_every_network_and_judges_them_the_same(quick_study):
 
 
 @pytest.mark.slow
+def test_the_controls_train_in_their_own_folder_and_other_test_seeds_judge_them(quick_study):
+    out, results = quick_study
+    ran = CliRunner().invoke(app, ["--quick", "--controls", "--seeds", "0,1", "--out", str(out)])
+    assert ran.exit_code == 0, ran.output
+    controls = study.Networks(out / study.CONTROLS_NETWORKS, QUICK, torch.device("cpu"))
+    for name in {n for recipe, against in MATCHED.items() for n in (recipe, *against)}:
+        assert controls.get(1, name) is not None, name
+    other = CliRunner().invoke(app, ["--out", str(out), "--test-seeds", "6000"])
+    assert other.exit_code == 0, other.output
+    judged = json.loads((out / "test-seeds-6000.json").read_text())
+    row = next(iter(judged["tables"]["seed 1"].values()))
+    assert set(row) == set(results["plan"]["losses"])
+    assert set(judged["controls"]["shares"]["pooled"]) == set(MATCHED)
+    assert judged["controls"]["tables"]["seed 1"] != judged["tables"]["seed 1"]
+
+
+@pytest.mark.slow
 def test_more_steps_train_beside_the_studys_networks_and_are_judged_with_them(quick_study):
     out, _ = quick_study
     saved = {p: p.read_bytes() for p in (out / "networks").rglob("*.pt")}
