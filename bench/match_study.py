@@ -129,7 +129,7 @@ def feature_configs(quick: bool) -> list[PipelineConfig]:
         PipelineConfig(num_views=12),
         PipelineConfig(image_size=256),
         PipelineConfig(num_views=12, image_size=256),
-        PipelineConfig.paper().features_part(),
+        PipelineConfig.paper().shaping("features"),
     ]
 
 
@@ -312,7 +312,7 @@ def main() -> None:
         sweep = Sweep(config, args.threads)
         scores, costs = score_everything(bench, [sweep], lambda _: None)
         results["feature_configs"][name] = {
-            "config": config.features_part().to_dict(),
+            "config": config.shaping("features").to_dict(),
             **summarise(bench, jod, scores, costs, sweep),
         }
         start = _save(results, args.out, start)

@@ -163,7 +163,7 @@ class DRKFS(nn.Module):
         state = load_shipped_state(config, any_rendering=True)
         if state is None:
             if not random_weights:
-                nets = config.features_part()
+                nets = config.shaping("features")
                 raise MissingWeights(
                     f"no trained weights in models/ for {nets.nets} nets at width "
                     f"{nets.descriptor_width:g}, detector {nets.detector_n}x{nets.detector_m} "

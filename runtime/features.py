@@ -154,7 +154,7 @@ class MeshFeatures:
             scale=self.scale,
             normalization=self.normalization,
             model=self.model,
-            config=self.config.features_part().to_json(),
+            config=self.config.shaping("features").to_json(),
             metric=views_version(self.config),  # for a reader; loading derives it from config
             **({} if self.views is None else {"views": self.views}),
         )

@@ -85,7 +85,7 @@ def check_features(
 ) -> None:
     """Refuse features computed for another config (naming the settings that differ), by
     another feature graph than ``model`` (a sha256) or under another normalisation."""
-    made, asked = features.config.features_part(), config.features_part()
+    made, asked = features.config.shaping("features"), config.shaping("features")
     if made != asked:
         light = {name: getattr(made, name) for name in TWO_SIDED}
         hint = (

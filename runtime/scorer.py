@@ -223,7 +223,7 @@ class Scorer:
             scale=float(frame[1]),
             normalization=self.normalization,
             model=self.features_graph.sha256,
-            config=self.config.features_part(),
+            config=self.config.shaping("features"),
             views=images.astype(np.float32),
         )
 

@@ -23,7 +23,7 @@ def test_the_loss_preset_is_the_training_renderer_with_a_position_aligned_mean()
     config = PipelineConfig.loss()
     assert (config.sigma, config.gamma) == (PipelineConfig.training().sigma, 0.1)
     assert (config.matching, config.window, config.reduction) == ("window", 0, "mean")
-    assert config.features_part() == PipelineConfig.training().features_part()  # same nets
+    assert config.shaping("features") == PipelineConfig.training().shaping("features")  # same nets
 
 
 def test_each_stage_runs_until_its_share_of_training_and_scores_a_mesh_zero_against_itself():

@@ -421,7 +421,7 @@ def test_config_checks_match_settings_and_keeps_the_paper_preset():
     paper = PipelineConfig.paper()
     assert (paper.num_views, paper.image_size) == (25, 256)
     assert (paper.matching, paper.direction, paper.reduction) == ("global", "forward", "sum")
-    assert paper.features_part() == PipelineConfig.paper(reduction="tail").features_part()
+    assert paper.shaping("features") == PipelineConfig.paper(reduction="tail").shaping("features")
     bad = [{"matching": "nearest"}, {"direction": "up"}, {"reduction": "max"}, {"window": -1},
            {"tail_fraction": 0.0}, {"power": 0.5}, {"temperature": 0.0}]  # fmt: skip
     for settings in bad:

@@ -90,7 +90,7 @@ class DrkfsOnnx(Method):
         self.scorer = Scorer(config, model, threads=threads)
         self.symmetric = config.direction == "both"  # match(a, b) == match(b, a)
         # configs that differ only in their match describe a mesh alike
-        self.features_key = ("features", config.features_part(), model)
+        self.features_key = ("features", config.shaping("features"), model)
 
     def prepare(self, placed):
         images, render_s = placed.views(self.scorer.renderer)

@@ -7,6 +7,7 @@ model built for another configuration.
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import json
 import math
@@ -360,15 +361,16 @@ class PipelineConfig:
 
     def shaping(self, artefact: str) -> PipelineConfig:
         """This config with the fields that do not shape ``artefact`` (``FREE_FIELDS``:
-        'features', 'graph' or 'weights') at their defaults: an artefact made under one config
-        serves another whose ``shaping`` is the same."""
-        defaults = PipelineConfig.__dataclass_fields__
-        free = FREE_FIELDS[artefact]
-        return dataclasses.replace(self, **{name: defaults[name].default for name in free})
-
-    def features_part(self) -> PipelineConfig:
-        """``shaping("features")``: what shapes a mesh's descriptors and views."""
-        return self.shaping("features")
+        'features', a mesh's descriptors and views; 'graph'; 'weights') at their defaults: an
+        artefact made under one config serves another whose ``shaping`` is the same. A key to
+        compare, not a config to run: its fields are not checked together again (a patch larger
+        than the default's view would otherwise refuse its own weights' key)."""
+        if artefact not in FREE_FIELDS:
+            raise ValueError(f"unknown artefact {artefact!r}; use one of {', '.join(FREE_FIELDS)}")
+        key = copy.copy(self)
+        for name in FREE_FIELDS[artefact]:
+            object.__setattr__(key, name, PipelineConfig.__dataclass_fields__[name].default)
+        return key
 
     @property
     def rings(self) -> tuple[float, ...]:

@@ -83,7 +83,7 @@ def metric_name(config: PipelineConfig) -> str:
 
 
 def views_version(config: PipelineConfig) -> str:
-    """The first version whose views and descriptors (``features_part``) ``config`` shares,
+    """The first version whose views and descriptors (``shaping("features")``) ``config`` shares,
     else ``CUSTOM``: what a features file was described for."""
-    part = config.features_part()
-    return next((n for n in VERSIONS if metric_config(n).features_part() == part), CUSTOM)
+    part = config.shaping("features")
+    return next((n for n in VERSIONS if metric_config(n).shaping("features") == part), CUSTOM)

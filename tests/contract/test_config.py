@@ -39,7 +39,8 @@ def test_training_preset_is_the_previous_default_with_a_softer_renderer():
     assert (training.num_views, training.image_size) != (default.num_views, default.image_size)
     previous = PipelineConfig.structure(nets="correspondence", **NETS_TRAINED_AT)
     assert training.replace(sigma=default.sigma, gamma=default.gamma) == previous
-    assert PipelineConfig.loss().features_part() == PipelineConfig.training().features_part()
+    loss, first = PipelineConfig.loss(), PipelineConfig.training()
+    assert loss.shaping("features") == first.shaping("features")
     assert PipelineConfig.training(num_views=2).num_views == 2
 
 
@@ -56,7 +57,7 @@ def test_only_the_default_reads_the_descriptors_part_through_its_window():
 def test_presets_share_the_defaults_cameras_and_differ_in_nets_and_match():
     default, structure = PipelineConfig(), PipelineConfig.structure()
     assert (default.nets, default.matching, default.reduction) == ("tolerant", "window", "softmax")
-    assert structure.features_part() == default.features_part()  # the same descriptors
+    assert structure.shaping("features") == default.shaping("features")  # the same descriptors
     assert (structure.matching, structure.reduction, structure.power) == ("global", "power", 8.0)
     assert PipelineConfig.paper().nets == PipelineConfig.loss().nets == "correspondence"
 
@@ -89,11 +90,15 @@ def test_an_artefact_serves_every_config_that_differs_from_its_own_in_free_field
         for name in free:
             other = dataclasses.replace(config, **{name: OTHER_VALUES[name]})
             assert other.shaping(artefact) == config.shaping(artefact), (artefact, name)
-    assert config.features_part() == config.shaping("features")
     # what shapes the descriptors is never free for a graph or the weights
     for artefact in ("graph", "weights"):
         other = config.replace(descriptor_width=1.0)
         assert other.shaping(artefact) != config.shaping(artefact)
+    with pytest.raises(ValueError, match="unknown artefact"):
+        config.shaping("feature")
+    # a key, not a config to run: a patch larger than the default view keeps its weights' key
+    large = config.replace(image_size=192, patch_size=160)
+    assert large.shaping("weights").patch_size == 160
     # a graph describes views of any cameras' count, the weights views of any size too
     assert config.replace(image_size=128).shaping("graph") != config.shaping("graph")
     assert config.replace(image_size=128).shaping("weights") == config.shaping("weights")

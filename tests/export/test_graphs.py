@@ -83,7 +83,7 @@ def test_shipped_graphs_carry_their_weights_hash_and_config():
             meta = ort.InferenceSession(shipped.read_bytes()).get_modelmeta().custom_metadata_map
             assert meta[WEIGHTS_KEY] == entry["sha256"]
             built = PipelineConfig.from_json(meta[CONFIG_KEY])
-            assert built.features_part() == config.features_part()
+            assert built.shaping("features") == config.shaping("features")
     assert (models_dir() / MATCH_FILE).is_file()
 
 

@@ -155,7 +155,7 @@ def test_shipped_weights_match_the_manifest_and_serve_every_preset():
     assert shipped_entry(PipelineConfig.structure(), any_rendering=True) == default
     paper = PipelineConfig.from_dict(shipped_entry(PipelineConfig.paper())["config"])
     # the paper preset's nets were trained the paper's way, at its cameras and image size
-    assert paper.features_part() == PipelineConfig.paper().features_part()
+    assert paper.shaping("features") == PipelineConfig.paper().shaping("features")
     # the softer training renderer and the loss preset show the correspondence nets other
     # images, not other nets
     training = shipped_entry(PipelineConfig.training(), any_rendering=True)
