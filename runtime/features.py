@@ -13,7 +13,7 @@ from drkfs_onnx.contract import match_rules
 from drkfs_onnx.contract.array_ops import NUMPY_OPS
 from drkfs_onnx.contract.config import PipelineConfig
 from drkfs_onnx.contract.solid_change import view_range
-from drkfs_onnx.contract.versions import views_version
+from drkfs_onnx.contract.versions import CUSTOM, served_versions
 
 from .nearest import lift, row_hashes
 
@@ -155,7 +155,8 @@ class MeshFeatures:
             normalization=self.normalization,
             model=self.model,
             config=self.config.shaping("features").to_json(),
-            metric=views_version(self.config),  # for a reader; loading derives it from config
+            # for a reader: the versions it serves (loading derives them from the config)
+            serves=np.array(served_versions(self.config) or [CUSTOM]),
             **({} if self.views is None else {"views": self.views}),
         )
 

@@ -82,8 +82,14 @@ def metric_name(config: PipelineConfig) -> str:
     return next((n for n in VERSIONS if metric_config(n) == config), CUSTOM)
 
 
-def views_version(config: PipelineConfig) -> str:
-    """The first version whose views and descriptors (``shaping("features")``) ``config`` shares,
-    else ``CUSTOM``: what a features file was described for."""
+def served_versions(config: PipelineConfig) -> list[str]:
+    """Every version whose views and descriptors (``shaping("features")``) ``config`` shares: a
+    features file described under ``config`` serves each of them."""
     part = config.shaping("features")
-    return next((n for n in VERSIONS if metric_config(n).shaping("features") == part), CUSTOM)
+    return [n for n in VERSIONS if metric_config(n).shaping("features") == part]
+
+
+def views_version(config: PipelineConfig) -> str:
+    """The first of ``served_versions``, else ``CUSTOM``: what a features file was described
+    for, in an error message."""
+    return next(iter(served_versions(config)), CUSTOM)

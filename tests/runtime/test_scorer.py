@@ -88,8 +88,8 @@ def test_precomputed_reference_features_round_trip(scorer, tmp_path):
     config = PipelineConfig()
     assert len(loaded.descriptors) + loaded.empty == config.views_per_mesh * config.patches_per_view
     assert np.array_equal(loaded.views, scorer.features(reference).views)  # the solid change's
-    with np.load(tmp_path / "chair.npz") as saved:  # a reader sees which version it serves
-        assert str(saved["metric"]) == LATEST
+    with np.load(tmp_path / "chair.npz") as saved:  # a reader sees which versions it serves
+        assert list(saved["serves"]) == [LATEST, "drkfs-structure-1.1"]
 
 
 def test_a_features_file_without_views_serves_no_solid_change_and_says_so(scorer, tmp_path):
