@@ -2,13 +2,14 @@
 about the vertical? Measured on "meshes as they come" without building the rings: each variant
 is scored as the default scores it and turned by +-``--degrees`` about x and about z (about its
 reference's bounding-box centre, as the section's turns), and the least of the five scores
-counts, as a pairing against a ring turned about that axis would. That least is a bound the rings
-could reach at best: it also pairs a horizontal turn with the vertical ring's.
+counts, as a pairing against a ring turned about that axis would. It forgives a turn at least as
+much as the rings would (it also pairs a horizontal turn with the vertical ring's), and lowers
+the surface and structural variants' scores as they would too.
 
     python bench/tilted_rings.py --out bench/results/tilted_rings.json
 
-Two more rings of the cameras would render and describe 20 views a mesh against the default's 10;
-The run times a new mesh at both, interleaved.
+Two more rings of the cameras would render and describe 20 views a mesh against the default's 10:
+the run times a new mesh at both, interleaved.
 """
 
 from __future__ import annotations
