@@ -713,6 +713,7 @@ def judge_saved(out: Path, test_seed: int, threads: int = 2, progress=print) -> 
     """The networks a finished study saved under OUT, and those of its matched controls where
     they ran (OUT/controls.json), judged on test shapes of seeds from ``test_seed`` on (as many
     a family as the study's plan) -> OUT/test-seeds-<seed>.json."""
+    start = time.perf_counter()
     study = json.loads((out / "results.json").read_text())
     plan = QUICK if study["quick"] else FULL
     _, _, test_set = study_sets(plan, test_seed)
@@ -726,6 +727,7 @@ def judge_saved(out: Path, test_seed: int, threads: int = 2, progress=print) -> 
     )  # fmt: skip
     results = {
         "command": f"python bench/single_view.py --out {out} --test-seeds {test_seed}",
+        **machine(),
         "test_seeds": [test_seed, test_seed + plan.test_per_family - 1],
         "lfd": lfd,
         "tables": {f"seed {s}": t for s, t in tables.items()},
@@ -744,6 +746,7 @@ def judge_saved(out: Path, test_seed: int, threads: int = 2, progress=print) -> 
             "tables": {f"seed {s}": t for s, t in tables.items()},
             **summarise_controls(tables, test_set),
         }
+    results["seconds_total"] = time.perf_counter() - start
     (out / f"test-seeds-{test_seed}.json").write_text(json.dumps(results, indent=1))
     return results
 
