@@ -1,10 +1,7 @@
 """Named metric versions (``contract.versions``): a version's config is frozen, the newest is
 ``PipelineConfig()``, and every record names the version it was made under."""
 
-import json
-
 import pytest
-from conftest import ROOT
 
 from drkfs_onnx import PipelineConfig
 from drkfs_onnx.contract.cli_options import PRESETS, pick_config
@@ -43,26 +40,3 @@ def test_an_overridden_setting_is_no_version_but_its_views_still_are_one():
     assert views_version(PipelineConfig(image_size=96)) == CUSTOM
     with pytest.raises(ValueError, match="unknown metric 'drkfs-0.1'"):
         metric_config("drkfs-0.1")
-
-
-@pytest.fixture(scope="module")
-def version_sample():
-    from drkfs_lab.version_sample import sample
-
-    return sample()
-
-
-@pytest.mark.parametrize(
-    "version",
-    [pytest.param(v, marks=pytest.mark.slow) if v == "drkfs-paper" else v for v in VERSIONS],
-)
-def test_each_version_scores_the_committed_sample_of_bench_pairs_as_it_did(version, version_sample):
-    """A version's scores of the benchmark's fixed sample (bench/version_sample.py) are those
-    committed when it was made, whatever the default has become since."""
-    from drkfs_lab.version_sample import scores
-
-    committed = json.loads((ROOT / "bench/results/version_sample.json").read_text())
-    again = scores(version, version_sample)
-    assert again.keys() == committed["versions"][version].keys()
-    for key, value in again.items():
-        assert value == pytest.approx(committed["versions"][version][key], rel=1e-6), key
