@@ -18,6 +18,8 @@ from __future__ import annotations
 
 import json
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import NamedTuple
@@ -461,18 +463,30 @@ def judge_all(judge: Judge, models: dict, shapes, views, targets: dict, progress
     return table
 
 
+@contextmanager
+def seed_judging(plan: Plan, threads: int, shapes, views, progress) -> Iterator[tuple]:
+    """One judge of ``shapes`` whose prepared truths serve every call inside: (its LFD note,
+    ``tables(seeds, models_at)`` -> seed -> ``judge_all``'s table of the networks
+    ``models_at(seed)``, name -> generator)."""
+    judge = Judge(PipelineConfig(), threads, plan.unseen_views, plan.lfd, image_judges=False)
+    truths: dict = {}
+
+    def tables(seeds, models_at) -> dict[int, dict]:
+        return {s: judge_all(judge, models_at(s), shapes, views, truths, progress) for s in seeds}
+
+    try:
+        yield judge.lfd_note, tables
+    finally:
+        judge.close()
+
+
 def judge_seeds(
     plan: Plan, threads: int, seeds, models_at, shapes, views, progress
 ) -> tuple[dict[int, dict], str]:
     """seed -> ``judge_all``'s table of the networks ``models_at(seed)`` (name -> generator) on
-    ``shapes``, by one judge whose prepared truths serve every seed; and its LFD note."""
-    judge = Judge(PipelineConfig(), threads, plan.unseen_views, plan.lfd, image_judges=False)
-    truths: dict = {}
-    try:
-        tables = {s: judge_all(judge, models_at(s), shapes, views, truths, progress) for s in seeds}
-    finally:
-        judge.close()
-    return tables, judge.lfd_note
+    ``shapes``, by one judge (``seed_judging``); and its LFD note."""
+    with seed_judging(plan, threads, shapes, views, progress) as (lfd, tables):
+        return tables(seeds, models_at), lfd
 
 
 def means(tables: list[dict], shapes: list[Shape], names: list[str]) -> dict:
@@ -718,13 +732,19 @@ def judge_saved(out: Path, test_seed: int, threads: int = 2, progress=print) -> 
     plan = QUICK if study["quick"] else FULL
     _, _, test_set = study_sets(plan, test_seed)
     views = views_of(test_set, out / "data" / "views.pt", ViewRenderer())
-    networks = Networks(out / "networks", plan, torch.device("cpu"))
-    names = study["plan"]["losses"]
-    tables, lfd = judge_seeds(
-        plan, threads, study["plan"]["seeds"],
-        lambda seed: {n: networks.get(seed, n, any_key=True)["model"] for n in names},
-        test_set, views, progress,
-    )  # fmt: skip
+    names, ran_file = study["plan"]["losses"], out / "controls.json"
+    ran = json.loads(ran_file.read_text()) if ran_file.exists() else None
+    cpu = torch.device("cpu")
+
+    def saved(folder: str, losses: list[str]):
+        store = Networks(out / folder, plan, cpu)
+        return lambda seed: {n: store.get(seed, n, any_key=True)["model"] for n in losses}
+
+    # one judge for both: each test shape's truth prepared once (LFD describes it in seconds)
+    with seed_judging(plan, threads, test_set, views, progress) as (lfd, tables_of):
+        tables = tables_of(study["plan"]["seeds"], saved("networks", names))
+        if ran is not None:
+            control_tables = tables_of(ran["seeds"], saved(CONTROLS_NETWORKS, ran["recipes"]))
     results = {
         "command": f"python bench/single_view.py --out {out} --test-seeds {test_seed}",
         **machine(),
@@ -733,18 +753,11 @@ def judge_saved(out: Path, test_seed: int, threads: int = 2, progress=print) -> 
         "tables": {f"seed {s}": t for s, t in tables.items()},
         **summarise(tables, test_set, names),
     }
-    if (out / "controls.json").exists():
-        ran = json.loads((out / "controls.json").read_text())
-        controls = Networks(out / CONTROLS_NETWORKS, plan, torch.device("cpu"))
-        tables, _ = judge_seeds(
-            plan, threads, ran["seeds"],
-            lambda seed: {n: controls.get(seed, n, any_key=True)["model"] for n in ran["recipes"]},
-            test_set, views, progress,
-        )  # fmt: skip
+    if ran is not None:
         results["controls"] = {
             "recipes": ran["recipes"],
-            "tables": {f"seed {s}": t for s, t in tables.items()},
-            **summarise_controls(tables, test_set),
+            "tables": {f"seed {s}": t for s, t in control_tables.items()},
+            **summarise_controls(control_tables, test_set),
         }
     results["seconds_total"] = time.perf_counter() - start
     (out / f"test-seeds-{test_seed}.json").write_text(json.dumps(results, indent=1))
