@@ -86,10 +86,10 @@ def open_features(
     if CONFIG_KEY not in graph.metadata:
         raise ModelMismatch(f"{graph.source}: no {CONFIG_KEY} metadata; not a DR-KFS feature graph")
     built = PipelineConfig.from_json(graph.metadata[CONFIG_KEY]).shaping("graph")
-    if built != config.shaping("graph"):
+    wanted = config.shaping("graph")
+    if built != wanted:
         raise ModelMismatch(
-            f"{graph.source} was built for another pipeline config: "
-            f"{built.differences(config.shaping('graph'))}; "
+            f"{graph.source} was built for another pipeline config: {built.differences(wanted)}; "
             "export a model for this config or score with the model's config"
         )
     return graph

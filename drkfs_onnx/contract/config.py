@@ -325,9 +325,9 @@ class PipelineConfig:
     @classmethod
     def structure(cls, **changes: Any) -> PipelineConfig:
         """The default's nets, cameras and solid change of the views with a global match: every
-        patch searches all of the other mesh's (global, both directions) and the
-        best-match distances are reduced by their power mean of order 8, which listens to the
-        few patches a missing part changes. With the tolerant nets it ranks a missing part as
+        patch searches all of the other mesh's (both directions) and the best-match distances
+        are reduced by their power mean of order 8, which listens to the few patches a missing
+        part changes. With the tolerant nets it ranks a missing part as
         the default does, surface defects and people's judgments lower (docs/benchmark.md; with
         the metric nets it ranked structure higher than the default, bench/records/matching.md)."""
         match = dict(

@@ -63,7 +63,8 @@ def entry_for(entries: list[dict], config: PipelineConfig, any_rendering: bool) 
     """The first of a manifest's weights ``entries`` trained for ``config`` (as
     ``shipped_entry``), or None."""
     shaping = "weights" if any_rendering else "features"
-    for entry in entries:
-        if PipelineConfig.from_dict(entry["config"]).shaping(shaping) == config.shaping(shaping):
-            return entry
-    return None
+    wanted = config.shaping(shaping)
+    return next(
+        (e for e in entries if PipelineConfig.from_dict(e["config"]).shaping(shaping) == wanted),
+        None,
+    )
