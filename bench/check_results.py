@@ -5,7 +5,7 @@ the committed rows it came from, or holds the code's choices to the study that m
 
 Prints one line a check ("ok", or "FAILED" with the reason) and exits 1 when any failed. These
 checks read only committed files (bench/fit, bench/fit-network, bench/single_view,
-bench/results, the README, docs/benchmark.md, bench/records/single_view.md); the tests run the
+bench/results, models/manifest.json, the README, docs/, bench/records/); the tests run the
 script (tests/lab/test_check_results.py).
 """
 
@@ -36,6 +36,7 @@ from drkfs_lab.benchmark import test_set
 from drkfs_lab.benchmark.sets import BenchSet, Comparison
 from drkfs_lab.judging.judges import VISUAL
 from drkfs_lab.judging.rule import brief_share, chamfer_ratios, share
+from drkfs_lab.record_tables import RECORDS, differences
 from drkfs_lab.score_scale import markdown, scale
 from drkfs_lab.studies.finetune import finetune_markdown, summarise_finetune
 from drkfs_lab.studies.losses import CHAMFER, FORMS, PIXEL, SHIPPED, with_chamfer
@@ -432,6 +433,13 @@ def architecture_numbers_are_the_configs(root: Path) -> None:
         assert found, f"docs/architecture.md differs at {figure!r}"
 
 
+def records_hold_their_printed_tables(root: Path) -> None:
+    """Every table of the records in ``record_tables.RECORDS`` is the one printed from the JSON
+    it reports (bench/record_tables/), in the record's order, none typed beside them."""
+    found = [line for name in RECORDS for line in differences(name, root)]
+    assert not found, "; ".join(found)
+
+
 def readme_versions_table_names_every_version(root: Path) -> str:
     """The README's table of metric versions names every version of
     drkfs_onnx/contract/versions.py once, and each row's constructor makes its version."""
@@ -474,6 +482,7 @@ CHECKS: list[Callable[[Path], str | None]] = [
     training_tables_are_the_manifests,
     version_sample_is_the_benchmarks,
     test_set_is_scored_at_each_release,
+    records_hold_their_printed_tables,
 ]
 
 

@@ -33,6 +33,7 @@ LAB_LAYERS = {
     "judging": (*LIBRARY, "benchmark"),
     "training": (*LIBRARY, "benchmark"),
     "studies": (*LIBRARY, "benchmark", "judging", "training"),
+    "record_tables": (*LIBRARY, "benchmark", "judging", "training", "studies"),  # their records
 }
 LAB_LAYERS["scripts"] = (*LIBRARY, *LAB_LAYERS)  # the lab's scripts and command line: everything
 ALLOWED = {**LIBRARY, **LAB_LAYERS}

@@ -1,0 +1,3 @@
+from drkfs_lab.record_tables import main
+
+main()

@@ -1,0 +1,45 @@
+"""bench/record_tables: each record's tables are printed from the JSON it reports, so a figure
+typed into a record, or a stale table, is named; ``write`` puts the printed tables in place."""
+
+import shutil
+
+import pytest
+from conftest import ROOT
+
+from drkfs_lab import record_tables
+
+
+@pytest.mark.parametrize("name", record_tables.RECORDS)
+def test_every_table_of_the_record_is_printed_from_its_json(name):
+    assert record_tables.differences(name) == []
+
+
+def _copy(tmp_path, name: str):
+    """A repository under tmp_path holding the committed results and record ``name``."""
+    shutil.copytree(ROOT / "bench" / "results", tmp_path / "bench" / "results")
+    (tmp_path / "bench" / "records").mkdir()
+    record = tmp_path / "bench" / "records" / f"{name}.md"
+    shutil.copy(ROOT / "bench" / "records" / f"{name}.md", record)
+    return record
+
+
+def test_a_figure_typed_into_a_record_is_named_and_write_prints_it_back(tmp_path):
+    record = _copy(tmp_path, "real_levers")
+    text = record.read_text()
+    typed = text.replace("| 0.94 | 0.829 | 3.27 |", "| 0.94 | 0.839 | 3.27 |", 1)
+    assert typed != text
+    record.write_text(typed)
+    (found,) = record_tables.differences("real_levers", tmp_path)
+    assert "real_levers.md table 3" in found and "0.839" in found
+    record_tables.write("real_levers", tmp_path)
+    assert record.read_text() == text
+
+
+def test_a_record_with_a_table_more_than_printed_is_refused(tmp_path):
+    record = _copy(tmp_path, "real_levers")
+    record.write_text(record.read_text() + "\n| a | b |\n|---|---|\n| 1 | 2 |\n")
+    assert record_tables.differences("real_levers", tmp_path) == [
+        "real_levers.md holds 24 tables, 23 are printed"
+    ]
+    with pytest.raises(SystemExit, match="holds 24 tables, 23 are printed"):
+        record_tables.write("real_levers", tmp_path)
