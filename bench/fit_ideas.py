@@ -43,6 +43,7 @@ from drkfs_lab.judging.judges import Judge
 from drkfs_lab.judging.rule import chamfer_ratios
 from drkfs_lab.studies.losses import (
     CHAMFER,
+    FADED_CONTROL,
     PIXEL,
     Recipe,
     Terms,
@@ -67,7 +68,6 @@ from drkfs_onnx.contract.config import PipelineConfig
 from drkfs_onnx.synthetic.shapes import FAMILIES
 
 TUNED = "fine-tuned nets"
-FADED_CONTROL = "the control, pixel MSE last"
 # fixed before the run, not tuned: the structural terms at full weight for the first half, gone
 # for the last fifth (tried first on the chair and the table without LFD, this one schedule)
 PIXEL_MSE_LAST = Fade(0.5, 0.8)

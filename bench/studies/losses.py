@@ -22,6 +22,7 @@ from drkfs_onnx.metric import DRKFS
 from .mesh_fit import ChamferLoss, DrkfsTerm, Fade, Objective, PixelLoss
 
 PIXEL = "pixel MSE"
+FADED_CONTROL = "the control, pixel MSE last"  # fit_ideas.py's control, pixel MSE alone at its end
 SCORING = "DR-KFS (scoring match)"  # the first studies' "DR-KFS": the default's match, softer
 COARSE = COARSE_TO_FINE[0]
 
