@@ -14,11 +14,13 @@ from drkfs_onnx.contract.config import PipelineConfig
 from drkfs_onnx.contract.model_files import (
     CONFIG_KEY,
     MATCH_FILE,
+    SERVES_KEY,
     VERSION_KEY,
     WEIGHTS_KEY,
     features_file,
     shipped_weights,
 )
+from drkfs_onnx.contract.versions import CUSTOM, served_versions
 from drkfs_onnx.metric import DRKFS
 
 from .graphs import FeatureGraph, MatchGraph
@@ -76,6 +78,7 @@ def export_features(metric: DRKFS, path: Path, weights_sha256: str) -> Path:
         CONFIG_KEY: metric.config.to_json(),
         VERSION_KEY: f"drkfs-onnx {version('drkfs-onnx')} weights {weights_sha256[:12]}",
         WEIGHTS_KEY: weights_sha256,
+        SERVES_KEY: ", ".join(served_versions(metric.config, "graph") or [CUSTOM]),
     }
     return _write(model, path, metadata)
 

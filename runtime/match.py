@@ -13,7 +13,7 @@ from drkfs_onnx.contract import match_rules
 from drkfs_onnx.contract.array_ops import NUMPY_OPS
 from drkfs_onnx.contract.config import TWO_SIDED, PipelineConfig
 from drkfs_onnx.contract.solid_change import solid_reaches, view_solid_changes
-from drkfs_onnx.contract.versions import views_version
+from drkfs_onnx.contract.versions import serving_version
 
 from .features import MeshFeatures
 from .nearest import exact_copies, nearest_lifted
@@ -94,8 +94,8 @@ def check_features(
             else ""
         )
         raise ValueError(
-            f"{features.source}: features described for {views_version(made)}'s views, scoring "
-            f"asks {views_version(asked)}'s: {made.differences(asked)}{hint}"
+            f"{features.source}: features described for {serving_version(made)}'s views, scoring "
+            f"asks {serving_version(asked)}'s: {made.differences(asked)}{hint}"
         )
     if features.model != model:
         raise ValueError(

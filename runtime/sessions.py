@@ -15,6 +15,7 @@ from drkfs_onnx.contract.model_files import (
     features_file,
     models_dir,
 )
+from drkfs_onnx.contract.versions import serving_version
 
 
 class ModelMismatch(ValueError):
@@ -88,8 +89,10 @@ def open_features(
     built = PipelineConfig.from_json(graph.metadata[CONFIG_KEY]).shaping("graph")
     wanted = config.shaping("graph")
     if built != wanted:
+        made, asked = serving_version(built, "graph"), serving_version(config, "graph")
         raise ModelMismatch(
-            f"{graph.source} was built for another pipeline config: {built.differences(wanted)}; "
-            "export a model for this config or score with the model's config"
+            f"{graph.source} was built for {made}'s feature graph, scoring asks {asked}'s: "
+            f"{built.differences(wanted)}; export a model for this config or score with the "
+            "model's config"
         )
     return graph

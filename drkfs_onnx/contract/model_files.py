@@ -15,6 +15,9 @@ MATCH_FILE = "match.onnx"
 CONFIG_KEY = "drkfs_config"
 VERSION_KEY = "drkfs_model_version"
 WEIGHTS_KEY = "drkfs_weights_sha256"
+# the metric versions a feature graph serves at its export, comma-separated ("custom" for none);
+# a reader of the file learns them there, a scorer from the graph's config against its own
+SERVES_KEY = "drkfs_serves"
 
 
 def features_file(config: PipelineConfig) -> str:

@@ -82,14 +82,16 @@ def metric_name(config: PipelineConfig) -> str:
     return next((n for n in VERSIONS if metric_config(n) == config), CUSTOM)
 
 
-def served_versions(config: PipelineConfig) -> list[str]:
-    """Every version whose views and descriptors (``shaping("features")``) ``config`` shares: a
-    features file described under ``config`` serves each of them."""
-    part = config.shaping("features")
-    return [n for n in VERSIONS if metric_config(n).shaping("features") == part]
+def served_versions(config: PipelineConfig, artefact: str = "features") -> list[str]:
+    """Every version whose settings that shape ``artefact`` (``PipelineConfig.shaping``)
+    ``config`` shares: a features file described, or a feature graph ('graph') exported, under
+    ``config`` serves each of them."""
+    part = config.shaping(artefact)
+    return [n for n in VERSIONS if metric_config(n).shaping(artefact) == part]
 
 
-def views_version(config: PipelineConfig) -> str:
-    """The first of ``served_versions``, else ``CUSTOM``: what a features file was described
-    for, in an error message."""
-    return next(iter(served_versions(config)), CUSTOM)
+def serving_version(config: PipelineConfig, artefact: str = "features") -> str:
+    """The version ``config`` is, else the first of ``served_versions``, else ``CUSTOM``: what a
+    features file was described, or a feature graph exported, for, in an error message."""
+    named = metric_name(config)
+    return named if named != CUSTOM else next(iter(served_versions(config, artefact)), CUSTOM)

@@ -11,7 +11,7 @@ from drkfs_onnx.contract.versions import (
     VERSIONS,
     metric_config,
     metric_name,
-    views_version,
+    serving_version,
 )
 
 
@@ -36,7 +36,7 @@ def test_the_presets_are_versions_and_each_version_is_named_back():
 def test_an_overridden_setting_is_no_version_but_its_views_still_are_one():
     windowed = PipelineConfig(window=1)
     assert metric_name(windowed) == CUSTOM
-    assert views_version(windowed) == LATEST  # the match alone changed
-    assert views_version(PipelineConfig(image_size=96)) == CUSTOM
+    assert serving_version(windowed) == LATEST  # the match alone changed
+    assert serving_version(PipelineConfig(image_size=96)) == CUSTOM
     with pytest.raises(ValueError, match="unknown metric 'drkfs-0.1'"):
         metric_config("drkfs-0.1")

@@ -14,11 +14,13 @@ from drkfs_onnx import DRKFS, PipelineConfig
 from drkfs_onnx.contract.model_files import (
     CONFIG_KEY,
     MATCH_FILE,
+    SERVES_KEY,
     WEIGHTS_KEY,
     features_file,
     models_dir,
     shipped_weights,
 )
+from drkfs_onnx.contract.versions import CUSTOM, VERSIONS, metric_config
 from drkfs_onnx.export import export_features, export_match, weights_digest
 from drkfs_onnx.nets.patches import select_patches
 
@@ -112,6 +114,10 @@ def test_each_shipped_graph_is_a_current_export_and_matches_torch_on_near_flat_v
     inputs = {"views": views, "patch_index": index}
     got = shipped.run(None, inputs)[0]
     assert np.abs(got - fresh.run(None, inputs)[0]).max() <= 1e-6
+    # a fresh export names the versions whose graph it is ("custom" where none)
+    served = fresh.get_modelmeta().custom_metadata_map[SERVES_KEY].split(", ")
+    whose = [n for n in VERSIONS if features_file(metric_config(n)) == features_file(config)]
+    assert served == (whose or [CUSTOM])
     with torch.no_grad():
         maps = metric.detector(torch.from_numpy(views))
         expected = metric.descriptor(select_patches(maps, torch.from_numpy(index), config))

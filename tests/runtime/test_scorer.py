@@ -113,6 +113,9 @@ def test_a_model_for_another_config_is_refused_with_the_difference():
     shipped = models_dir() / features_file(PipelineConfig.paper())
     with pytest.raises(ModelMismatch, match=r"image_size 256 \(asked 96\)"):
         Scorer(PipelineConfig.paper(image_size=96), model=shipped)
+    named = r"built for drkfs-paper's feature graph, scoring asks drkfs-1.1's"
+    with pytest.raises(ModelMismatch, match=named):
+        Scorer(metric="drkfs-1.1", model=shipped)
     # the view count, the light on faces seen from behind and the match are not in the graph:
     # the paper's graph serves them
     paper = PipelineConfig.paper(num_views=12, matching="window", back_light=0.0, back_push=0.05)
