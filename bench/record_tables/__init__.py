@@ -13,16 +13,35 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import json
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
+from drkfs_lab.benchmark.run import TIER_PAIRS
+
 ROOT = Path(__file__).resolve().parents[2]
+# the runs a later run of the same command replaced, where a record still quotes them: each file
+# as commit C held it, at EARLIER/C/its path (`git show C:PATH`), so no table needs git's history
+EARLIER = "bench/earlier"
 # the records whose every table is printed here (single_view.md's tables are the study's own
 # printers', bench/studies/single_view.py, held by their own checks)
 RECORDS: tuple[str, ...] = ("fitting", "real_levers")
 
 Table = Callable[[Path], str]
+
+
+def committed(root: Path, path: str, commit: str | None = None) -> dict:
+    """The committed JSON file ``path`` under ``root``; with ``commit`` (7 hex digits), the run
+    the file held at that commit, kept under ``EARLIER``."""
+    where = root / EARLIER / commit / path if commit else root / path
+    return json.loads(where.read_text())
+
+
+def trio(shares: dict) -> str:
+    """The three tier shares as the records print them: invisible < structural / surface <
+    structural / invisible < surface."""
+    return " / ".join(f"{shares[pair]:.3f}" for pair in TIER_PAIRS)
 
 
 def grid(header: Sequence[str], rows: Sequence[Sequence[str]], right: int = 0) -> str:

@@ -22,14 +22,14 @@ from drkfs_lab.studies.losses import (
 from drkfs_lab.studies.network import FULL as NETWORK
 from drkfs_lab.studies.study import landscape_summary
 
-from . import bold, grid
+from . import bold, committed, grid
 
 FIT = "bench/fit/results.json"
 NETWORK_STUDY = "bench/fit-network/results.json"
-# the network study's results.json at commit 0ffd7fe, with the soft form as its only form: the one
-# run that trained seed 0's soft form + 3 x Chamfer (its Chamfer and pixel MSE networks and its
-# validation rows are the committed study's)
-SOFT_FORM_RUN = "bench/fit-network/soft-form-run.json"
+# the commit whose network study had the soft form as its only form: the one run that trained
+# seed 0's soft form + 3 x Chamfer (its Chamfer and pixel MSE networks and its validation rows
+# are the committed study's)
+SOFT_FORM_RUN = "0ffd7fe"
 # the network study's two forms, as the record names them
 FORM_NAMES = {"soft match, window r1, coarse to fine": "soft form", SHIPPED: "plain form"}
 DIGITS = {
@@ -47,11 +47,6 @@ DIGITS = {
 TUNING_METRICS = ("F-score 1%", "normal consistency", "Chamfer-L1", "silhouette IoU", "LFD")
 # the network studies' tables of means: these metrics' columns, the visual cells' last
 NETWORK_METRICS = (*SURFACE, "volumetric IoU", "silhouette IoU", "DR-KFS", "LFD")
-
-
-def _json(root: Path, path: str) -> dict:
-    """The committed JSON file at ``path`` under ``root``."""
-    return json.loads((root / path).read_text())
 
 
 def _figure(metric: str, value: float, grouped: bool = False) -> str:
@@ -107,7 +102,7 @@ def _network_row(study: dict, loss: str) -> list[str]:
 def loss_study_forms(root: Path) -> str:
     """The loss study's forms on the sofa and the cheburashka: judges, mean rank, gradient
     error and monotone descent (as fitted / last stage); the study's choice in bold."""
-    study = _json(root, FIT)["loss_study"]
+    study = committed(root, FIT)["loss_study"]
     ranks = study["forms"]["mean_rank"]
     rows = []
     for form in ranks:
@@ -141,7 +136,7 @@ def loss_study_forms(root: Path) -> str:
 def loss_study_weights(root: Path) -> str:
     """The shipped form alone, beside pixel MSE and beside Chamfer at each weight (sofa /
     cheburashka) with each pair's mean rank; the chosen weights' names in bold."""
-    study = _json(root, FIT)["loss_study"]
+    study = committed(root, FIT)["loss_study"]
     form = study["form"]
     chosen = {
         with_pixel(form, study["pixel_weight"]["chosen"]).name,
@@ -174,7 +169,7 @@ def loss_study_weights(root: Path) -> str:
 def loss_nets_fits(root: Path) -> str:
     """The shipped form fitted with the shipped and the fine-tuned nets (sofa / cheburashka):
     judges, gradient error as fitted, monotone descent and mean rank."""
-    fits = _json(root, "bench/fit/loss_nets.json")["fits"]
+    fits = committed(root, "bench/fit/loss_nets.json")["fits"]
     rows = []
     for nets, judged in fits["rows"].items():
         landscape = {problem: row["landscape"] for problem, row in judged.items()}
@@ -206,7 +201,7 @@ def loss_nets_fits(root: Path) -> str:
 def fitting_study_means(root: Path) -> str:
     """The fitting study's means over its six problems per loss, mean rank, seconds a step and
     visual cells won against Chamfer / pixel MSE; the best DR-KFS loss's name in bold."""
-    results = _json(root, FIT)
+    results = committed(root, FIT)
     form = results["loss_study"]["form"]
     control = pixel_with_chamfer(results["loss_study"]["chamfer_weight"]["chosen"]).name
     rows = []
@@ -272,8 +267,8 @@ def _idea_name(idea: str, shipped: str) -> str:
 def every_ideas_best_form(root: Path) -> str:
     """Each idea in all three terms: visual (surface) cells won against each rival, committed /
     refitted, and its mean rank among the committed rows; the faded control in italics."""
-    results = _json(root, "bench/fit/ideas.json")
-    choice = _json(root, FIT)["loss_study"]
+    results = committed(root, "bench/fit/ideas.json")
+    choice = committed(root, FIT)["loss_study"]
     weights = results["weights"]
     shipped = with_both(choice["form"], weights[PIXEL], weights[CHAMFER]).name
     labels = ("pixel MSE", "the control", "the shipped form's three terms", FADED_CONTROL)
@@ -295,7 +290,7 @@ def every_ideas_best_form(root: Path) -> str:
 def network_study(root: Path) -> str:
     """The network study's test means per loss and visual cells won against Chamfer / pixel
     MSE; validation's choice in bold."""
-    study = _json(root, NETWORK_STUDY)
+    study = committed(root, NETWORK_STUDY)
     form = study["validation"]["form"]
     rows = []
     for loss in study["plan"]["losses"]:
@@ -330,7 +325,7 @@ def _on_test(root: Path, path: str, study: dict, name: str) -> tuple[dict, dict,
         ratio = beside["chamfer_l1_over_chamfer_trained"]
         return beside["beats_chamfer"], beside["beats_pixel_mse"], ratio
     if name not in study["plan"]["losses"]:
-        study = _json(root, SOFT_FORM_RUN)
+        study = committed(root, NETWORK_STUDY, SOFT_FORM_RUN)
     return (
         study["beats_chamfer"][name],
         study["beats_pixel_mse"][name],
@@ -342,7 +337,7 @@ def _seed_cells(root: Path, path: str) -> dict[str, tuple[str, dict, dict]]:
     """Each candidate of the network study at ``path`` -> its 'validation / test against
     Chamfer / test against pixel MSE / Chamfer-L1 ratio' cell (in bold for validation's
     choice) and its two test shares."""
-    study = _json(root, path)
+    study = committed(root, path)
     cells = {}
     for candidate in NETWORK.candidates():
         name = candidate.name
@@ -356,7 +351,7 @@ def _seed_cells(root: Path, path: str) -> dict[str, tuple[str, dict, dict]]:
 def _candidate_name(root: Path, candidate: str) -> str:
     """A candidate as the seeds' tables name it: its form's short name, 'x' as '×', and the
     shipped loss (the committed study's choice, ``DrkfsLoss.pretrained()``) marked so."""
-    shipped = candidate == _chosen(_json(root, NETWORK_STUDY))
+    shipped = candidate == _chosen(committed(root, NETWORK_STUDY))
     for form, short in FORM_NAMES.items():
         candidate = candidate.replace(form, short)
     return candidate.replace(" x ", " × ") + (" (shipped)" if shipped else "")
@@ -379,7 +374,7 @@ def six_seeds(root: Path) -> str:
         rows.append([_candidate_name(root, candidate.name), *cells, pooled])
     header = [
         "DR-KFS form + w × Chamfer",
-        *(f"seed {_json(root, path)['plan']['seed']}" for path in paths),
+        *(f"seed {committed(root, path)['plan']['seed']}" for path in paths),
         "test, six seeds: Chamfer / pixel MSE",
     ]
     return grid(header, rows, right=1)
@@ -399,7 +394,7 @@ def seed_zero_again(root: Path) -> str:
 def soft_form_trained(root: Path) -> str:
     """The network study's run with the soft form as its only form (commit 0ffd7fe): the test
     means of the losses holding it, and their visual cells won against Chamfer / pixel MSE."""
-    study = _json(root, SOFT_FORM_RUN)
+    study = committed(root, NETWORK_STUDY, SOFT_FORM_RUN)
     form = study["plan"]["form"]
     rows = [
         [_named(loss, form, "soft form", " × "), *_network_row(study, loss)]
@@ -422,8 +417,8 @@ def _best(values: dict[str, float], higher: bool) -> str:
 def three_terms_trained(root: Path) -> str:
     """The network study's losses with all three terms and the control: test means and mean
     rank of the seven, the best of each column in bold, and validation's choice's name."""
-    results = _json(root, "bench/fit-network/combinations.json")
-    study = _json(root, NETWORK_STUDY)
+    results = committed(root, "bench/fit-network/combinations.json")
+    study = committed(root, NETWORK_STUDY)
     form = study["validation"]["form"]
     control = pixel_with_chamfer(study["validation"]["chamfer_weight"]).name
     metrics = [m for m in NETWORK_METRICS if m != "DR-KFS"]

@@ -9,17 +9,14 @@ side / held-out side; a mesh's cost is against the first lever of its run (the r
 from __future__ import annotations
 
 import functools
-import json
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+from drkfs_lab.benchmark.run import TIER_PAIRS
 from drkfs_lab.benchmark.torch_checks import JUMP_LIMIT
-from drkfs_lab.record_tables import bold, grid, minus
+from drkfs_lab.record_tables import bold, committed, grid, minus, trio
 
-# each share trio in the records' order: invisible < structural / surface < structural /
-# invisible < surface
-TRIO = ("invisible_vs_structural", "surface_vs_structural", "invisible_vs_surface")
 SIDES = ("training", "held_out")
 CHECKS = {"2° turn": "turn_below_every_surface", "every turn": "every_turn_below_every_surface",
           "salient": "salient_above_every_invisible"}  # fmt: skip
@@ -41,12 +38,8 @@ class Row:
 @functools.cache
 def _levers(root: Path, run: str) -> list[dict]:
     """A run's levers in the order it scored them."""
-    found = json.loads((root / "bench" / "results" / f"{run}.json").read_text())
+    found = committed(root, f"bench/results/{run}.json")
     return list((found.get("levers") or found.get("rows") or found["shift_search"]).values())
-
-
-def _trio(shares: dict) -> str:
-    return " / ".join(f"{shares[pair]:.3f}" for pair in TRIO)
 
 
 def _check(lever: dict, check: str, sides: tuple[str, ...] = SIDES) -> str:
@@ -92,12 +85,12 @@ def _cost(lever: dict, row: Row, root: Path) -> str:
 # column -> (header, the cell of a lever (lever, row, root), aligned right)
 Cell = Callable[[dict, Row, Path], str]
 COLUMNS: dict[str, tuple[str, Cell, bool]] = {
-    "synthetic": ("synthetic tiers", lambda lever, row, root: _trio(lever["tiers"]), False),
+    "synthetic": ("synthetic tiers", lambda lever, row, root: trio(lever["tiers"]), False),
     "training": ("real, training side",
-                 lambda lever, row, root: _trio(lever["real"]["training"]), False),
-    "held_out": ("real, held out", lambda lever, row, root: _trio(lever["real"]["held_out"]),
+                 lambda lever, row, root: trio(lever["real"]["training"]), False),
+    "held_out": ("real, held out", lambda lever, row, root: trio(lever["real"]["held_out"]),
                  False),
-    "third": ("third side", lambda lever, row, root: _trio(lever["real"]["other"]), False),
+    "third": ("third side", lambda lever, row, root: trio(lever["real"]["other"]), False),
     "turn": ("2° turn", lambda lever, row, root: _check(lever, "2° turn"), False),
     "every_turn": ("every turn", lambda lever, row, root: _check(lever, "every turn"), False),
     "salient": ("salient", lambda lever, row, root: _check(lever, "salient"), False),
@@ -137,7 +130,7 @@ def _targets(lever: dict) -> str:
         *(["bars"] if lever["bars"]["deletion_over_max_shift"] < 1.6 else []),
         *(["slide"] if lever["slide"]["max_over_mean_step"] > JUMP_LIMIT else []),
         *(f"synthetic {pair.replace('_vs_', ' < ')} {tiers[pair]:.3f}"
-          for pair in TRIO if tiers[pair] < 0.9),
+          for pair in TIER_PAIRS if tiers[pair] < 0.9),
         *(["retrieval"] if lever["retrieval"]["nearest_neighbour_accuracy"] < 0.83 else []),
         *(["close/flipped"] if human["close_flipped"] > -0.60 else []),
         *(["far/normal"] if human["far_normal"] > -0.43 else []),
