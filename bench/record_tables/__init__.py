@@ -26,7 +26,7 @@ ROOT = Path(__file__).resolve().parents[2]
 EARLIER = "bench/earlier"
 # the records whose every table is printed here (single_view.md's tables are the study's own
 # printers', bench/studies/single_view.py, held by their own checks)
-RECORDS: tuple[str, ...] = ("fitting", "real_levers")
+RECORDS: tuple[str, ...] = ("fitting", "matching", "nets", "real_levers", "real_tiers")
 
 Table = Callable[[Path], str]
 
