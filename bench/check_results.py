@@ -38,7 +38,7 @@ from drkfs_lab.judging.judges import VISUAL
 from drkfs_lab.judging.rule import brief_share, chamfer_ratios, share
 from drkfs_lab.record_tables import RECORDS, differences
 from drkfs_lab.score_scale import markdown, scale
-from drkfs_lab.studies.finetune import finetune_markdown, summarise_finetune
+from drkfs_lab.studies.finetune import summarise_finetune
 from drkfs_lab.studies.losses import CHAMFER, FORMS, PIXEL, SHIPPED, with_chamfer
 from drkfs_lab.studies.network import FULL, choose_loss
 from drkfs_lab.studies.single_view import (
@@ -47,18 +47,12 @@ from drkfs_lab.studies.single_view import (
     RECIPE_IOU,
     SOFTRAS,
     Shape,
-    controls_markdown,
-    curve_markdown,
     means,
-    steps_markdown,
     summarise,
     summarise_controls,
-    test_seeds_markdown,
-    tuned_nets_markdown,
     validation_choice,
 )
-from drkfs_lab.studies.single_view import markdown as single_view_tables
-from drkfs_lab.studies.speed import speed_markdown, summarise_speed
+from drkfs_lab.studies.speed import summarise_speed
 from drkfs_lab.test_set import summary as test_set_summary
 from drkfs_onnx import PipelineConfig
 from drkfs_onnx.contract.versions import LATEST, VERSIONS, metric_name
@@ -169,9 +163,9 @@ def network_studies_shares_recompute(root: Path) -> None:
                     assert got[key] == brief_share(merged, name, against, VISUAL), (path, name)
 
 
-def single_view_study_recomputes_and_the_doc_holds_its_tables(root: Path) -> None:
-    """The single-view study's means, shares and goal recompute from its per-seed tables, its
-    combination is validation's choice, and bench/records/single_view.md holds its tables."""
+def single_view_study_recomputes(root: Path) -> None:
+    """The single-view study's means, shares and goal recompute from its per-seed tables, and
+    its combination is validation's choice."""
     results = _json(root, "bench/single_view/results.json")
     tables = {int(seed.split()[1]): table for seed, table in results["tables"].items()}
     # summarise reads the test shapes' names and families ("chair 5500"): the tables' own
@@ -182,8 +176,6 @@ def single_view_study_recomputes_and_the_doc_holds_its_tables(root: Path) -> Non
     validation = results["validation"]
     if validation.get("table"):
         assert validation_choice(validation["table"])["chosen"] == validation["chosen"]
-    doc = (root / "bench/records/single_view.md").read_text()
-    assert single_view_tables(results) in doc, "bench/records/single_view.md's tables differ"
 
 
 def _test_set(table: dict) -> list[Shape]:
@@ -191,22 +183,18 @@ def _test_set(table: dict) -> list[Shape]:
     return [Shape(n, n.split()[0], None, None) for n in table]
 
 
-def single_view_controls_recompute_and_the_doc_holds_them(root: Path) -> None:
-    """The matched controls' means, shares and goal recompute from their per-seed tables, and
-    bench/records/single_view.md holds their tables."""
+def single_view_controls_recompute(root: Path) -> None:
+    """The matched controls' means, shares and goal recompute from their per-seed tables."""
     results = _json(root, "bench/single_view/controls.json")
     tables = {int(seed.split()[1]): table for seed, table in results["tables"].items()}
     again = summarise_controls(tables, _test_set(next(iter(tables.values()))))
     for key in ("means", "shares", "goal"):
         assert again[key] == results[key], f"controls.json's {key} do not recompute"
-    doc = (root / "bench/records/single_view.md").read_text()
-    assert controls_markdown(results) in doc, "single_view.md's controls tables differ"
 
 
-def single_view_other_test_seeds_recompute_and_the_doc_holds_them(root: Path) -> None:
+def single_view_other_test_seeds_recompute(root: Path) -> None:
     """The saved networks judged on other test shapes: the study's losses' and (where judged)
-    the controls' means, shares and goals recompute from their per-seed tables, and
-    bench/records/single_view.md holds their tables."""
+    the controls' means, shares and goals recompute from their per-seed tables."""
     results = _json(root, "bench/single_view/test-seeds-6000.json")
 
     def by_seed(part: dict) -> dict[int, dict]:
@@ -224,57 +212,33 @@ def single_view_other_test_seeds_recompute_and_the_doc_holds_them(root: Path) ->
     for part, again in recomputed:
         for key in ("means", "shares", "goal"):
             assert again[key] == part[key], f"test-seeds-6000.json's {key} do not recompute"
-    doc = (root / "bench/records/single_view.md").read_text()
-    assert test_seeds_markdown(results) in doc, "single_view.md's other test shapes' tables differ"
 
 
-def single_view_finetuning_recomputes_and_the_doc_holds_it(root: Path) -> None:
-    """The fine-tuning protocol's means and shares recompute from its per-seed tables, and
-    bench/records/single_view.md holds its tables."""
+def single_view_finetuning_recomputes(root: Path) -> None:
+    """The fine-tuning protocol's means and shares recompute from its per-seed tables."""
     results = _json(root, "bench/single_view/finetune.json")
     tables = {int(seed.split()[1]): table for seed, table in results["tables"].items()}
     again = summarise_finetune(tables, _test_set(next(iter(tables.values()))))
     for key in ("means", "shares"):
         assert again[key] == results[key], f"finetune.json's {key} do not recompute"
-    doc = (root / "bench/records/single_view.md").read_text()
-    assert finetune_markdown(results) in doc, "single_view.md's fine-tuning tables differ"
 
 
-def single_view_curve_recomputes_and_the_doc_holds_it(root: Path) -> None:
-    """Each judged point of the learning curve's means recompute from its table, and
-    bench/records/single_view.md holds the curve's table as it stands."""
+def single_view_curve_recomputes(root: Path) -> None:
+    """Each judged point of the learning curve's means recompute from its table."""
     results = _json(root, "bench/single_view/curve.json")
     for point, found in results["points"].items():
         again = means([found["table"]], _test_set(found["table"]), results["losses"])["mean"]
         assert again == found["means"], f"curve.json's means at {point} steps do not recompute"
-    doc = (root / "bench/records/single_view.md").read_text()
-    assert curve_markdown(results) in doc, "single_view.md's learning-curve table differs"
 
 
-def single_view_speed_recomputes_and_the_doc_holds_it(root: Path) -> None:
-    """Each speed run's validation means and shares recompute from its per-seed tables, and
-    bench/records/single_view.md holds its tables (speed.json's timings among them)."""
-    doc = (root / "bench/records/single_view.md").read_text()
+def single_view_speed_recomputes(root: Path) -> None:
+    """Each speed run's validation means and shares recompute from its per-seed tables."""
     for path in sorted((root / "bench/single_view").glob("speed*.json")):
         results = json.loads(path.read_text())
         tables = {int(seed.split()[1]): table for seed, table in results["tables"].items()}
         again = summarise_speed(tables, _test_set(next(iter(tables.values()))), results["losses"])
         for key in ("means", "shares"):
             assert again[key] == results[key], f"{path.name}'s {key} do not recompute"
-        assert speed_markdown(results) in doc, f"single_view.md's tables of {path.name} differ"
-
-
-def single_view_steps_runs_are_the_docs(root: Path) -> str:
-    """bench/records/single_view.md's tables of the nets fine-tuned for the loss are
-    ``tuned_nets_markdown``'s, pooled over every seed's --steps run at the study's steps, and
-    its table of 400 steps ``steps_markdown``'s."""
-    paths = sorted((root / "bench/single_view").glob("longer-200-steps-seed*.json"))
-    runs = [json.loads(path.read_text()) for path in paths]
-    doc = (root / "bench/records/single_view.md").read_text()
-    assert tuned_nets_markdown(runs) in doc, "single_view.md's fine-tuned nets' tables differ"
-    longer = _json(root, "bench/single_view/longer-400-steps-seed0.json")
-    assert steps_markdown(longer) in doc, "single_view.md's more-steps table differs"
-    return f"seeds {', '.join(str(run['seed']) for run in runs)}"
 
 
 def readme_score_scale_is_the_benchmarks(root: Path) -> None:
@@ -466,13 +430,12 @@ CHECKS: list[Callable[[Path], str | None]] = [
     network_plan_chooses_between_the_loss_studys_two_best,
     candidates_stand_beside_their_studies,
     network_studies_shares_recompute,
-    single_view_study_recomputes_and_the_doc_holds_its_tables,
-    single_view_controls_recompute_and_the_doc_holds_them,
-    single_view_other_test_seeds_recompute_and_the_doc_holds_them,
-    single_view_finetuning_recomputes_and_the_doc_holds_it,
-    single_view_curve_recomputes_and_the_doc_holds_it,
-    single_view_speed_recomputes_and_the_doc_holds_it,
-    single_view_steps_runs_are_the_docs,
+    single_view_study_recomputes,
+    single_view_controls_recompute,
+    single_view_other_test_seeds_recompute,
+    single_view_finetuning_recomputes,
+    single_view_curve_recomputes,
+    single_view_speed_recomputes,
     readme_score_scale_is_the_benchmarks,
     readme_batch_table_is_torch_batchs,
     readme_as_a_loss_is_the_single_view_studys,

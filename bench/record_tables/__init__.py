@@ -1,7 +1,8 @@
 """The records' tables (bench/records/NAME.md), printed from the committed JSON they report:
 module ``record_tables.NAME`` lists a record's tables in the order the record holds them
-(``TABLES``, each ``table(root) -> markdown``), and bench/check_results.py holds the record to
-them, every table of it, so none is typed by hand.
+(``TABLES``, each ``table(root) -> markdown`` of one table or of several a study prints
+together), and bench/check_results.py holds the record to them, every table of it, so none is
+typed by hand.
 
     python -m drkfs_lab.record_tables [NAME ...] [--write]
 
@@ -24,9 +25,15 @@ ROOT = Path(__file__).resolve().parents[2]
 # the runs a later run of the same command replaced, where a record still quotes them: each file
 # as commit C held it, at EARLIER/C/its path (`git show C:PATH`), so no table needs git's history
 EARLIER = "bench/earlier"
-# the records whose every table is printed here (single_view.md's tables are the study's own
-# printers', bench/studies/single_view.py, held by their own checks)
-RECORDS: tuple[str, ...] = ("fitting", "matching", "nets", "real_levers", "real_tiers")
+# the records whose every table is printed here: all of them
+RECORDS: tuple[str, ...] = (
+    "fitting",
+    "matching",
+    "nets",
+    "real_levers",
+    "real_tiers",
+    "single_view",
+)
 
 Table = Callable[[Path], str]
 
@@ -76,7 +83,7 @@ def tables_in(text: str) -> list[str]:
 def printed(name: str, root: Path = ROOT) -> list[str]:
     """Record ``name``'s tables, printed from the committed JSON under ``root``."""
     module = importlib.import_module(f"{__name__}.{name}")
-    return [table(root) for table in module.TABLES]
+    return [found for table in module.TABLES for found in tables_in(table(root))]
 
 
 def differences(name: str, root: Path = ROOT) -> list[str]:
