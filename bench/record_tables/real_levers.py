@@ -138,6 +138,12 @@ def _targets(lever: dict) -> str:
     return "no: " + ", ".join(missed) if missed else "yes"
 
 
+# the columns most tables open with (the tiers on each side) and close with (the bench's own
+# targets, then people's agreement)
+TIERS = ("synthetic", "training", "held_out")
+BENCH_TARGETS = ("bars_retrieval_slide", "people")
+
+
 @dataclass(frozen=True)
 class LeverTable:
     """A table of levers: the headers of the cells that name a row, the columns, the rows."""
@@ -163,7 +169,7 @@ class LeverTable:
 
 LEVERS_AT_FIRST = LeverTable(
     ("lever",),
-    ("synthetic", "training", "held_out", "turn", "salient"),
+    (*TIERS, "turn", "salient"),
     (
         Row(("default",), "real_levers", 0),
         Row(("window r1",), "real_levers", 1),
@@ -177,7 +183,7 @@ LEVERS_AT_FIRST = LeverTable(
 
 TOLERANT_NETS_LEVERS = LeverTable(
     ("lever",),
-    ("synthetic", "training", "held_out", "turn", "salient", "cost"),
+    (*TIERS, "turn", "salient", "cost"),
     (
         Row(("default",), "real_levers_tolerant", 0),
         Row(("window r1",), "real_levers_tolerant", 1),
@@ -229,7 +235,7 @@ TARGETS = LeverTable(
 
 NEIGHBOURS = LeverTable(
     ("5 cameras",),
-    ("synthetic", "training", "held_out", "targets_people"),
+    (*TIERS, "targets_people"),
     (
         Row(("144 px, t = 0.05",), "real_levers_neighbours", 1, bold=True),
         Row(("144 px, t = 0.1",), "real_levers_neighbours", 2),
@@ -243,7 +249,7 @@ NEIGHBOURS = LeverTable(
 
 SHIFT_SEARCHES = LeverTable(
     ("search",),
-    ("synthetic", "training", "held_out", "turn", "salient"),
+    (*TIERS, "turn", "salient"),
     (
         Row(("no search, patch",), "shift_tolerance", 0),
         Row(("no search, view",), "shift_tolerance", 1),
@@ -261,7 +267,7 @@ SHIFT_SEARCHES = LeverTable(
 
 TOLERANT_NETS = LeverTable(
     ("nets", "softmax"),
-    ("synthetic", "training", "held_out", "turn", "salient", "people"),
+    (*TIERS, "turn", "salient", "people"),
     (
         Row(("metric (shipped)", "t = 0.1"), "real_nets", 0),
         Row(("tolerant, trained at t = 0.03", "t = 0.1"), "real_nets", 1),
@@ -327,7 +333,7 @@ TOLERANT_NETS = LeverTable(
 
 NETS_AT_THE_DEFAULTS_VIEWS = LeverTable(
     ("nets at 5 views of 144 px", "softmax"),
-    ("synthetic", "training", "held_out", "turn", "salient", "people", "bars", "slide"),
+    (*TIERS, "turn", "salient", "people", "bars", "slide"),
     (
         Row(("shipped tolerant (the default)", "t = 0.05"), "real_levers_bars", 3, bold=True),
         Row(("shipped tolerant", "t = 0.1"), "real_levers_neighbours", 2),
@@ -371,13 +377,10 @@ NETS_AT_THE_DEFAULTS_VIEWS = LeverTable(
 TURNS = LeverTable(
     ("lever",),
     (
-        "synthetic",
-        "training",
-        "held_out",
+        *TIERS,
         "turn",
         "salient",
-        "bars_retrieval_slide",
-        "people",
+        *BENCH_TARGETS,
         "cost",
     ),
     (
@@ -402,14 +405,11 @@ TURNS = LeverTable(
 RING_ANGLES = LeverTable(
     ("ring",),
     (
-        "synthetic",
-        "training",
-        "held_out",
+        *TIERS,
         "turn",
         "every_turn",
         "salient",
-        "bars_retrieval_slide",
-        "people",
+        *BENCH_TARGETS,
     ),
     (
         Row(("2°",), "real_levers_ring_angles", 0),
@@ -422,7 +422,7 @@ RING_ANGLES = LeverTable(
 
 SOLID_CHANGE = LeverTable(
     ("lever",),
-    ("synthetic", "training", "held_out", "turn", "salient", "bars_retrieval_slide", "people"),
+    (*TIERS, "turn", "salient", *BENCH_TARGETS),
     (
         Row(("no solid change (the default before)",), "real_levers_solid", 0),
         Row(("×0.3, reach 1, block 3",), "real_levers_solid", 1),
@@ -444,13 +444,10 @@ SOLID_CHANGE = LeverTable(
 CAMERAS = LeverTable(
     ("lever",),
     (
-        "synthetic",
-        "training",
-        "held_out",
+        *TIERS,
         "turn",
         "salient",
-        "bars_retrieval_slide",
-        "people",
+        *BENCH_TARGETS,
         "seconds",
     ),
     (
@@ -487,14 +484,11 @@ CAMERAS = LeverTable(
 RAMP = LeverTable(
     ("lever",),
     (
-        "synthetic",
-        "training",
-        "held_out",
+        *TIERS,
         "turn",
         "every_turn",
         "salient",
-        "bars_retrieval_slide",
-        "people",
+        *BENCH_TARGETS,
     ),
     (
         Row(("the default before: ×0.5, reach 2",), "real_levers_ramp", 0),
@@ -527,7 +521,7 @@ RAMP = LeverTable(
 
 WEIGHT_FLOOR = LeverTable(
     ("lever",),
-    ("synthetic", "training", "held_out", "checks", "bars_retrieval_slide", "people"),
+    (*TIERS, "checks", *BENCH_TARGETS),
     (
         Row(("the default: ×0.7",), "real_levers_weight_floor", 0, bold=True),
         Row(("×0.85",), "real_levers_weight_floor", 1),
@@ -545,7 +539,7 @@ WEIGHT_FLOOR = LeverTable(
 
 NETS_FROM_THE_DEFAULT = LeverTable(
     ("nets at the default",),
-    ("synthetic", "training", "held_out", "checks", "bars_slide", "people"),
+    (*TIERS, "checks", "bars_slide", "people"),
     (
         Row(("the default's",), "real_nets_from_default_salient", 0, bold=True),
         Row(("fine-tuned from them",), "real_nets_from_default_salient", 1),
@@ -557,7 +551,7 @@ NETS_FROM_THE_DEFAULT = LeverTable(
 
 MOVES = LeverTable(
     ("lever",),
-    ("synthetic", "training", "held_out", "checks", "bars_retrieval_slide", "people"),
+    (*TIERS, "checks", *BENCH_TARGETS),
     (
         Row(("the default",), "real_levers_moves", 0, bold=True),
         Row(("netted ×0.7",), "real_levers_moves", 1),
@@ -579,7 +573,7 @@ MOVES = LeverTable(
 
 MOVES_BOUNDED = LeverTable(
     ("lever",),
-    ("synthetic", "training", "held_out", "every_turn", "bars_retrieval_slide", "people"),
+    (*TIERS, "every_turn", *BENCH_TARGETS),
     (
         Row(("6 cameras of 128 px, at most 0.3",), "real_levers_moves_bounded", 0),
         Row(("6 cameras of 128 px, at most 0.5",), "real_levers_moves_bounded", 1),
@@ -590,7 +584,7 @@ MOVES_BOUNDED = LeverTable(
 
 BOTH_RINGS = LeverTable(
     ("lever",),
-    ("synthetic", "training", "held_out", "checks", "bars_retrieval_slide", "people"),
+    (*TIERS, "checks", *BENCH_TARGETS),
     (
         Row(("the default",), "real_levers_both_rings", 0, bold=True),
         Row(("both rings (mean)",), "real_levers_both_rings", 2),
@@ -612,7 +606,7 @@ BOTH_RINGS = LeverTable(
 
 BOTH_PARTS = LeverTable(
     ("lever",),
-    ("synthetic", "training", "held_out", "bars_retrieval_slide", "people4"),
+    (*TIERS, "bars_retrieval_slide", "people4"),
     (
         Row(("the default before (×0.7, own ring alone)",), "real_levers_both_rings", 0, bold=True),
         Row(("×1.2, s = 0 (the table above)",), "real_levers_both_rings_netted", 0),
@@ -640,7 +634,7 @@ BOTH_PARTS = LeverTable(
 
 PART_POWER = LeverTable(
     ("lever",),
-    ("synthetic", "training", "held_out", "checks", "bars_retrieval_slide", "people"),
+    (*TIERS, "checks", *BENCH_TARGETS),
     (
         Row(("the default",), "real_levers_part_power", 0, bold=True),
         Row(("part², c = 1",), "real_levers_part_power", 1),
@@ -652,7 +646,7 @@ PART_POWER = LeverTable(
 
 PART_KNEE = LeverTable(
     ("lever",),
-    ("synthetic", "training", "held_out", "third", "bars_retrieval_slide", "people"),
+    (*TIERS, "third", *BENCH_TARGETS),
     (
         Row(("the default",), "part_transforms", 0, bold=True),
         Row(("part², no knee",), "real_levers_other", 1),
@@ -671,7 +665,7 @@ PART_KNEE = LeverTable(
 
 PART_TRANSFORMS = LeverTable(
     ("lever",),
-    ("synthetic", "training", "held_out", "third", "bars_retrieval_slide", "people", "pairs_lost"),
+    (*TIERS, "third", *BENCH_TARGETS, "pairs_lost"),
     (
         Row(("the default before the window",), "part_transforms", 0),
         Row(("solid term ×1.5",), "part_transforms", 3),
@@ -694,13 +688,10 @@ PART_TRANSFORMS = LeverTable(
 BACK_LIGHT = LeverTable(
     ("faces seen from behind",),
     (
-        "synthetic",
-        "training",
-        "held_out",
+        *TIERS,
         "third",
         "turns_held_out",
-        "bars_retrieval_slide",
-        "people",
+        *BENCH_TARGETS,
     ),
     (
         Row(("lit as their front, 1 (the default)",), "real_levers_back_light", 0, bold=True),
@@ -715,13 +706,10 @@ BACK_LIGHT = LeverTable(
 OPENINGS = LeverTable(
     ("faces seen from behind",),
     (
-        "synthetic",
-        "training",
-        "held_out",
+        *TIERS,
         "third",
         "turns_held_out",
-        "bars_retrieval_slide",
-        "people",
+        *BENCH_TARGETS,
         "cost",
     ),
     (
