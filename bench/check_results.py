@@ -267,24 +267,38 @@ def training_tables_are_the_manifests(root: Path) -> None:
     assert tables in (root / "docs/training.md").read_text(), "docs/training.md's nets differ"
 
 
-def version_sample_is_the_benchmarks(root: Path) -> str:
-    """Each named version's scores of bench/version_sample.py's sample are the committed
-    benchmark's, for every DR-KFS row of the benchmark that is a named version."""
-    results = _json(root, "bench/results/results.json")
-    sample = _json(root, "bench/results/version_sample.json")["versions"]
-    held = []
-    for method, row in results["methods"].items():
-        version = metric_name(PipelineConfig.from_dict(row["config"])) if "config" in row else None
-        if version not in sample:
+def _version_rows(run: dict) -> list[tuple[str, dict]]:
+    """The rows of a committed run (a benchmark's methods, a lever run's levers) whose config
+    is a named version, with their values by pair: (version, values)."""
+    rows = run.get("methods") or run.get("levers") or {}
+    found = []
+    for name, row in rows.items():
+        try:
+            version = metric_name(PipelineConfig.from_dict(row["config"]))
+        except (KeyError, ValueError):  # no config, or one with a setting since removed
             continue
-        for key, value in sample[version].items():
-            committed = results["values"][method][key]
-            assert math.isclose(value, committed, rel_tol=1e-6), (
-                f"{version} {key}: {value} vs {committed}"
-            )
-        held.append(version)
-    assert held, "no DR-KFS row of the benchmark is a named version"
-    return f"{', '.join(held)} held"
+        if version in VERSIONS:
+            found.append((version, run["values"][name]))
+    return found
+
+
+def version_sample_is_the_benchmarks(root: Path) -> str:
+    """Each named version's scores of bench/version_sample.py's sample are those of every
+    committed run that scored that version: the benchmark's DR-KFS rows and the lever runs'
+    rows whose config is a named version (each pair the run scored)."""
+    sample = _json(root, "bench/results/version_sample.json")["versions"]
+    held = {}
+    for path in sorted((root / "bench/results").glob("*.json")):
+        for version, values in _version_rows(json.loads(path.read_text())):
+            pairs = [key for key in sample[version] if key in values]
+            for key in pairs:
+                assert math.isclose(sample[version][key], values[key], rel_tol=1e-6), (
+                    f"{version} {key}: {sample[version][key]} vs {values[key]} in {path.name}"
+                )
+            if pairs:
+                held.setdefault(version, []).append(path.stem)
+    assert "results" in held.get(LATEST, []), "the benchmark does not score the newest version"
+    return "; ".join(f"{v} in {', '.join(runs)}" for v, runs in sorted(held.items()))
 
 
 def test_set_is_scored_at_each_release(root: Path) -> str:
