@@ -282,21 +282,23 @@ def _version_rows(run: dict) -> list[tuple[str, dict]]:
     return found
 
 
-def version_sample_is_the_benchmarks(root: Path) -> str:
+def each_version_scores_as_its_committed_runs(root: Path) -> str:
     """Each named version's scores of bench/version_sample.py's sample are those of every
     committed run that scored that version: the benchmark's DR-KFS rows and the lever runs'
-    rows whose config is a named version (each pair the run scored)."""
+    rows whose config is a named version, on each pair of the sample the run scored (and every
+    such run scored some)."""
     sample = _json(root, "bench/results/version_sample.json")["versions"]
     held = {}
     for path in sorted((root / "bench/results").glob("*.json")):
         for version, values in _version_rows(json.loads(path.read_text())):
+            assert version in sample, f"{path.name} scores {version}, which the sample lacks"
             pairs = [key for key in sample[version] if key in values]
+            assert pairs, f"{path.name} scores {version} on none of the sample's pairs"
             for key in pairs:
                 assert math.isclose(sample[version][key], values[key], rel_tol=1e-6), (
                     f"{version} {key}: {sample[version][key]} vs {values[key]} in {path.name}"
                 )
-            if pairs:
-                held.setdefault(version, []).append(path.stem)
+            held.setdefault(version, []).append(path.stem)
     assert "results" in held.get(LATEST, []), "the benchmark does not score the newest version"
     return "; ".join(f"{v} in {', '.join(runs)}" for v, runs in sorted(held.items()))
 
@@ -457,7 +459,7 @@ CHECKS: list[Callable[[Path], str | None]] = [
     architecture_numbers_are_the_configs,
     benchmark_tables_are_the_benchmarks,
     training_tables_are_the_manifests,
-    version_sample_is_the_benchmarks,
+    each_version_scores_as_its_committed_runs,
     test_set_is_scored_at_each_release,
     records_hold_their_printed_tables,
 ]

@@ -77,7 +77,7 @@ def test_an_architecture_page_with_a_stale_setting_fails_its_check(tmp_path):
 def test_a_committed_score_that_its_version_no_longer_gives_fails_the_sample_check(tmp_path):
     """drkfs-1.0 is held to the lever runs that scored it, not to the benchmark alone."""
     shutil.copytree(ROOT / "bench" / "results", tmp_path / "bench" / "results")
-    assert "drkfs-1.0 in" in check_results.version_sample_is_the_benchmarks(tmp_path)
+    assert "drkfs-1.0 in" in check_results.each_version_scores_as_its_committed_runs(tmp_path)
     path = tmp_path / "bench" / "results" / "real_levers_winding.json"
     run = json.loads(path.read_text())
     first = next(iter(run["levers"]))  # the run's default: drkfs-1.0
@@ -86,4 +86,4 @@ def test_a_committed_score_that_its_version_no_longer_gives_fails_the_sample_che
     run["values"][first][key] *= 1.001
     path.write_text(json.dumps(run))
     with pytest.raises(AssertionError, match=f"drkfs-1.0 {key}.*real_levers_winding"):
-        check_results.version_sample_is_the_benchmarks(tmp_path)
+        check_results.each_version_scores_as_its_committed_runs(tmp_path)
