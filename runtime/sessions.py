@@ -80,16 +80,16 @@ def open_features(
     config: PipelineConfig, path: str | Path | None = None, threads: int | None = None
 ) -> Graph:
     """The feature graph for ``config`` (the shipped one unless ``path``), refused with a
-    ModelMismatch naming the differing settings when it was built for another config (the match
-    settings, the cameras' count and turn and the light on faces seen from behind aside: the
-    graph describes any views, however lit)."""
+    ModelMismatch naming the version it was built for, the one asked and the differing settings
+    when it was built for another config (the match settings, the cameras' count and turn and
+    the light on faces seen from behind aside: the graph describes any views, however lit)."""
     graph = Graph.open(*_read(path, features_file(config)), threads)
     if CONFIG_KEY not in graph.metadata:
         raise ModelMismatch(f"{graph.source}: no {CONFIG_KEY} metadata; not a DR-KFS feature graph")
-    built = PipelineConfig.from_json(graph.metadata[CONFIG_KEY]).shaping("graph")
-    wanted = config.shaping("graph")
+    exported = PipelineConfig.from_json(graph.metadata[CONFIG_KEY])
+    built, wanted = exported.shaping("graph"), config.shaping("graph")
     if built != wanted:
-        made, asked = serving_version(built, "graph"), serving_version(config, "graph")
+        made, asked = serving_version(exported, "graph"), serving_version(config, "graph")
         raise ModelMismatch(
             f"{graph.source} was built for {made}'s feature graph, scoring asks {asked}'s: "
             f"{built.differences(wanted)}; export a model for this config or score with the "

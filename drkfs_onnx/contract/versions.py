@@ -91,7 +91,10 @@ def served_versions(config: PipelineConfig, artefact: str = "features") -> list[
 
 
 def serving_version(config: PipelineConfig, artefact: str = "features") -> str:
-    """The version ``config`` is, else the first of ``served_versions``, else ``CUSTOM``: what a
-    features file was described, or a feature graph exported, for, in an error message."""
+    """The version ``config`` is, else the first of ``served_versions``, else "a custom
+    config": what a features file was described, or a feature graph exported, for, in an error
+    message."""
     named = metric_name(config)
-    return named if named != CUSTOM else next(iter(served_versions(config, artefact)), CUSTOM)
+    if named != CUSTOM:
+        return named
+    return next(iter(served_versions(config, artefact)), "a custom config")
