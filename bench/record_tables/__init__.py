@@ -4,10 +4,13 @@ module ``record_tables.NAME`` lists a record's tables in the order the record ho
 together), and bench/check_results.py holds the record to them, every table of it, so none is
 typed by hand.
 
-    python -m drkfs_lab.record_tables [NAME ...] [--write]
+    python -m drkfs_lab.record_tables [NAME ...] [--write | --print]
 
-Prints what differs, or with ``--write`` puts the printed tables in the records in place of
-theirs (the record's n-th table is replaced by the n-th printed one).
+Prints where each record and its printed tables differ (exit 1 where any do); ``--write`` then
+puts the printed tables in the records in place of theirs (a record's n-th table replaced by
+the n-th printed one: a new table needs a placeholder table where it goes), ``--print`` prints
+the tables instead. Every record in bench/records but its README (an index, no results) has a
+printer.
 """
 
 from __future__ import annotations
@@ -16,7 +19,7 @@ import argparse
 import importlib
 import json
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Collection, Sequence
 from pathlib import Path
 
 from drkfs_lab.benchmark.run import TIER_PAIRS
@@ -25,15 +28,7 @@ ROOT = Path(__file__).resolve().parents[2]
 # the runs a later run of the same command replaced, where a record still quotes them: each file
 # as commit C held it, at EARLIER/C/its path (`git show C:PATH`), so no table needs git's history
 EARLIER = "bench/earlier"
-# the records whose every table is printed here: all of them
-RECORDS: tuple[str, ...] = (
-    "fitting",
-    "matching",
-    "nets",
-    "real_levers",
-    "real_tiers",
-    "single_view",
-)
+RECORDS = "bench/records"
 
 Table = Callable[[Path], str]
 
@@ -51,9 +46,14 @@ def trio(shares: dict) -> str:
     return " / ".join(f"{shares[pair]:.3f}" for pair in TIER_PAIRS)
 
 
-def grid(header: Sequence[str], rows: Sequence[Sequence[str]], right: int = 0) -> str:
-    """A markdown table; its last ``right`` columns aligned right."""
-    rule = "|" + "---|" * (len(header) - right) + "---:|" * right
+def grid(
+    header: Sequence[str], rows: Sequence[Sequence[str]], right: int | Collection[int] = 0
+) -> str:
+    """A markdown table; aligned right: its last ``right`` columns, or the columns at the
+    indices ``right`` holds."""
+    if isinstance(right, int):
+        right = range(len(header) - right, len(header))
+    rule = "|" + "".join("---:|" if n in right else "---|" for n in range(len(header)))
     lines = ["| " + " | ".join(line) + " |" for line in (header, *rows)]
     return "\n".join([lines[0], rule, *lines[1:]])
 
@@ -68,11 +68,17 @@ def minus(value: float, digits: int) -> str:
     return f"{value:.{digits}f}".replace("-", "−")
 
 
+def records(root: Path = ROOT) -> list[str]:
+    """The names of the records under ``root`` (bench/records/NAME.md, its README aside)."""
+    return sorted(p.stem for p in (root / RECORDS).glob("*.md") if p.stem != "README")
+
+
 def tables_in(text: str) -> list[str]:
-    """The markdown tables of a text, each its run of lines that start with '|'."""
+    """The markdown tables of a text, each its run of lines that start with '|', indented ones
+    too (so that a table under a bullet is held as well)."""
     found, run = [], []
     for line in [*text.splitlines(), ""]:
-        if line.startswith("|"):
+        if line.lstrip().startswith("|"):
             run.append(line)
         elif run:
             found.append("\n".join(run))
@@ -82,14 +88,17 @@ def tables_in(text: str) -> list[str]:
 
 def printed(name: str, root: Path = ROOT) -> list[str]:
     """Record ``name``'s tables, printed from the committed JSON under ``root``."""
-    module = importlib.import_module(f"{__name__}.{name}")
+    try:
+        module = importlib.import_module(f"{__name__}.{name}")
+    except ModuleNotFoundError as missing:
+        raise ValueError(f"{RECORDS}/{name}.md has no printer, {__name__}.{name}") from missing
     return [found for table in module.TABLES for found in tables_in(table(root))]
 
 
 def differences(name: str, root: Path = ROOT) -> list[str]:
     """Where record ``name`` and its printed tables part: a count that differs, or the first
     line that does in each table; empty where the record holds them exactly."""
-    held = tables_in((root / "bench" / "records" / f"{name}.md").read_text())
+    held = tables_in((root / RECORDS / f"{name}.md").read_text())
     tables = printed(name, root)
     if len(held) != len(tables):
         return [f"{name}.md holds {len(held)} tables, {len(tables)} are printed"]
@@ -103,12 +112,13 @@ def differences(name: str, root: Path = ROOT) -> list[str]:
 
 
 def write(name: str, root: Path = ROOT) -> None:
-    """Put the printed tables in record ``name`` in place of the ones it holds, in order."""
-    path = root / "bench" / "records" / f"{name}.md"
+    """Put the printed tables in record ``name`` in place of the ones it holds, in order;
+    ValueError, the record untouched, where their counts differ."""
+    path = root / RECORDS / f"{name}.md"
     text = path.read_text()
     held, tables = tables_in(text), printed(name, root)
     if len(held) != len(tables):
-        raise SystemExit(f"{path}: holds {len(held)} tables, {len(tables)} are printed")
+        raise ValueError(f"{path}: holds {len(held)} tables, {len(tables)} are printed")
     start = 0
     for old, new in zip(held, tables, strict=True):
         at = text.index(old, start)
@@ -119,14 +129,31 @@ def write(name: str, root: Path = ROOT) -> None:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("names", nargs="*", help="records to print (default: every one)")
-    parser.add_argument("--write", action="store_true", help="put the tables in the records")
+    parser.add_argument(
+        "names",
+        nargs="*",
+        metavar="NAME",
+        help=f"records to hold (default: every one: {', '.join(records())})",
+    )
+    act = parser.add_mutually_exclusive_group()
+    act.add_argument("--write", action="store_true", help="put the tables in the records")
+    act.add_argument("--print", action="store_true", help="print the tables")
     args = parser.parse_args()
-    failed = False
-    for name in args.names or RECORDS:
-        if args.write:
+    unknown = sorted(set(args.names) - set(records()))
+    if unknown:
+        parser.error(f"no record {', '.join(unknown)}; the records: {', '.join(records())}")
+    names = args.names or records()
+    if args.print:
+        for name in names:
+            print(f"{name}.md\n\n" + "\n\n".join(printed(name)) + "\n")
+        return
+    found = [line for name in names for line in differences(name)]
+    print("\n".join(found) if found else "every table as printed")
+    if args.write and found:
+        counts = [line for line in found if " tables, " in line]
+        if counts:  # a count that differs writes nothing, in any record
+            sys.exit("nothing written: " + "; ".join(counts))
+        for name in names:
             write(name)
-        for line in differences(name):
-            failed = True
-            print(line)
-    sys.exit(1 if failed else 0)
+        print("written: read the prose beside each changed table")
+    sys.exit(1 if found and not args.write else 0)

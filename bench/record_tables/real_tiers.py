@@ -36,7 +36,7 @@ THIRD_SIDE_FIRST = "b70958e"
 RunRow = tuple[str, str | None, str]
 EVERY_METHOD_ROWS: tuple[RunRow, ...] = (
     ("DR-KFS", None, "DR-KFS"),
-    ("DR-KFS, two-sided light (the default before)", TWO_SIDED_LIGHT, "DR-KFS"),
+    ("DR-KFS, two-sided light (the default before openings seen dark)", TWO_SIDED_LIGHT, "DR-KFS"),
     ("DR-KFS paper", None, "DR-KFS paper"),
     ("DR-KFS structure", None, "DR-KFS structure"),
     ("DR-KFS structure, two-sided light", TWO_SIDED_LIGHT, "DR-KFS structure"),
@@ -62,7 +62,7 @@ EVERY_METHOD_ROWS: tuple[RunRow, ...] = (
 )
 THIRD_SIDE_ROWS: tuple[RunRow, ...] = (
     ("DR-KFS", None, "DR-KFS"),
-    ("DR-KFS, two-sided light (the default before)", TWO_SIDED_LIGHT, "DR-KFS"),
+    ("DR-KFS, two-sided light (the default before openings seen dark)", TWO_SIDED_LIGHT, "DR-KFS"),
     ("DR-KFS paper", None, "DR-KFS paper"),
     ("DR-KFS structure", None, "DR-KFS structure"),
     ("DR-KFS structure, two-sided light", TWO_SIDED_LIGHT, "DR-KFS structure"),
@@ -102,12 +102,13 @@ def _scored(run: dict, method: str) -> tuple[sets.BenchSet, dict[int, float | No
 
 
 def _checks(run: dict, method: str) -> dict:
-    """Per side, ``method``'s real checks in ``run``: the run's own, or recomputed from its
-    values where the run came before the every-turn check."""
+    """Per side, ``method``'s real checks in ``run``: the run's own, a check it came before
+    (the every-turn check) recomputed from its values."""
     checks = run["methods"][method]["checks"]
     if all(name in side for side in checks.values() for name in CHECKS):
         return checks
-    return real_checks(*_scored(run, method))
+    again = real_checks(*_scored(run, method))
+    return {side: {**again[side], **made} for side, made in checks.items()}
 
 
 def _method_cells(run: dict, method: str, sides: Sequence[str]) -> list[str]:
@@ -145,31 +146,33 @@ def every_method(root: Path) -> str:
     return grid(header, _method_rows(root, REAL_TIERS, EVERY_METHOD_ROWS, SIDES), right=1)
 
 
-def _held_out_misses(run: dict, left_out: Sequence[str]) -> tuple[int, int]:
-    """The default's held-out (surface, structural) pairs in the wrong order, and how many
-    such pairs there are, with the variants ``left_out`` ("mesh/variant") taken out."""
+def _without(run: dict, left_out: Sequence[str], bases: Sequence[str] | None = None) -> dict:
+    """The default's real-tier accuracy (``tier_accuracy``) from ``run``'s scores with the
+    variants ``left_out`` ("mesh/variant") taken out, over the meshes ``bases`` (all where
+    None)."""
     bench, values = _scored(run, DEFAULT_NAME)
     dropped = {sets.REAL_PREFIX + name for name in left_out}
-    held_out = {sets.REAL_PREFIX + name for name in sets.HELDOUT_MESHES}
+    kept_bases = None if bases is None else {sets.REAL_PREFIX + name for name in bases}
     comparisons = bench.comparisons
     kept = {i: value for i, value in values.items()
-            if comparisons[i].base in held_out and comparisons[i].shape not in dropped}  # fmt: skip
-    found = tier_accuracy(bench, kept, "real")
-    return sum(found["misses"][MISSED_PAIR].values()), found["pairs"][MISSED_PAIR]
+            if comparisons[i].shape not in dropped
+            and (kept_bases is None or comparisons[i].base in kept_bases)}  # fmt: skip
+    return tier_accuracy(bench, kept, "real")
 
 
 def noise_left_out(root: Path) -> str:
-    """The table of "Left open": the default's shares on both sides and its held-out misses,
-    with nothing, the plainest crumpled noises or every noise left out
-    (real_tiers_without_*.json)."""
+    """The table of "Left open": the default's shares on both sides and its held-out
+    surface < structural misses, from real_tiers.json's scores with nothing, the plainest
+    crumpled noises or every noise left out (the variants real_tiers_without_*.json name)."""
     run = committed(root, REAL_TIERS)
     rows = []
     for label, path in LEFT_OUT_ROWS.items():
-        shares = committed(root, path)
-        row = shares["methods"][DEFAULT_NAME]
-        # the run itself leaves nothing out
-        misses, pairs = _held_out_misses(run, shares.get("left_out", []))
-        rows.append([label, *(trio(row[side]) for side in SIDES), f"{misses} of {pairs}"])
+        left_out = committed(root, path).get("left_out", [])  # the run itself leaves none out
+        shares = _without(run, left_out)
+        held_out = _without(run, left_out, sets.HELDOUT_MESHES)
+        misses = sum(held_out["misses"][MISSED_PAIR].values())
+        rows.append([label, *(trio(shares[side]) for side in SIDES),
+                     f"{misses} of {held_out['pairs'][MISSED_PAIR]}"])  # fmt: skip
     return grid(("left out", "real, training side", "real, held out", "held-out misses"), rows)
 
 

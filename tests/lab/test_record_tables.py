@@ -1,5 +1,6 @@
 """bench/record_tables: each record's tables are printed from the JSON it reports, so a figure
-typed into a record, or a stale table, is named; ``write`` puts the printed tables in place."""
+typed into a record, a stale table, an indented one or a record without a printer is named;
+``write`` puts the printed tables in place."""
 
 import shutil
 
@@ -9,7 +10,7 @@ from conftest import ROOT
 from drkfs_lab import record_tables
 
 
-@pytest.mark.parametrize("name", record_tables.RECORDS)
+@pytest.mark.parametrize("name", record_tables.records())
 def test_every_table_of_the_record_is_printed_from_its_json(name):
     assert record_tables.differences(name) == []
 
@@ -41,5 +42,18 @@ def test_a_record_with_a_table_more_than_printed_is_refused(tmp_path):
     assert record_tables.differences("real_levers", tmp_path) == [
         "real_levers.md holds 24 tables, 23 are printed"
     ]
-    with pytest.raises(SystemExit, match="holds 24 tables, 23 are printed"):
+    with pytest.raises(ValueError, match="holds 24 tables, 23 are printed"):
         record_tables.write("real_levers", tmp_path)
+
+
+def test_an_indented_table_is_held_too_and_a_record_needs_a_printer(tmp_path):
+    record = _copy(tmp_path, "real_levers")
+    text = record.read_text()
+    first = record_tables.tables_in(text)[0]
+    record.write_text(text.replace(first, first.replace("\n", "\n  ")))
+    (found,) = record_tables.differences("real_levers", tmp_path)
+    assert "table 1" in found
+    (tmp_path / "bench" / "records" / "new_study.md").write_text("| a |\n|---|\n| 1 |\n")
+    assert "new_study" in record_tables.records(tmp_path)
+    with pytest.raises(ValueError, match="new_study.md has no printer"):
+        record_tables.differences("new_study", tmp_path)
