@@ -5,8 +5,8 @@ the committed rows it came from, or holds the code's choices to the study that m
 
 Prints one line a check ("ok", or "FAILED" with the reason) and exits 1 when any failed. These
 checks read only committed files (bench/fit, bench/fit-network, bench/single_view,
-bench/results, models/manifest.json, the README, docs/, bench/records/); the tests run the
-script (tests/lab/test_check_results.py).
+bench/results, bench/earlier, models/manifest.json, the README, docs/, bench/records/); the
+tests run the script (tests/lab/test_check_results.py).
 """
 
 from __future__ import annotations

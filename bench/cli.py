@@ -156,7 +156,7 @@ def bench(
     meshes: RealMeshes = None,
 ) -> None:
     """Speed against accuracy: every method on the same variant sets, the chart, stability."""
-    from .benchmark.run import run_bench
+    from .benchmark.run import REAL_CHECKS, TIER_PAIRS, run_bench
 
     use_meshes(meshes)
 
@@ -169,8 +169,7 @@ def bench(
     typer.echo(f"{header[0]:36}" + "".join(f"{h:>10}" for h in header[1:]))
     for name, row in results["methods"].items():
         tiers, people = row["tiers"], row["human"]
-        cells = [tiers[key] for key in ("invisible_vs_structural", "surface_vs_structural",
-                                        "invisible_vs_surface")]  # fmt: skip
+        cells = [tiers[key] for key in TIER_PAIRS]
         cells += [None if people is None else people["close_normal"]]
         cells += [row["retrieval"]["nearest_neighbour_accuracy"]]
         cells += [row["bars"]["deletion_over_max_shift"], row["seconds_per_pair"]]
@@ -182,11 +181,8 @@ def bench(
     for name, row in results["methods"].items():
         real = row["real_tiers"]
         checks = real["checks"]["held_out"]
-        cells = [real["held_out"][key] for key in ("invisible_vs_structural",
-                 "surface_vs_structural", "invisible_vs_surface")]  # fmt: skip
-        cells += [checks[key]["share"] for key in ("turn_below_every_surface",
-                                                   "every_turn_below_every_surface",
-                                                   "salient_above_every_invisible")]  # fmt: skip
+        cells = [real["held_out"][key] for key in TIER_PAIRS]
+        cells += [checks[key]["share"] for key in REAL_CHECKS]
         typer.echo(f"{name:36}" + "".join(f"{_fmt(c):>10}" for c in cells))
     seconds = results["seconds_total"]
     typer.echo(f"{out / 'results.json'}, {out / 'speed_accuracy.png'} in {seconds:.0f} s")

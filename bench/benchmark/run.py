@@ -149,6 +149,12 @@ def _tier_values(bench: sets.BenchSet, values: dict[int, float | None], group: s
     return groups
 
 
+# the real tiers' two sides of the repository's meshes, and the checks ``real_checks`` makes
+REAL_SIDES = ("training", "held_out")
+REAL_CHECKS = ("turn_below_every_surface", "every_turn_below_every_surface",
+               "salient_above_every_invisible")  # fmt: skip
+
+
 def real_sides(bases: list[str]) -> dict[str, list[str]]:
     """The real tiers' bases by side: the meshes levers are chosen on ("training"), the
     held-out ones, and, where any are scored, ``OTHER_SIDE``: meshes from outside the
@@ -156,7 +162,7 @@ def real_sides(bases: list[str]) -> dict[str, list[str]]:
     side = {sets.REAL_PREFIX + name: "training" for name in sets.TRAINING_MESHES}
     side |= {sets.REAL_PREFIX + name: "held_out" for name in sets.HELDOUT_MESHES}
     found = {b: side.get(b, OTHER_SIDE) for b in bases}
-    sides = ["training", "held_out", *([OTHER_SIDE] if OTHER_SIDE in found.values() else [])]
+    sides = [*REAL_SIDES, *([OTHER_SIDE] if OTHER_SIDE in found.values() else [])]
     return {name: [b for b in bases if found[b] == name] for name in sides}
 
 
@@ -250,9 +256,7 @@ def real_checks(bench: sets.BenchSet, values: dict[int, float | None]) -> dict:
                 "failed": sorted(b.removeprefix(sets.REAL_PREFIX) for b, ok in passed.items()
                                  if not ok),
             }  # fmt: skip
-            for name, passed in (("turn_below_every_surface", turn),
-                                 ("every_turn_below_every_surface", turns),
-                                 ("salient_above_every_invisible", salient))
+            for name, passed in zip(REAL_CHECKS, (turn, turns, salient), strict=True)
         }  # fmt: skip
     return result
 

@@ -4,11 +4,12 @@ studies (bench/fit, bench/fit-network), in the order the record holds them."""
 from __future__ import annotations
 
 import json
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 
 from drkfs_lab.judging.judges import HIGHER_IS_BETTER, METRICS, SURFACE, VISUAL
 from drkfs_lab.judging.rule import brief_share
+from drkfs_lab.record_tables import Table, bold, committed, grid
 from drkfs_lab.studies.losses import (
     CHAMFER,
     FADED_CONTROL,
@@ -21,8 +22,6 @@ from drkfs_lab.studies.losses import (
 )
 from drkfs_lab.studies.network import FULL as NETWORK
 from drkfs_lab.studies.study import landscape_summary
-
-from . import bold, committed, grid
 
 FIT = "bench/fit/results.json"
 NETWORK_STUDY = "bench/fit-network/results.json"
@@ -149,7 +148,7 @@ def loss_study_weights(root: Path) -> str:
         judged = study["rows"][loss]["problems"]
         rows.append(
             [
-                f"**{name}**" if loss in chosen else name,
+                bold([name])[0] if loss in chosen else name,
                 *(_per_problem(judged, m) for m in TUNING_METRICS),
                 f"{ranks[loss]:.2f}" if loss in ranks else "–",
             ]
@@ -212,7 +211,7 @@ def fitting_study_means(root: Path) -> str:
         pixel = results["beats_pixel_mse"].get(loss)
         rows.append(
             [
-                f"**{name}**" if loss == results["summary"]["best_drkfs_loss"] else name,
+                bold([name])[0] if loss == results["summary"]["best_drkfs_loss"] else name,
                 *_means(results["means"][loss], METRICS),
                 f"{results['mean_rank'][loss]:.2f}",
                 f"{results['seconds_per_step']['losses'][loss]:.2f}",
@@ -382,10 +381,10 @@ def six_seeds(root: Path) -> str:
 
 def seed_zero_again(root: Path) -> str:
     """Seed 0's cells as in ``six_seeds``, committed and run again on the batched loss."""
-    committed = _seed_cells(root, NETWORK_STUDY)
+    first = _seed_cells(root, NETWORK_STUDY)
     again = _seed_cells(root, "bench/fit-network/seed0-rerun.json")
     rows = [
-        [_candidate_name(root, c.name), committed[c.name][0], again[c.name][0]]
+        [_candidate_name(root, c.name), first[c.name][0], again[c.name][0]]
         for c in NETWORK.candidates()
     ]
     return grid(["DR-KFS form + w × Chamfer", "seed 0, committed", "seed 0, again"], rows)
@@ -445,7 +444,7 @@ def three_terms_trained(root: Path) -> str:
     return grid(header, rows, right=7)
 
 
-TABLES: list[Callable[[Path], str]] = [
+TABLES: list[Table] = [
     loss_study_forms,
     loss_study_weights,
     loss_nets_fits,

@@ -12,13 +12,12 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from drkfs_lab.benchmark.run import TIER_PAIRS
+from drkfs_lab.benchmark.run import REAL_CHECKS, REAL_SIDES, TIER_PAIRS
 from drkfs_lab.benchmark.torch_checks import JUMP_LIMIT
-from drkfs_lab.record_tables import bold, committed, grid, minus, trio
+from drkfs_lab.record_tables import Table, bold, committed, grid, minus, trio
 
-SIDES = ("training", "held_out")
-CHECKS = {"2° turn": "turn_below_every_surface", "every turn": "every_turn_below_every_surface",
-          "salient": "salient_above_every_invisible"}  # fmt: skip
+# the checks' column names, in REAL_CHECKS' order
+CHECKS = dict(zip(("2° turn", "every turn", "salient"), REAL_CHECKS, strict=True))
 
 
 @dataclass(frozen=True)
@@ -40,7 +39,7 @@ def _levers(root: Path, run: str) -> list[dict]:
     return list((found.get("levers") or found.get("rows") or found["shift_search"]).values())
 
 
-def _check(lever: dict, check: str, sides: tuple[str, ...] = SIDES) -> str:
+def _check(lever: dict, check: str, sides: tuple[str, ...] = REAL_SIDES) -> str:
     """A check's share on each side, as "80% / 60%"."""
     return " / ".join(f"{lever['checks'][side][CHECKS[check]]['share']:.0%}" for side in sides)
 
@@ -48,7 +47,7 @@ def _check(lever: dict, check: str, sides: tuple[str, ...] = SIDES) -> str:
 def _checks(lever: dict) -> str:
     """Every check the lever's run made, on both sides; one phrase where all hold."""
     made = [c for c, key in CHECKS.items() if key in lever["checks"]["training"]]
-    if all(lever["checks"][s][CHECKS[c]]["share"] == 1.0 for s in SIDES for c in made):
+    if all(lever["checks"][s][CHECKS[c]]["share"] == 1.0 for s in REAL_SIDES for c in made):
         return "100% on both sides"
     return ", ".join(f"{c} {_check(lever, c)}" for c in made)
 
@@ -70,6 +69,7 @@ def _people(lever: dict, far_digits: int = 3) -> str:
 
 
 def _bars_retrieval_slide(lever: dict, row: Row) -> str:
+    """The bars ratio, retrieval and the slide check, as "1.62 / 0.848 / 2.79"."""
     bars, found = lever["bars"]["deletion_over_max_shift"], lever["retrieval"]
     return f"{bars:.2f} / {found['nearest_neighbour_accuracy']:.3f} / {_slide(lever, row)}"
 
@@ -727,7 +727,7 @@ OPENINGS = LeverTable(
     ),
 )
 
-TABLES = [
+TABLES: list[Table] = [
     LEVERS_AT_FIRST,
     TOLERANT_NETS_LEVERS,
     TARGETS,

@@ -12,15 +12,11 @@ from pathlib import Path
 
 from drkfs_lab.benchmark import sets
 from drkfs_lab.benchmark.methods import DEFAULT_NAME
-from drkfs_lab.benchmark.run import OTHER_SIDE, real_checks, tier_accuracy
-from drkfs_lab.record_tables import Table, bold, committed, grid, trio
+from drkfs_lab.benchmark.run import OTHER_SIDE, REAL_CHECKS, REAL_SIDES, real_checks, tier_accuracy
+from drkfs_lab.record_tables import Table, bold, committed, grid, italic, trio
 
 REAL_TIERS = "bench/results/real_tiers.json"
 OTHER_TIERS = "bench/results/real_tiers_other.json"
-SIDES = ("training", "held_out")
-# the checks of ``real_checks``, in the tables' order
-CHECKS = ("turn_below_every_surface", "every_turn_below_every_surface",
-          "salient_above_every_invisible")  # fmt: skip
 # the commits whose real_tiers.json and real_tiers_other.json hold an earlier default's run
 TWO_SIDED_LIGHT = "aca8f98"
 PARTS_IN_FULL = "9d1ea5b"
@@ -85,11 +81,6 @@ SCORE = "bench/results/score.json"
 NEW_MESH_GOAL, MATCH_GOAL, TORCH_GOAL = "new_mesh_le_0.2s", "match_le_1ms", "torch_step_le_1s"
 
 
-def _italic(cells: Sequence[str]) -> list[str]:
-    """A row set in italics: an earlier default's run."""
-    return [f"*{cell}*" for cell in cells]
-
-
 def _scored(run: dict, method: str) -> tuple[sets.BenchSet, dict[int, float | None]]:
     """A real-tiers run's comparisons, from its labels alone, and ``method``'s values by
     comparison: what its shares and checks recompute from."""
@@ -105,7 +96,7 @@ def _checks(run: dict, method: str) -> dict:
     """Per side, ``method``'s real checks in ``run``: the run's own, a check it came before
     (the every-turn check) recomputed from its values."""
     checks = run["methods"][method]["checks"]
-    if all(name in side for side in checks.values() for name in CHECKS):
+    if all(name in side for side in checks.values() for name in REAL_CHECKS):
         return checks
     again = real_checks(*_scored(run, method))
     return {side: {**again[side], **made} for side, made in checks.items()}
@@ -117,7 +108,7 @@ def _method_cells(run: dict, method: str, sides: Sequence[str]) -> list[str]:
     row, checks = run["methods"][method], _checks(run, method)
     shares = [trio(row[side]) for side in sides]
     passed = [" / ".join(f"{checks[side][name]['share']:.0%}" for side in sides)
-              for name in CHECKS]  # fmt: skip
+              for name in REAL_CHECKS]  # fmt: skip
     return [*shares, *passed, f"{row['seconds_per_pair']:.2f}"]
 
 
@@ -130,7 +121,7 @@ def _method_rows(
     for label, commit, method in rows:
         cells = [label, *_method_cells(committed(root, path, commit), method, sides)]
         if commit is not None:
-            cells = _italic(cells)
+            cells = italic(cells)
         elif method == DEFAULT_NAME:
             cells = [*bold(cells[:-1]), cells[-1]]
         printed.append(cells)
@@ -143,7 +134,7 @@ def every_method(root: Path) -> str:
     header = ("method", "real, training side", "real, held out",
               "2° turn below every surface variant", "every turn below every surface variant",
               "salient part above every invisible", "s a pair")  # fmt: skip
-    return grid(header, _method_rows(root, REAL_TIERS, EVERY_METHOD_ROWS, SIDES), right=1)
+    return grid(header, _method_rows(root, REAL_TIERS, EVERY_METHOD_ROWS, REAL_SIDES), right=1)
 
 
 def _without(run: dict, left_out: Sequence[str], bases: Sequence[str] | None = None) -> dict:
@@ -171,7 +162,7 @@ def noise_left_out(root: Path) -> str:
         shares = _without(run, left_out)
         held_out = _without(run, left_out, sets.HELDOUT_MESHES)
         misses = sum(held_out["misses"][MISSED_PAIR].values())
-        rows.append([label, *(trio(shares[side]) for side in SIDES),
+        rows.append([label, *(trio(shares[side]) for side in REAL_SIDES),
                      f"{misses} of {held_out['pairs'][MISSED_PAIR]}"])  # fmt: skip
     return grid(("left out", "real, training side", "real, held out", "held-out misses"), rows)
 

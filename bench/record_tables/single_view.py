@@ -8,7 +8,7 @@ from __future__ import annotations
 from functools import partial
 from pathlib import Path
 
-from drkfs_lab.record_tables import committed
+from drkfs_lab.record_tables import Table, committed
 from drkfs_lab.studies.finetune import finetune_markdown
 from drkfs_lab.studies.single_view import (
     controls_markdown,
@@ -34,7 +34,7 @@ def tuned_nets(root: Path) -> str:
     return tuned_nets_markdown([committed(root, str(path.relative_to(root))) for path in runs])
 
 
-TABLES = [
+TABLES: list[Table] = [
     partial(_run, markdown, "results.json"),
     partial(_run, controls_markdown, "controls.json"),
     partial(_run, steps_markdown, "longer-400-steps-seed0.json"),
