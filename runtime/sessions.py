@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import hashlib
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -66,14 +67,28 @@ def _read(path: str | Path | None, default: str) -> tuple[bytes, str]:
         return Path(path).read_bytes(), str(path)
     shipped = models_dir() / default
     if not shipped.is_file():
-        held = sorted(item.name for item in models_dir().iterdir() if item.name.endswith("px.onnx"))
+        nets = default.removeprefix("features_").split("_w")[0]
         raise FileNotFoundError(
-            f"no {default} in the installed models/, which holds {', '.join(held)}: an "
-            "installed package carries the presets' graphs only, a checkout's models/ (pip "
-            "install -e .) the metric and correspondence nets at every width (--nets, --width); "
-            "or make one with drkfs export (torch extra) and pass it with --model"
+            f"no {default} in the installed models/: {_graphs_of(nets)}; for another width or "
+            "view size, make a graph with drkfs export (torch extra) and pass it with --model"
         )
     return shipped.read_bytes(), f"models/{default}"
+
+
+def _graphs_of(nets: str) -> str:
+    """What the installed models/ hold of ``nets``: each width's view sizes, in words."""
+    sizes: dict[str, list[int]] = {}
+    for item in models_dir().iterdir():
+        found = re.fullmatch(rf"features_{re.escape(nets)}_w([\d.]+)_(\d+)px\.onnx", item.name)
+        if found:
+            sizes.setdefault(found[1], []).append(int(found[2]))
+    if not sizes:
+        return (
+            f"it holds no {nets} nets (an installed package carries the presets' graphs, a "
+            "checkout's models/ every shipped net: --nets)"
+        )
+    held = [f"{w} ({', '.join(map(str, sorted(px)))} px)" for w, px in sorted(sizes.items())]
+    return f"the {nets} nets come at width {', '.join(held)} (--width, --nets)"
 
 
 def open_features(
