@@ -61,7 +61,7 @@ MaxFaces = Annotated[
     int,
     typer.Option(
         min=0,
-        help="Refuse a mesh with more faces, before it is rendered (rendering costs about 0.75 GB "
+        help="Refuse a mesh with more faces, before it is rendered (rendering costs about 0.8 GB "
         "a million faces); 0: no bound.",
     ),
 ]
@@ -387,7 +387,9 @@ def _score_rows(
         writer = csv.DictWriter(handle, BATCH_COLUMNS)
         if handle.tell() == 0:
             writer.writeheader()
-        bar = typer.progressbar(results, length=len(rows), label="scoring", file=sys.stderr)
+        bar = typer.progressbar(
+            results, length=len(rows), label=f"scoring {len(rows)} pairs", file=sys.stderr
+        )
         with bar as stream:
             for index, result in stream:
                 record = {"row": index, "mesh_a": written[index][0], "mesh_b": written[index][1]}

@@ -48,7 +48,7 @@ def read_pairs(path: Path) -> PairsFile:
         raise ValueError(f"{path}: no pairs (the file is empty); one row per pair: mesh_a,mesh_b")
     warnings = []
     if blank:
-        warnings.append(f"{path}: blank rows skipped (lines {_numbers(blank)})")
+        warnings.append(f"{path}: blank rows skipped ({_numbers(blank)})")
     header = rows[0][1]
     folder = path.parent
     if all(name in header for name in COLUMNS):
@@ -60,8 +60,8 @@ def read_pairs(path: Path) -> PairsFile:
         longer = [number for number, row in rows if any(row[len(header) :])]
         if longer:
             warnings.append(
-                f"{path}: fields beyond the header's {len(header)} columns ignored (lines "
-                f"{_numbers(longer)})"
+                f"{path}: fields beyond the header's {len(header)} columns ignored "
+                f"({_numbers(longer)})"
             )
         if not rows:
             raise ValueError(f"{path}: no pairs below the header mesh_a,mesh_b")
@@ -70,7 +70,7 @@ def read_pairs(path: Path) -> PairsFile:
         wide = [number for number, row in rows if len(row) > 2 and any(row[2:])]
         if wide:
             warnings.append(
-                f"{path}: only the first two columns are read (more on lines {_numbers(wide)})"
+                f"{path}: only the first two columns are read (more on {_numbers(wide)})"
             )
     else:
         raise ValueError(
@@ -111,5 +111,7 @@ def _path(folder: Path, cell: str) -> str:
 
 
 def _numbers(lines: list[int], shown: int = 10) -> str:
+    """Line numbers in words: "line 4", "lines 4, 7", "lines 1, .., 10 and 3 more"."""
     text = ", ".join(map(str, lines[:shown]))
-    return text + (f" and {len(lines) - shown} more" if len(lines) > shown else "")
+    more = f" and {len(lines) - shown} more" if len(lines) > shown else ""
+    return f"line{'s' if len(lines) > 1 else ''} {text}{more}"

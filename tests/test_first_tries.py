@@ -165,7 +165,7 @@ def test_the_batch_command_prints_the_csvs_warnings_and_refuses_an_empty_one(tmp
     pairs.write_text(f"mesh_a,mesh_b,note\n{NO_LEG},{CHAIR},x\n,\n")
     result = _run("batch", pairs, "--out", tmp_path / "o.csv", *FAST)
     assert result.exit_code == 0, result.output
-    assert f"warning: {pairs}: blank rows skipped (lines 3)" in result.output
+    assert f"warning: {pairs}: blank rows skipped (line 3)" in result.output
     assert f"warning: {pairs}: columns ignored: note" in result.output
     pairs.write_text("")
     line = _error_line(_run("batch", pairs, "--out", tmp_path / "p.csv", *FAST))

@@ -116,8 +116,9 @@ TwoSided = Annotated[
     typer.Option(
         "--two-sided",
         help="Light faces seen from behind as their front (back_light 1, back_push 0), as "
-        "drkfs-paper does: an opening's inside then reads as lit surface. A features file is "
-        "described under one light and refused under the other.",
+        "drkfs-paper does: an opening's inside then reads as lit surface, and the faces' winding "
+        "is read from the file (winding file), since this light does not look at it. A "
+        "features file is described under one light and refused under the other.",
     ),
 ]
 

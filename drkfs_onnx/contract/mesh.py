@@ -243,7 +243,7 @@ def bounding_frame(lower, upper, ops: ArrayOps = NUMPY_OPS):
 
 def check_normalization(mode: str) -> str:
     if mode not in NORMALIZATIONS:
-        raise ValueError(f"unknown normalization {mode!r}; use one of {', '.join(NORMALIZATIONS)}")
+        raise ValueError(f"unknown normalisation {mode!r}; use one of {', '.join(NORMALIZATIONS)}")
     return mode
 
 

@@ -110,7 +110,7 @@ def test_each_and_none_normalisation():
     assert np.allclose(a, b)
     a, b = normalize_pair(other, ref, "none")
     assert a is other and b is ref
-    with pytest.raises(ValueError, match="unknown normalization"):
+    with pytest.raises(ValueError, match="unknown normalisation"):
         normalize_pair(other, ref, "unit")
 
 

@@ -37,7 +37,7 @@ def test_extra_columns_are_named_and_blank_rows_reported_by_line(tmp_path):
         f"{pairs}: columns ignored: id, column 4",
     ]
     wide = read_pairs(_csv(tmp_path, "a.obj,b.obj\na.obj,b.obj,0.5\n"))
-    assert wide.warnings == [f"{pairs}: only the first two columns are read (more on lines 2)"]
+    assert wide.warnings == [f"{pairs}: only the first two columns are read (more on line 2)"]
 
 
 def test_a_row_with_one_path_stays_a_row_that_fails_on_its_own(tmp_path):
@@ -80,4 +80,4 @@ def test_a_rows_fields_beyond_the_header_are_named_by_line(tmp_path):
     pairs = _csv(tmp_path, "mesh_a,mesh_b\na.obj,b.obj\na.obj,b.obj,0.5\na.obj,b.obj,\n")
     read = read_pairs(pairs)
     assert len(read.pairs) == 3
-    assert read.warnings == [f"{pairs}: fields beyond the header's 2 columns ignored (lines 3)"]
+    assert read.warnings == [f"{pairs}: fields beyond the header's 2 columns ignored (line 3)"]
