@@ -60,7 +60,10 @@ def score(
         raise typer.Exit(2) from exc
     seconds = time.perf_counter() - start
     if as_json:
-        report = {"score": value, "seconds": seconds, "metric": metric_name(config)}
+        # the runtime's pair --json fields, less its graph's version: torch runs the nets
+        report = {"score": value, "metric": metric_name(config), "seconds": seconds}
+        report.update(mesh_a=str(mesh_a), mesh_b=str(mesh_b), normalize=normalize)
+        report.update(config=config.to_dict())
         typer.echo(json.dumps(report))
     else:
         typer.echo(f"{value:.6g}")

@@ -19,6 +19,7 @@ from typer.testing import CliRunner
 from drkfs_lab.fit import app as fit_app
 from drkfs_onnx import DRKFS, PipelineConfig, load_mesh
 from drkfs_onnx.cli import RUNS, app
+from drkfs_onnx.contract.versions import LATEST
 from drkfs_onnx.synthetic.examples import example_meshes
 
 
@@ -73,14 +74,17 @@ def test_demo_without_torch_says_so_before_it_writes_anything(tmp_path):
     assert not (tmp_path / "ex").exists()
 
 
-def test_cli_scores_a_pair_as_json():
+def test_cli_scores_a_pair_as_json_naming_what_drkfs_score_names():
     chair, no_leg = (str(ROOT / "examples" / name) for name in ("chair.obj", "chair_no_leg.obj"))
-    scores = []
+    reports = []
     for mesh in (chair, no_leg):
         result = CliRunner().invoke(app, ["score", mesh, chair, "--json"])
         assert result.exit_code == 0, result.output
-        scores.append(json.loads(result.stdout.strip().splitlines()[-1])["score"])
-    assert scores[0] == 0.0 < scores[1]
+        reports.append(json.loads(result.stdout.strip().splitlines()[-1]))
+    assert reports[0]["score"] == 0.0 < reports[1]["score"]
+    assert reports[1]["metric"] == LATEST and reports[1]["normalize"] == "joint"
+    assert PipelineConfig.from_dict(reports[1]["config"]) == PipelineConfig()
+    assert reports[1]["mesh_a"] == no_leg
 
 
 def test_cli_names_the_bad_file(tmp_path):
