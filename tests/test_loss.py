@@ -204,4 +204,10 @@ def test_readme_training_loop_example_runs_and_prints_each_step(monkeypatch, cap
     assert torch.isfinite(namespace["offsets"].grad).all()
     assert namespace["offsets"].abs().sum() > 0
     printed = capsys.readouterr().out.splitlines()
-    assert [line.split(":")[0] for line in printed] == [f"step {i}" for i in range(5)]
+    # each stage's terms over their first value: 4.0 (1 + 3 x 1) where a stage starts
+    stages = [0, 0, 1, 1, 1]  # coarse until progress 0.4
+    assert [line.split(":")[0] for line in printed] == [
+        f"step {i}, stage {stage}" for i, stage in enumerate(stages)
+    ]
+    values = [float(line.split(": ")[1]) for line in printed]
+    assert values[0] == values[2] == 4.0 and values[1] < 4.0
