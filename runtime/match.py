@@ -13,7 +13,7 @@ from drkfs_onnx.contract import match_rules
 from drkfs_onnx.contract.array_ops import NUMPY_OPS
 from drkfs_onnx.contract.config import TWO_SIDED, PipelineConfig
 from drkfs_onnx.contract.solid_change import solid_reaches, view_solid_changes
-from drkfs_onnx.contract.versions import serving_version
+from drkfs_onnx.contract.versions import in_words, serving_version
 
 from .features import MeshFeatures
 from .nearest import exact_copies, nearest_lifted
@@ -94,8 +94,9 @@ def check_features(
             else ""
         )
         raise ValueError(
-            f"{features.source}: features described for {serving_version(made)}'s views, scoring "
-            f"asks {serving_version(asked)}'s: {made.differences(asked)}{hint}"
+            f"{features.source}: features described for {in_words(serving_version(made))} "
+            f"views, scoring asks {in_words(serving_version(asked))}: "
+            f"{made.differences(asked)}{hint}"
         )
     if features.model != model:
         raise ValueError(

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import hashlib
-import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -14,9 +13,10 @@ from drkfs_onnx.contract.model_files import (
     CONFIG_KEY,
     VERSION_KEY,
     features_file,
+    held_graphs,
     models_dir,
 )
-from drkfs_onnx.contract.versions import serving_version
+from drkfs_onnx.contract.versions import in_words, serving_version
 
 
 class ModelMismatch(ValueError):
@@ -60,35 +60,34 @@ class Graph:
         return self.metadata.get(VERSION_KEY, "unknown")
 
 
-def _read(path: str | Path | None, default: str) -> tuple[bytes, str]:
+def _read(path: str | Path | None, config: PipelineConfig) -> tuple[bytes, str]:
+    """The bytes of the graph file ``path``, else of the shipped graph for ``config``, and its
+    name; an error that says what the installed models/ hold where it has no such graph."""
     if path is not None:
         if not Path(path).is_file():
             raise ModelMismatch(f"{path}: no such model file")
         return Path(path).read_bytes(), str(path)
+    default = features_file(config)
     shipped = models_dir() / default
     if not shipped.is_file():
-        nets = default.removeprefix("features_").split("_w")[0]
         raise FileNotFoundError(
-            f"no {default} in the installed models/: {_graphs_of(nets)}; for another width or "
-            "view size, make a graph with drkfs export (torch extra) and pass it with --model"
+            f"no {default} in the installed models/: {_held_in_words(config.nets)}; for another "
+            "width or view size, make a graph with drkfs export (torch extra) and pass it with "
+            "--model"
         )
     return shipped.read_bytes(), f"models/{default}"
 
 
-def _graphs_of(nets: str) -> str:
-    """What the installed models/ hold of ``nets``: each width's view sizes, in words."""
-    sizes: dict[str, list[int]] = {}
-    for item in models_dir().iterdir():
-        found = re.fullmatch(rf"features_{re.escape(nets)}_w([\d.]+)_(\d+)px\.onnx", item.name)
-        if found:
-            sizes.setdefault(found[1], []).append(int(found[2]))
-    if not sizes:
+def _held_in_words(nets: str) -> str:
+    """What the installed models/ hold of ``nets`` (``held_graphs``), in words."""
+    held = held_graphs(nets)
+    if not held:
         return (
             f"it holds no {nets} nets (an installed package carries the presets' graphs, a "
             "checkout's models/ every shipped net: --nets)"
         )
-    held = [f"{w} ({', '.join(map(str, sorted(px)))} px)" for w, px in sorted(sizes.items())]
-    return f"the {nets} nets come at width {', '.join(held)} (--width, --nets)"
+    widths = [f"{w:g} ({', '.join(map(str, px))} px)" for w, px in held.items()]
+    return f"the {nets} nets come at width {', '.join(widths)} (--width, --nets)"
 
 
 def open_features(
@@ -98,15 +97,15 @@ def open_features(
     ModelMismatch naming the version it was built for, the one asked and the differing settings
     when it was built for another config (the match settings, the cameras' count and turn and
     the light on faces seen from behind aside: the graph describes any views, however lit)."""
-    graph = Graph.open(*_read(path, features_file(config)), threads)
+    graph = Graph.open(*_read(path, config), threads)
     if CONFIG_KEY not in graph.metadata:
         raise ModelMismatch(f"{graph.source}: no {CONFIG_KEY} metadata; not a DR-KFS feature graph")
     exported = PipelineConfig.from_json(graph.metadata[CONFIG_KEY])
     built, wanted = exported.shaping("graph"), config.shaping("graph")
     if built != wanted:
-        made, asked = serving_version(exported, "graph"), serving_version(config, "graph")
+        made, asked = (in_words(serving_version(c, "graph")) for c in (exported, config))
         raise ModelMismatch(
-            f"{graph.source} was built for {made}'s feature graph, scoring asks {asked}'s: "
+            f"{graph.source} was built for {made} feature graph, scoring asks {asked}: "
             f"{built.differences(wanted)}; export a model for this config or score with the "
             "model's config"
         )

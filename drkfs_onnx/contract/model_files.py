@@ -45,6 +45,17 @@ def models_dir():
     return resources.files("drkfs_onnx.models")
 
 
+def held_graphs(nets: str) -> dict[float, list[int]]:
+    """The installed models/' feature graphs of ``nets``: each descriptor width's view sizes."""
+    sizes: dict[float, list[int]] = {}
+    prefix = f"features_{nets}_w"
+    for item in models_dir().iterdir():
+        width, _, size = item.name.removeprefix(prefix).removesuffix("px.onnx").partition("_")
+        if item.name.startswith(prefix) and item.name.endswith("px.onnx") and size.isdigit():
+            sizes.setdefault(float(width), []).append(int(size))
+    return {width: sorted(sizes[width]) for width in sorted(sizes)}
+
+
 def shipped_weights() -> list[dict]:
     """The manifest's weights entries: file, sha256 and the config each was trained for."""
     manifest_file = models_dir() / MANIFEST

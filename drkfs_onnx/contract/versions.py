@@ -91,10 +91,16 @@ def served_versions(config: PipelineConfig, artefact: str = "features") -> list[
 
 
 def serving_version(config: PipelineConfig, artefact: str = "features") -> str:
-    """The version ``config`` is, else the first of ``served_versions``, else "a custom
-    config": what a features file was described, or a feature graph exported, for, in an error
-    message."""
+    """The version ``config`` is, else of ``served_versions`` the newest (``LATEST`` where it is
+    one), else ``CUSTOM``: what a features file was described, or a feature graph exported,
+    for."""
     named = metric_name(config)
     if named != CUSTOM:
         return named
-    return next(iter(served_versions(config, artefact)), "a custom config")
+    served = served_versions(config, artefact)
+    return LATEST if LATEST in served else (served[-1] if served else CUSTOM)
+
+
+def in_words(name: str) -> str:
+    """A version's name as an error message says it: "drkfs-1.1's", "a custom config's"."""
+    return "a custom config's" if name == CUSTOM else f"{name}'s"

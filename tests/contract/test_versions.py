@@ -37,6 +37,9 @@ def test_an_overridden_setting_is_no_version_but_its_views_still_are_one():
     windowed = PipelineConfig(window=1)
     assert metric_name(windowed) == CUSTOM
     assert serving_version(windowed) == LATEST  # the match alone changed
-    assert serving_version(PipelineConfig(image_size=96)) == "a custom config"
+    assert serving_version(PipelineConfig(image_size=96)) == CUSTOM
+    # a graph serves every version of its nets and view size: the newest names it
+    assert serving_version(metric_config("drkfs-1.0"), "graph") == "drkfs-1.0"
+    assert serving_version(PipelineConfig(num_views=3), "graph") == LATEST
     with pytest.raises(ValueError, match="unknown metric 'drkfs-0.1'"):
         metric_config("drkfs-0.1")

@@ -116,6 +116,10 @@ def test_a_model_for_another_config_is_refused_with_the_difference():
     named = r"built for drkfs-paper's feature graph, scoring asks drkfs-1.1's"
     with pytest.raises(ModelMismatch, match=named):
         Scorer(metric="drkfs-1.1", model=shipped)
+    default = models_dir() / features_file(PipelineConfig())  # it serves 1.0 and 1.1: the newest
+    named = r"built for drkfs-1.1's feature graph, scoring asks drkfs-paper's"
+    with pytest.raises(ModelMismatch, match=named):
+        Scorer(metric="drkfs-paper", model=default)
     # the view count, the light on faces seen from behind and the match are not in the graph:
     # the paper's graph serves them
     paper = PipelineConfig.paper(num_views=12, matching="window", back_light=0.0, back_push=0.05)
