@@ -20,6 +20,7 @@ import importlib
 import json
 import sys
 from collections.abc import Callable, Collection, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 from drkfs_lab.benchmark.run import TIER_PAIRS
@@ -74,13 +75,17 @@ def minus(value: float, digits: int) -> str:
 
 
 def records(root: Path = ROOT) -> list[str]:
-    """The names of the records under ``root`` (bench/records/NAME.md, its README aside)."""
-    return sorted(p.stem for p in (root / RECORDS).glob("*.md") if p.stem != "README")
+    """The names of the records under ``root`` (bench/records/NAME.md, its README aside);
+    FileNotFoundError where there are none."""
+    found = sorted(p.stem for p in (root / RECORDS).glob("*.md") if p.stem != "README")
+    if not found:
+        raise FileNotFoundError(f"no records in {root / RECORDS}")
+    return found
 
 
 def tables_in(text: str) -> list[str]:
     """The markdown tables of a text, each its run of lines that start with '|', indented ones
-    too (so that a table under a bullet is held as well)."""
+    too (a table under a bullet), as the text holds them."""
     found, run = [], []
     for line in [*text.splitlines(), ""]:
         if line.lstrip().startswith("|"):
@@ -91,45 +96,78 @@ def tables_in(text: str) -> list[str]:
     return found
 
 
+def _indent(table: str) -> str:
+    """The indent a held table's lines share."""
+    return table[: len(table) - len(table.lstrip(" "))]
+
+
 def printed(name: str, root: Path = ROOT) -> list[str]:
-    """Record ``name``'s tables, printed from the committed JSON under ``root``."""
+    """Record ``name``'s tables, printed from the committed JSON under ``root``; ValueError
+    where the record has no printer."""
+    module_name = f"{__name__}.{name}"
     try:
-        module = importlib.import_module(f"{__name__}.{name}")
+        module = importlib.import_module(module_name)
     except ModuleNotFoundError as missing:
-        raise ValueError(f"{RECORDS}/{name}.md has no printer, {__name__}.{name}") from missing
+        if missing.name != module_name:  # the printer is there; an import of its own failed
+            raise
+        raise ValueError(f"{RECORDS}/{name}.md has no printer, {module_name}") from missing
     return [found for table in module.TABLES for found in tables_in(table(root))]
 
 
+@dataclass
+class Held:
+    """A record's text, the tables it holds and those printed for it."""
+
+    path: Path
+    text: str
+    held: list[str]
+    printed: list[str]
+
+    @classmethod
+    def read(cls, name: str, root: Path = ROOT) -> Held:
+        path = root / RECORDS / f"{name}.md"
+        text = path.read_text()
+        return cls(path, text, tables_in(text), printed(name, root))
+
+    def differences(self) -> list[str]:
+        """A count that differs, or the first line that does in each table (an indented
+        table compared without its indent); empty where the record holds them exactly."""
+        name = self.path.name
+        if len(self.held) != len(self.printed):
+            return [f"{name} holds {len(self.held)} tables, {len(self.printed)} are printed"]
+        found = []
+        for n, (mine, theirs) in enumerate(zip(self.printed, self.held, strict=True), 1):
+            indent = _indent(theirs)
+            lines = [line.removeprefix(indent) for line in theirs.splitlines()]
+            for a, b in zip(mine.splitlines() + [""], lines + [""], strict=False):
+                if a != b:
+                    found.append(f"{name} table {n}: printed {a!r}, typed {b!r}")
+                    break
+        return found
+
+    def write(self) -> None:
+        """Put the printed tables in place of the held ones, in order, each at its held
+        table's indent; ValueError, the record untouched, where their counts differ."""
+        if len(self.held) != len(self.printed):
+            raise ValueError(self.differences()[0])
+        text, start = self.text, 0
+        for old, new in zip(self.held, self.printed, strict=True):
+            indent = _indent(old)
+            new = "\n".join(indent + line for line in new.splitlines())
+            at = text.index(old, start)
+            text = text[:at] + new + text[at + len(old) :]
+            start = at + len(new)
+        self.path.write_text(text)
+
+
 def differences(name: str, root: Path = ROOT) -> list[str]:
-    """Where record ``name`` and its printed tables part: a count that differs, or the first
-    line that does in each table; empty where the record holds them exactly."""
-    held = tables_in((root / RECORDS / f"{name}.md").read_text())
-    tables = printed(name, root)
-    if len(held) != len(tables):
-        return [f"{name}.md holds {len(held)} tables, {len(tables)} are printed"]
-    found = []
-    for n, (mine, theirs) in enumerate(zip(tables, held, strict=True), 1):
-        for a, b in zip(mine.splitlines() + [""], theirs.splitlines() + [""], strict=False):
-            if a != b:
-                found.append(f"{name}.md table {n}: printed {a!r}, typed {b!r}")
-                break
-    return found
+    """Where record ``name`` and its printed tables part (``Held.differences``)."""
+    return Held.read(name, root).differences()
 
 
 def write(name: str, root: Path = ROOT) -> None:
-    """Put the printed tables in record ``name`` in place of the ones it holds, in order;
-    ValueError, the record untouched, where their counts differ."""
-    path = root / RECORDS / f"{name}.md"
-    text = path.read_text()
-    held, tables = tables_in(text), printed(name, root)
-    if len(held) != len(tables):
-        raise ValueError(f"{path}: holds {len(held)} tables, {len(tables)} are printed")
-    start = 0
-    for old, new in zip(held, tables, strict=True):
-        at = text.index(old, start)
-        text = text[:at] + new + text[at + len(old) :]
-        start = at + len(new)
-    path.write_text(text)
+    """Put the printed tables in record ``name`` in place of the ones it holds (``Held.write``)."""
+    Held.read(name, root).write()
 
 
 def main() -> None:
@@ -148,18 +186,23 @@ def main() -> None:
     unknown = sorted(set(args.names) - set(records()))
     if unknown:
         parser.error(f"no record {', '.join(unknown)}; the records: {', '.join(records())}")
-    names = args.names or records()
+    try:
+        found = {name: Held.read(name) for name in args.names or records()}
+    except ValueError as refused:
+        sys.exit(f"error: {refused}")
     if args.print:
-        for name in names:
-            print(f"{name}.md\n\n" + "\n\n".join(printed(name)) + "\n")
+        for name, record in found.items():
+            print(f"{name}.md\n\n" + "\n\n".join(record.printed) + "\n")
         return
-    found = [line for name in names for line in differences(name)]
-    print("\n".join(found) if found else "every table as printed")
-    if args.write and found:
-        counts = [line for line in found if " tables, " in line]
-        if counts:  # a count that differs writes nothing, in any record
-            sys.exit("nothing written: " + "; ".join(counts))
-        for name in names:
-            write(name)
-        print("written: read the prose beside each changed table")
-    sys.exit(1 if found and not args.write else 0)
+    differ = {name: record.differences() for name, record in found.items()}
+    lines = [line for said in differ.values() for line in said]
+    print("\n".join(lines) if lines else "every table as printed")
+    if not (args.write and lines):
+        sys.exit(1 if lines else 0)
+    counts = [r.differences()[0] for r in found.values() if len(r.held) != len(r.printed)]
+    if counts:  # a count that differs writes nothing, in any record
+        sys.exit("nothing written: " + "; ".join(counts))
+    for name, record in found.items():
+        if differ[name]:
+            record.write()
+    print("written: read the prose beside each changed table")

@@ -46,14 +46,26 @@ def test_a_record_with_a_table_more_than_printed_is_refused(tmp_path):
         record_tables.write("real_levers", tmp_path)
 
 
-def test_an_indented_table_is_held_too_and_a_record_needs_a_printer(tmp_path):
+def test_an_indented_table_is_held_without_its_indent_and_written_back_at_it(tmp_path):
     record = _copy(tmp_path, "real_levers")
     text = record.read_text()
     first = record_tables.tables_in(text)[0]
-    record.write_text(text.replace(first, first.replace("\n", "\n  ")))
+    indented = "  " + first.replace("\n", "\n  ")
+    record.write_text(text.replace(first, indented))
+    assert record_tables.differences("real_levers", tmp_path) == []
+    typed = indented.replace(" 0.971 ", " 0.917 ", 1)
+    record.write_text(text.replace(first, typed))
     (found,) = record_tables.differences("real_levers", tmp_path)
-    assert "table 1" in found
+    assert "table 1" in found and "0.917" in found
+    record_tables.write("real_levers", tmp_path)
+    assert record.read_text() == text.replace(first, indented)
+
+
+def test_a_record_needs_a_printer_and_there_are_records(tmp_path):
+    _copy(tmp_path, "real_levers")
     (tmp_path / "bench" / "records" / "new_study.md").write_text("| a |\n|---|\n| 1 |\n")
     assert "new_study" in record_tables.records(tmp_path)
     with pytest.raises(ValueError, match="new_study.md has no printer"):
         record_tables.differences("new_study", tmp_path)
+    with pytest.raises(FileNotFoundError, match="no records"):
+        record_tables.records(tmp_path / "elsewhere")
