@@ -10,10 +10,9 @@ from typing import Annotated
 
 import typer
 
-from .contract.cli_options import RUNS, Normalize, config_options
+from .contract.cli_options import RUNS, Normalize, config_options, pair_report
 from .contract.config import PipelineConfig
 from .contract.mesh import MeshError, load_mesh
-from .contract.versions import metric_name
 from .synthetic.examples import REFERENCE, example_meshes, write_examples
 
 app = typer.Typer(
@@ -60,10 +59,8 @@ def score(
         raise typer.Exit(2) from exc
     seconds = time.perf_counter() - start
     if as_json:
-        # the runtime's pair --json fields, less its graph's version: torch runs the nets
-        report = {"score": value, "metric": metric_name(config), "seconds": seconds}
-        report.update(mesh_a=str(mesh_a), mesh_b=str(mesh_b), normalize=normalize)
-        report.update(config=config.to_dict())
+        # drkfs-score pair's report, less its graph's version: torch runs the nets themselves
+        report = pair_report(value, config, mesh_a, mesh_b, normalize, seconds=seconds)
         typer.echo(json.dumps(report))
     else:
         typer.echo(f"{value:.6g}")

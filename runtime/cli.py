@@ -21,6 +21,7 @@ from drkfs_onnx.contract.cli_options import (
     ReferenceNormalize,
     choices,
     config_options,
+    pair_report,
     with_options,
 )
 from drkfs_onnx.contract.config import NETS
@@ -164,11 +165,8 @@ def pair(
         value = scorer.score(mesh_a, reference_of(mesh_b))
     seconds = time.perf_counter() - start
     if as_json:
-        report = {"score": value, "metric": scorer.metric, "seconds": seconds}
-        report.update(model_version=scorer.model_version)
-        report.update(mesh_a=str(mesh_a), mesh_b=str(mesh_b), normalize=normalize)
-        report.update(config=scorer.config.to_dict())
-        typer.echo(json.dumps(report))
+        more = {"seconds": seconds, "model_version": scorer.model_version}
+        typer.echo(json.dumps(pair_report(value, scorer.config, mesh_a, mesh_b, normalize, **more)))
     else:
         typer.echo(f"{value:.6g}")
 
@@ -209,10 +207,9 @@ def explain(
     with _exit_on(OSError, ValueError):
         write_explanation(out, explanation, top)
     if as_json:
-        report = {"score": explanation.score, "metric": scorer.metric, "mesh_a": str(mesh_a)}
-        report.update(mesh_b=str(mesh_b), solid_change=explanation.solid_change)
-        report.update(picture=str(out), top_patches=explanation.top_patches(top))
-        report.update(normalize=normalize, config=scorer.config.to_dict())
+        more = {"solid_change": explanation.solid_change, "picture": str(out),
+                "top_patches": explanation.top_patches(top)}  # fmt: skip
+        report = pair_report(explanation.score, scorer.config, mesh_a, mesh_b, normalize, **more)
         typer.echo(json.dumps(report))
     else:
         typer.echo(f"{explanation.score:.6g} ({out})")
@@ -388,7 +385,10 @@ def _score_rows(
         if handle.tell() == 0:
             writer.writeheader()
         bar = typer.progressbar(
-            results, length=len(rows), label=f"scoring {len(rows)} pairs", file=sys.stderr
+            results,
+            length=len(rows),
+            label=f"scoring {len(rows)} pair{'s' if len(rows) > 1 else ''}",
+            file=sys.stderr,
         )
         with bar as stream:
             for index, result in stream:

@@ -21,7 +21,7 @@ from .config import (
     WINDINGS,
     PipelineConfig,
 )
-from .versions import LATEST, VERSIONS, metric_config
+from .versions import LATEST, VERSIONS, metric_config, metric_name
 
 # Where drkfs's commands write unless --out says otherwise: never the shipped models/ or the
 # committed bench/ results, which only an explicit --out replaces.
@@ -245,3 +245,14 @@ def config_options(names: tuple[str, ...] = tuple(CONFIG_OPTIONS)) -> Callable:
     """A typer command takes the options ``names`` and is called with the config they pick
     (``pick_config``) as its ``config`` argument."""
     return with_options({n: CONFIG_OPTIONS[n] for n in names}, "config", pick_config)
+
+
+def pair_report(
+    score: float, config: PipelineConfig, mesh_a: Path, mesh_b: Path, normalize: str, **more
+) -> dict:
+    """The JSON report of one scored pair, as every command prints it: the score, the metric
+    version, what the command adds (``more``: seconds, the graph's version, a picture), the
+    pair, the normalisation and the config."""
+    report = {"score": score, "metric": metric_name(config), **more}
+    return report | {"mesh_a": str(mesh_a), "mesh_b": str(mesh_b), "normalize": normalize,
+                     "config": config.to_dict()}  # fmt: skip
