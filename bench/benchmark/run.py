@@ -159,8 +159,9 @@ def real_sides(bases: list[str]) -> dict[str, list[str]]:
     """The real tiers' bases by side: the meshes levers are chosen on ("training"), the
     held-out ones, and, where any are scored, ``OTHER_SIDE``: meshes from outside the
     repository."""
-    side = {sets.REAL_PREFIX + name: "training" for name in sets.TRAINING_MESHES}
-    side |= {sets.REAL_PREFIX + name: "held_out" for name in sets.HELDOUT_MESHES}
+    training, held_out = REAL_SIDES
+    side = {sets.REAL_PREFIX + name: training for name in sets.TRAINING_MESHES}
+    side |= {sets.REAL_PREFIX + name: held_out for name in sets.HELDOUT_MESHES}
     found = {b: side.get(b, OTHER_SIDE) for b in bases}
     sides = [*REAL_SIDES, *([OTHER_SIDE] if OTHER_SIDE in found.values() else [])]
     return {name: [b for b in bases if found[b] == name] for name in sides}
