@@ -34,6 +34,15 @@ def tuned_nets(root: Path) -> str:
     return tuned_nets_markdown([committed(root, str(path.relative_to(root))) for path in runs])
 
 
+def speed_runs(root: Path) -> str:
+    """Every speed run's tables (speed*.json, the ones check_results recomputes): the timed run,
+    speed.json, first, then the others by name."""
+    runs = sorted(
+        (root / STUDY).glob("speed*.json"), key=lambda p: (p.name != "speed.json", p.name)
+    )
+    return "\n\n".join(speed_markdown(committed(root, f"{STUDY}/{p.name}")) for p in runs)
+
+
 TABLES: list[Table] = [
     partial(_run, markdown, "results.json"),
     partial(_run, controls_markdown, "controls.json"),
@@ -42,6 +51,5 @@ TABLES: list[Table] = [
     partial(_run, test_seeds_markdown, "test-seeds-6000.json"),
     partial(_run, finetune_markdown, "finetune.json"),
     partial(_run, curve_markdown, "curve.json"),
-    partial(_run, speed_markdown, "speed.json"),
-    partial(_run, speed_markdown, "speed-540-steps.json"),
+    speed_runs,
 ]
