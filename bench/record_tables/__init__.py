@@ -199,7 +199,7 @@ def main() -> None:
     print("\n".join(lines) if lines else "every table as printed")
     if not (args.write and lines):
         sys.exit(1 if lines else 0)
-    counts = [r.differences()[0] for r in found.values() if len(r.held) != len(r.printed)]
+    counts = [differ[n][0] for n, r in found.items() if len(r.held) != len(r.printed)]
     if counts:  # a count that differs writes nothing, in any record
         sys.exit("nothing written: " + "; ".join(counts))
     for name, record in found.items():

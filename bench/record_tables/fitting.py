@@ -312,17 +312,20 @@ def _candidate_files(root: Path) -> dict[tuple[str, str], dict]:
     return found
 
 
-def _on_test(root: Path, path: str, study: dict, name: str) -> tuple[dict, dict, float]:
+def _on_test(
+    root: Path, path: str, study: dict, name: str, beside: dict[tuple[str, str], dict]
+) -> tuple[dict, dict, float]:
     """Candidate ``name``'s test cells won against Chamfer and pixel MSE and its Chamfer-L1
     over Chamfer's, for the network study at ``path``: from the study, else from the candidate
-    trained beside it, else (seed 0's soft form + 3 x Chamfer) from the soft form's run."""
+    trained beside it (``beside``, ``_candidate_files``), else (seed 0's soft form + 3 x
+    Chamfer) from the soft form's run."""
     if "candidates_on_test" in study:
         found = study["candidates_on_test"]["shares"][name]
         return found["beats_chamfer"], found["beats_pixel_mse"], found["chamfer_l1_ratio"]
-    beside = _candidate_files(root).get((path, name))
-    if beside is not None:
-        ratio = beside["chamfer_l1_over_chamfer_trained"]
-        return beside["beats_chamfer"], beside["beats_pixel_mse"], ratio
+    trained = beside.get((path, name))
+    if trained is not None:
+        ratio = trained["chamfer_l1_over_chamfer_trained"]
+        return trained["beats_chamfer"], trained["beats_pixel_mse"], ratio
     if name not in study["plan"]["losses"]:
         study = committed(root, NETWORK_STUDY, SOFT_FORM_RUN)
     return (
@@ -336,24 +339,25 @@ def _seed_cells(root: Path, path: str) -> dict[str, tuple[str, dict, dict]]:
     """Each candidate of the network study at ``path`` -> its 'validation / test against
     Chamfer / test against pixel MSE / Chamfer-L1 ratio' cell (in bold for validation's
     choice) and its two test shares."""
-    study = committed(root, path)
+    study, beside = committed(root, path), _candidate_files(root)
+    chosen = _chosen(study)
     cells = {}
     for candidate in NETWORK.candidates():
         name = candidate.name
         won = brief_share(study["validation"]["table"], name, CHAMFER, VISUAL)["wins"]
-        chamfer, pixel, ratio = _on_test(root, path, study, name)
+        chamfer, pixel, ratio = _on_test(root, path, study, name, beside)
         cell = f"{won} / {chamfer['wins']} / {pixel['wins']} / {ratio:.2f}×"
-        cells[name] = (f"**{cell}**" if name == _chosen(study) else cell, chamfer, pixel)
+        cells[name] = (bold([cell])[0] if name == chosen else cell, chamfer, pixel)
     return cells
 
 
-def _candidate_name(root: Path, candidate: str) -> str:
+def _candidate_name(candidate: str, shipped: str) -> str:
     """A candidate as the seeds' tables name it: its form's short name, 'x' as '×', and the
-    shipped loss (the committed study's choice, ``DrkfsLoss.pretrained()``) marked so."""
-    shipped = candidate == _chosen(committed(root, NETWORK_STUDY))
+    ``shipped`` loss (the committed study's choice, ``DrkfsLoss.pretrained()``) marked so."""
+    marked = " (shipped)" if candidate == shipped else ""
     for form, short in FORM_NAMES.items():
         candidate = candidate.replace(form, short)
-    return candidate.replace(" x ", " × ") + (" (shipped)" if shipped else "")
+    return candidate.replace(" x ", " × ") + marked
 
 
 def six_seeds(root: Path) -> str:
@@ -361,6 +365,7 @@ def six_seeds(root: Path) -> str:
     (validation's choice in bold), and its test cells pooled over the seeds."""
     paths = [NETWORK_STUDY, *(f"bench/fit-network/seed{n}.json" for n in range(1, 6))]
     seeds = [_seed_cells(root, path) for path in paths]
+    shipped = _chosen(committed(root, NETWORK_STUDY))
     rows = []
     for candidate in NETWORK.candidates():
         found = [seed[candidate.name] for seed in seeds]
@@ -370,7 +375,7 @@ def six_seeds(root: Path) -> str:
         if not rows:  # the first row says what the counts are of
             pooled += f" of {sum(chamfer['cells'] for _, chamfer, _ in found)}"
         cells = [cell for cell, _, _ in found]
-        rows.append([_candidate_name(root, candidate.name), *cells, pooled])
+        rows.append([_candidate_name(candidate.name, shipped), *cells, pooled])
     header = [
         "DR-KFS form + w × Chamfer",
         *(f"seed {committed(root, path)['plan']['seed']}" for path in paths),
@@ -383,8 +388,9 @@ def seed_zero_again(root: Path) -> str:
     """Seed 0's cells as in ``six_seeds``, committed and run again on the batched loss."""
     first = _seed_cells(root, NETWORK_STUDY)
     again = _seed_cells(root, "bench/fit-network/seed0-rerun.json")
+    shipped = _chosen(committed(root, NETWORK_STUDY))
     rows = [
-        [_candidate_name(root, c.name), first[c.name][0], again[c.name][0]]
+        [_candidate_name(c.name, shipped), first[c.name][0], again[c.name][0]]
         for c in NETWORK.candidates()
     ]
     return grid(["DR-KFS form + w × Chamfer", "seed 0, committed", "seed 0, again"], rows)

@@ -74,48 +74,47 @@ def _bars_retrieval_slide(lever: dict, row: Row) -> str:
     return f"{bars:.2f} / {found['nearest_neighbour_accuracy']:.3f} / {_slide(lever, row)}"
 
 
-def _cost(lever: dict, row: Row, root: Path) -> str:
+def _cost(lever: dict, row: Row, run: list[dict]) -> str:
     """A new mesh's seconds against the run's first lever's."""
-    first = _levers(root, row.run)[0]["seconds_per_mesh"]
-    return f"{lever['seconds_per_mesh'] / first:.2f}×"
+    return f"{lever['seconds_per_mesh'] / run[0]['seconds_per_mesh']:.2f}×"
 
 
-# column -> (header, the cell of a lever (lever, row, root), aligned right)
-Cell = Callable[[dict, Row, Path], str]
+# column -> (header, the cell of a lever (lever, row, its run's levers), aligned right)
+Cell = Callable[[dict, Row, list[dict]], str]
 COLUMNS: dict[str, tuple[str, Cell, bool]] = {
-    "synthetic": ("synthetic tiers", lambda lever, row, root: trio(lever["tiers"]), False),
+    "synthetic": ("synthetic tiers", lambda lever, row, run: trio(lever["tiers"]), False),
     "training": ("real, training side",
-                 lambda lever, row, root: trio(lever["real"]["training"]), False),
-    "held_out": ("real, held out", lambda lever, row, root: trio(lever["real"]["held_out"]),
+                 lambda lever, row, run: trio(lever["real"]["training"]), False),
+    "held_out": ("real, held out", lambda lever, row, run: trio(lever["real"]["held_out"]),
                  False),
-    "third": ("third side", lambda lever, row, root: trio(lever["real"]["other"]), False),
-    "turn": ("2° turn", lambda lever, row, root: _check(lever, "2° turn"), False),
-    "every_turn": ("every turn", lambda lever, row, root: _check(lever, "every turn"), False),
-    "salient": ("salient", lambda lever, row, root: _check(lever, "salient"), False),
-    "checks": ("checks", lambda lever, row, root: _checks(lever), False),
-    "turns_held_out": ("2° turn / every turn, held out", lambda lever, row, root: " / ".join(
+    "third": ("third side", lambda lever, row, run: trio(lever["real"]["other"]), False),
+    "turn": ("2° turn", lambda lever, row, run: _check(lever, "2° turn"), False),
+    "every_turn": ("every turn", lambda lever, row, run: _check(lever, "every turn"), False),
+    "salient": ("salient", lambda lever, row, run: _check(lever, "salient"), False),
+    "checks": ("checks", lambda lever, row, run: _checks(lever), False),
+    "turns_held_out": ("2° turn / every turn, held out", lambda lever, row, run: " / ".join(
         _check(lever, c, ("held_out",)) for c in ("2° turn", "every turn")), False),
     "bars_retrieval_slide": ("bars / retrieval / slide",
-                             lambda lever, row, root: _bars_retrieval_slide(lever, row), False),
-    "bars_slide": ("bars / slide", lambda lever, row, root:
+                             lambda lever, row, run: _bars_retrieval_slide(lever, row), False),
+    "bars_slide": ("bars / slide", lambda lever, row, run:
                    f"{lever['bars']['deletion_over_max_shift']:.2f} / {_slide(lever, row)}", False),
-    "targets_people": ("bars / retrieval / slide / people", lambda lever, row, root:
+    "targets_people": ("bars / retrieval / slide / people", lambda lever, row, run:
                        f"{_bars_retrieval_slide(lever, row)} / "
                        f"{_people(lever).replace(' / ', ', ')}", False),
-    "bars": ("bars", lambda lever, row, root: f"{lever['bars']['deletion_over_max_shift']:.2f}",
+    "bars": ("bars", lambda lever, row, run: f"{lever['bars']['deletion_over_max_shift']:.2f}",
              True),
-    "retrieval": ("retrieval", lambda lever, row, root:
+    "retrieval": ("retrieval", lambda lever, row, run:
                   f"{lever['retrieval']['nearest_neighbour_accuracy']:.3f}", True),
-    "slide": ("slide", lambda lever, row, root: _slide(lever, row), True),
-    "people": ("people", lambda lever, row, root: _people(lever), False),
+    "slide": ("slide", lambda lever, row, run: _slide(lever, row), True),
+    "people": ("people", lambda lever, row, run: _people(lever), False),
     # far/normal to 4 digits, where levers part in the fourth
-    "people4": ("people", lambda lever, row, root: _people(lever, 4), False),
+    "people4": ("people", lambda lever, row, run: _people(lever, 4), False),
     "cost": ("a new mesh", _cost, True),
-    "seconds": ("s a mesh", lambda lever, row, root: f"{lever['seconds_per_mesh']:.3f}", True),
-    "targets": ("every target", lambda lever, row, root: _targets(lever), False),
+    "seconds": ("s a mesh", lambda lever, row, run: f"{lever['seconds_per_mesh']:.3f}", True),
+    "targets": ("every target", lambda lever, row, run: _targets(lever), False),
     # the default the transforms are counted against loses none
     "pairs_lost": ("synthetic pairs lost",
-                   lambda lever, row, root: str(len(lever.get("synthetic_lost", ()))), True),
+                   lambda lever, row, run: str(len(lever.get("synthetic_lost", ()))), True),
 }  # fmt: skip
 
 
@@ -161,8 +160,9 @@ class LeverTable:
         header = [*self.names, *(COLUMNS[c][0] for c in self.columns)]
         printed = []
         for row in self.rows:
-            lever = runs[row.run][row.index]
-            cells = [*row.cells, *(COLUMNS[c][1](lever, row, root) for c in self.columns)]
+            run = runs[row.run]
+            lever = run[row.index]
+            cells = [*row.cells, *(COLUMNS[c][1](lever, row, run) for c in self.columns)]
             printed.append(bold(cells) if row.bold else cells)
         right = {len(self.names) + n for n, c in enumerate(self.columns) if COLUMNS[c][2]}
         return grid(header, printed, right)

@@ -117,9 +117,10 @@ def _method_rows(
 ) -> list[list[str]]:
     """A real-tiers table's rows: the default's in bold (its seconds a pair aside, a cost and
     not a result), earlier defaults' runs in italics."""
+    runs = {commit: committed(root, path, commit) for commit in {row[1] for row in rows}}
     printed = []
     for label, commit, method in rows:
-        cells = [label, *_method_cells(committed(root, path, commit), method, sides)]
+        cells = [label, *_method_cells(runs[commit], method, sides)]
         if commit is not None:
             cells = italic(cells)
         elif method == DEFAULT_NAME:
