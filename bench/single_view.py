@@ -8,6 +8,8 @@ seeds, judged on held-out shapes and views by metrics no loss computes.
     python bench/single_view.py --out bench/single_view --controls  # the matched controls
     python bench/single_view.py --out bench/single_view --curve --until 3000   # learning curve
     python bench/single_view.py --out bench/single_view --finetune  # the fine-tuning protocol
+    python bench/single_view.py --out bench/single_view --finetune --tuned-nets  # with the
+                                                  # loss's fine-tuned nets, from SoftRas' network
     python bench/single_view.py --out bench/single_view --speed \
         --losses "DR-KFS (a third of the cameras a step)"           # cheaper steps
     python bench/single_view.py --out bench/single_view --steps 400 --seeds 0 \
@@ -101,6 +103,13 @@ def single_view(
             "beside it, at every seed (writes OUT/finetune.json)."
         ),
     ] = False,
+    tuned_nets: Annotated[
+        bool,
+        typer.Option(
+            help="With --finetune: SoftRas' network only, with a second DR-KFS arm whose nets "
+            "are fine-tuned for the loss (writes OUT/finetune-tuned-nets.json)."
+        ),
+    ] = False,
 ) -> None:
     """Train SoftRas' shape generator with each loss and judge the reconstructions."""
     from drkfs_lab.studies.single_view import (
@@ -155,7 +164,7 @@ def single_view(
     if finetune:
         from drkfs_lab.studies.finetune import finetune_markdown, run_finetune
 
-        results = run_finetune(out, seed_list, quick, device, threads, progress)
+        results = run_finetune(out, seed_list, quick, device, threads, progress, tuned_nets)
         typer.echo(finetune_markdown(results))  # bench/records/single_view.md's tables
         return
     if controls:

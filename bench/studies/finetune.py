@@ -4,7 +4,8 @@ loss (or Chamfer's) is trained as many steps again with its own loss alone, with
 it, and with another image term of DR-KFS's weight beside it (the matched control;
 ``single_view.FINETUNE``). At a seed every arm starts from the same weights and sees the same
 batches, drawn afresh (seed + ``BATCH_SEED_SHIFT``); each is judged on the study's test shapes
-beside the network it started from."""
+beside the network it started from. ``single_view.FINETUNE_TUNED`` adds a second DR-KFS arm to
+SoftRas' start, the loss's fine-tuned nets in the shipped ones' place."""
 
 from __future__ import annotations
 
@@ -15,6 +16,7 @@ import torch
 
 from .single_view import (
     FINETUNE,
+    FINETUNE_TUNED,
     FULL,
     QUICK,
     Networks,
@@ -38,18 +40,23 @@ def arm(start: str, recipe: str) -> str:
     return f"{start}, then {recipe}"
 
 
-def judged() -> list[str]:
-    """Every start network and each of its arms, in ``FINETUNE``'s order."""
+def judged(protocol: dict = FINETUNE) -> list[str]:
+    """Every start network and each of its arms, in the protocol's order."""
     return [
-        n for start, recipes in FINETUNE.items() for n in (start, *(arm(start, r) for r in recipes))
+        n for start, recipes in protocol.items() for n in (start, *(arm(start, r) for r in recipes))
     ]
 
 
-def compared(start: str) -> list[tuple[str, str]]:
-    """(challenger, against) pairs of one start's arms: DR-KFS's arm against its own loss's and
-    against the control's, and the control against its own loss's."""
-    own, drkfs, control = (arm(start, r) for r in FINETUNE[start])
-    return [(drkfs, own), (drkfs, control), (control, own)]
+def compared(start: str, protocol: dict = FINETUNE) -> list[tuple[str, str]]:
+    """(challenger, against) pairs of one start's arms (its own loss's, DR-KFS's, the
+    control's, then any other DR-KFS arms): each DR-KFS arm against its own loss's and the
+    control's, the control against its own loss's, and each other DR-KFS arm against the
+    first."""
+    own, drkfs, control, *others = (arm(start, r) for r in protocol[start])
+    pairs = [(drkfs, own), (drkfs, control), (control, own)]
+    for other in others:
+        pairs += [(other, own), (other, control), (other, drkfs)]
+    return pairs
 
 
 def run_finetune(
@@ -59,10 +66,14 @@ def run_finetune(
     device: str = "cpu",
     threads: int = 2,
     progress=print,
+    tuned_nets: bool = False,
 ) -> dict:
     """Every start network (OUT/networks, trained there first if missing) fine-tuned with each
     of its arms at every seed (OUT/networks-finetuned, resumable), judged on the test shapes
-    -> OUT/finetune.json."""
+    -> OUT/finetune.json; with ``tuned_nets`` by ``FINETUNE_TUNED`` ->
+    OUT/finetune-tuned-nets.json."""
+    protocol = FINETUNE_TUNED if tuned_nets else FINETUNE
+    flag = "--finetune --tuned-nets" if tuned_nets else "--finetune"
     began = time.perf_counter()
     plan = QUICK if quick else FULL
     dev = torch.device(device)
@@ -73,7 +84,7 @@ def run_finetune(
     )
     seconds: dict = {}
     for seed in seeds:
-        for start, recipes in FINETUNE.items():
+        for start, recipes in protocol.items():
             weights = starts.trained(seed, start, plan, views["train"], terms, progress)
             weights = weights["model"].state_dict()
             for recipe in recipes:
@@ -85,33 +96,40 @@ def run_finetune(
                 seconds.setdefault(name, {})[f"seed {seed}"] = tuned.get(seed, name)[
                     "seconds_per_step"
                 ]
-    names = judged()
+    names = judged(protocol)
     tables, lfd = judge_seeds(
         plan, threads, seeds,
         lambda seed: {n: (tuned.get(seed, n) or starts.get(seed, n))["model"] for n in names},
         test_set, views["test"], progress,
     )  # fmt: skip
     results = {
-        **run_header("--finetune", quick, seeds, dev, out, lfd),
+        **run_header(flag, quick, seeds, dev, out, lfd),
         "steps": {"start": plan.steps, "fine-tuning": plan.steps},
-        "arms": {start: [arm(start, r) for r in recipes] for start, recipes in FINETUNE.items()},
+        "arms": {start: [arm(start, r) for r in recipes] for start, recipes in protocol.items()},
         "recipes": {
-            r: [list(t) for t in by_name(r).terms] for recipes in FINETUNE.values() for r in recipes
+            r: [list(t) for t in by_name(r).terms] for recipes in protocol.values() for r in recipes
         },  # fmt: skip
         "tables": {f"seed {s}": t for s, t in tables.items()},
-        **summarise_finetune(tables, test_set),
+        **summarise_finetune(tables, test_set, protocol),
         "seconds_per_step": seconds,
         "seconds_total": time.perf_counter() - began,
     }
-    return write_json(out / "finetune.json", results)
+    name = "finetune-tuned-nets.json" if tuned_nets else "finetune.json"
+    return write_json(out / name, results)
 
 
-def summarise_finetune(tables: dict[int, dict], test_set) -> dict:
+def protocol_of(results: dict) -> dict:
+    """The protocol a run's JSON was made by: start -> its recipes, from its "arms"."""
+    return {start: tuple(a.split(", then ", 1)[1] for a in arms)
+            for start, arms in results["arms"].items()}  # fmt: skip
+
+
+def summarise_finetune(tables: dict[int, dict], test_set, protocol: dict = FINETUNE) -> dict:
     """Every start's and arm's means, and each ``compared`` pair's shares of test cells, per
     seed and pooled."""
-    names = judged()
+    names = judged(protocol)
     per = {"pooled": list(tables.values()), **{f"seed {s}": [t] for s, t in tables.items()}}
-    pairs = [pair for start in FINETUNE for pair in compared(start)]
+    pairs = [pair for start in protocol for pair in compared(start, protocol)]
     return {
         "means": {key: means(ts, test_set, names)["mean"] for key, ts in per.items()},
         "shares": {

@@ -139,9 +139,14 @@ FINETUNE = {
     SOFTRAS: (SOFTRAS, RECIPE_IOU, "silhouette IoU + 1 x pixel MSE"),
     CHAMFER: (CHAMFER, "DR-KFS + 1 x Chamfer-L2", "silhouette IoU + 1 x Chamfer-L2"),
 }
+# the same from SoftRas' network with a second DR-KFS arm, the loss's fine-tuned nets in the
+# shipped ones' place (--finetune --tuned-nets)
+TUNED_RECIPE_IOU = f"{DRKFS_TUNED} + 1 x silhouette IoU"
+FINETUNE_TUNED = {SOFTRAS: (*FINETUNE[SOFTRAS], TUNED_RECIPE_IOU)}
 FINETUNE_RECIPES = (
     Recipe("DR-KFS + 1 x Chamfer-L2", ((1.0, DRKFS_SHADED), (1.0, CHAMFER))),
     Recipe("silhouette IoU + 1 x Chamfer-L2", ((1.0, IOU), (1.0, CHAMFER))),
+    Recipe(TUNED_RECIPE_IOU, ((1.0, DRKFS_TUNED), (1.0, IOU))),
 )
 
 
