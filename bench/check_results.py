@@ -38,7 +38,7 @@ from drkfs_lab.judging.judges import VISUAL
 from drkfs_lab.judging.rule import brief_share, chamfer_ratios, share
 from drkfs_lab.record_tables import differences, records
 from drkfs_lab.score_scale import markdown, scale
-from drkfs_lab.studies.finetune import summarise_finetune
+from drkfs_lab.studies.finetune import protocol_of, summarise_finetune
 from drkfs_lab.studies.losses import CHAMFER, FORMS, PIXEL, SHIPPED, with_chamfer
 from drkfs_lab.studies.network import FULL, choose_loss
 from drkfs_lab.studies.single_view import (
@@ -215,12 +215,15 @@ def single_view_other_test_seeds_recompute(root: Path) -> None:
 
 
 def single_view_finetuning_recomputes(root: Path) -> None:
-    """The fine-tuning protocol's means and shares recompute from its per-seed tables."""
-    results = _json(root, "bench/single_view/finetune.json")
-    tables = {int(seed.split()[1]): table for seed, table in results["tables"].items()}
-    again = summarise_finetune(tables, _test_set(next(iter(tables.values()))))
-    for key in ("means", "shares"):
-        assert again[key] == results[key], f"finetune.json's {key} do not recompute"
+    """The fine-tuning protocol's means and shares recompute from its per-seed tables, in
+    each of its runs (finetune*.json) by the protocol that run names."""
+    for path in sorted((root / "bench/single_view").glob("finetune*.json")):
+        results = _json(root, str(path.relative_to(root)))
+        tables = {int(seed.split()[1]): table for seed, table in results["tables"].items()}
+        test_set = _test_set(next(iter(tables.values())))
+        again = summarise_finetune(tables, test_set, protocol_of(results))
+        for key in ("means", "shares"):
+            assert again[key] == results[key], f"{path.name}'s {key} do not recompute"
 
 
 def single_view_curve_recomputes(root: Path) -> None:

@@ -15,7 +15,7 @@ from typer.testing import CliRunner
 from drkfs_lab.benchmark.point_metrics import is_watertight
 from drkfs_lab.single_view import app
 from drkfs_lab.studies import single_view as study
-from drkfs_lab.studies.finetune import arm, compared, finetune_markdown
+from drkfs_lab.studies.finetune import arm, compared, finetune_markdown, protocol_of
 from drkfs_lab.studies.network import TEST_SEED as NETWORK_TEST_SEED
 from drkfs_lab.studies.shape_generator import (
     FLATTEN_WEIGHT,
@@ -28,6 +28,7 @@ from drkfs_lab.studies.single_view import (
     BASELINES,
     DRKFS_RECIPES,
     FINETUNE,
+    FINETUNE_TUNED,
     HELD_OUT_AZIMUTHS,
     JUDGED,
     MATCHED,
@@ -345,3 +346,30 @@ def test_the_finetuning_arms_start_from_one_network_and_are_judged_beside_it(tmp
     again = CliRunner().invoke(app, args)  # every arm saved: judged again, not retrained
     assert again.exit_code == 0
     assert json.loads((out / "finetune.json").read_text())["tables"] == found["tables"]
+
+
+def test_a_second_drkfs_arm_is_compared_with_own_loss_control_and_the_first_drkfs_arm():
+    own, drkfs, control, tuned = (arm(study.SOFTRAS, r) for r in FINETUNE_TUNED[study.SOFTRAS])
+    assert FINETUNE_TUNED[study.SOFTRAS][:3] == FINETUNE[study.SOFTRAS]
+    assert compared(study.SOFTRAS, FINETUNE_TUNED) == [
+        (drkfs, own), (drkfs, control), (control, own),
+        (tuned, own), (tuned, control), (tuned, drkfs),
+    ]  # fmt: skip
+    assert by_name(study.TUNED_RECIPE_IOU).terms == ((1.0, study.DRKFS_TUNED), (1.0, study.IOU))
+    for protocol in (FINETUNE, FINETUNE_TUNED):
+        arms = {s: [arm(s, r) for r in recipes] for s, recipes in protocol.items()}
+        assert protocol_of({"arms": arms}) == protocol
+
+
+@pytest.mark.slow
+def test_the_tuned_nets_arm_trains_from_softras_network_in_a_run_of_its_own(tmp_path):
+    out = tmp_path / "out"
+    args = ["--quick", "--finetune", "--tuned-nets", "--seeds", "0", "--out", str(out)]
+    result = CliRunner().invoke(app, args)
+    assert result.exit_code == 0, result.output
+    found = json.loads((out / "finetune-tuned-nets.json").read_text())
+    assert not (out / "finetune.json").exists()
+    assert list(found["arms"]) == [study.SOFTRAS]
+    assert found["command"].split(" --seeds")[0].endswith("--finetune --tuned-nets")
+    for challenger, against in compared(study.SOFTRAS, FINETUNE_TUNED):
+        assert found["shares"]["pooled"][f"{challenger} | {against}"]["Chamfer-L1"]["cells"] > 0
