@@ -349,10 +349,14 @@ def readme_batch_table_is_torch_batchs(root: Path) -> None:
 def readme_as_a_loss_is_the_single_view_studys(root: Path) -> None:
     """The README's "As a loss" figures are the single-view study's committed runs': the learning
     curve's LFD at 2,000 and 3,000 steps, the recipe's cells against its silhouette-IoU control,
-    and the fine-tuning protocol's cells."""
+    and the fine-tuning protocol's cells in both its runs (finetune.json and its replicate
+    beside the loss's nets, finetune-tuned-nets.json)."""
     curve = _json(root, "bench/single_view/curve.json")["points"]
     controls = _json(root, "bench/single_view/controls.json")["shares"]["pooled"]
-    tuned = _json(root, "bench/single_view/finetune.json")["shares"]["pooled"]
+    runs = [
+        _json(root, f"bench/single_view/{name}.json")["shares"]["pooled"]
+        for name in ("finetune", "finetune-tuned-nets")
+    ]
 
     def lfd(point: str, name: str) -> str:
         return f"{curve[point]['means'][name]['LFD']:,.0f}"
@@ -360,16 +364,23 @@ def readme_as_a_loss_is_the_single_view_studys(root: Path) -> None:
     def arm(then: str) -> str:
         return f"{SOFTRAS}, then {then}"
 
+    def both(against: str, judge: str) -> str:  # the two runs' cells, "53 and 47"
+        found = [run[f"{arm(RECIPE_IOU)} | {arm(against)}"][judge] for run in runs]
+        assert len({f["cells"] for f in found}) == 1, "the fine-tuning runs judge other cells"
+        return " and ".join(str(f["wins"]) for f in found)
+
+    cells = runs[0][f"{arm(RECIPE_IOU)} | {arm(SOFTRAS)}"]["LFD"]["cells"]
+
     against_iou = controls[RECIPE]["silhouette IoU + 3 x Chamfer-L2"]["LFD"]
-    by_iou = tuned[f"{arm(RECIPE_IOU)} | {arm(SOFTRAS)}"]
-    by_mse = tuned[f"{arm(RECIPE_IOU)} | {arm('silhouette IoU + 1 x pixel MSE')}"]
+    mse = "silhouette IoU + 1 x pixel MSE"
     readme = (root / "README.md").read_text()
     for figure in (
         f"(LFD {lfd('2000', DRKFS_SHADED)} against {lfd('2000', SOFTRAS)})",
         f"({lfd('3000', DRKFS_SHADED)} against {lfd('3000', SOFTRAS)})",
         f"({against_iou['wins']} of {against_iou['cells']} test cells",
-        f"on {by_iou['LFD']['wins']} of {by_iou['LFD']['cells']} cells by LFD, "
-        f"{by_iou['Chamfer-L1']['wins']} by Chamfer-L1 (IoU + pixel MSE: {by_mse['LFD']['wins']})",
+        f"on {both(SOFTRAS, 'LFD')} of {cells} cells by LFD in two runs on two CPUs, "
+        f"{both(SOFTRAS, 'Chamfer-L1')} by Chamfer-L1 (IoU + pixel MSE in DR-KFS's place: "
+        f"{both(mse, 'LFD')})",
     ):
         assert figure in readme.replace("\n", " "), f"README's 'As a loss' differs at {figure!r}"
 
