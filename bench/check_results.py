@@ -379,8 +379,8 @@ def readme_as_a_loss_is_the_single_view_studys(root: Path) -> None:
         f"({lfd('3000', DRKFS_SHADED)} against {lfd('3000', SOFTRAS)})",
         f"({against_iou['wins']} of {against_iou['cells']} test cells",
         f"on {both(SOFTRAS, 'LFD')} of {cells} cells by LFD in two runs on two CPUs, "
-        f"{both(SOFTRAS, 'Chamfer-L1')} by Chamfer-L1 (IoU + pixel MSE in DR-KFS's place: "
-        f"{both(mse, 'LFD')})",
+        f"{both(SOFTRAS, 'Chamfer-L1')} by Chamfer-L1, and IoU + 1 × pixel MSE on "
+        f"{both(mse, 'LFD')} by LFD.",
     ):
         assert figure in readme.replace("\n", " "), f"README's 'As a loss' differs at {figure!r}"
 
