@@ -34,22 +34,12 @@ def tuned_nets(root: Path) -> str:
     return tuned_nets_markdown([committed(root, str(path.relative_to(root))) for path in runs])
 
 
-def finetune_runs(root: Path) -> str:
-    """Every fine-tuning run's tables (finetune*.json, the ones check_results recomputes): the
-    protocol's, finetune.json, first, then the others by name."""
-    runs = sorted(
-        (root / STUDY).glob("finetune*.json"), key=lambda p: (p.name != "finetune.json", p.name)
-    )
-    return "\n\n".join(finetune_markdown(committed(root, f"{STUDY}/{p.name}")) for p in runs)
-
-
-def speed_runs(root: Path) -> str:
-    """Every speed run's tables (speed*.json, the ones check_results recomputes): the timed run,
-    speed.json, first, then the others by name."""
-    runs = sorted(
-        (root / STUDY).glob("speed*.json"), key=lambda p: (p.name != "speed.json", p.name)
-    )
-    return "\n\n".join(speed_markdown(committed(root, f"{STUDY}/{p.name}")) for p in runs)
+def _runs(printer, first: str, root: Path) -> str:
+    """``printer``'s tables of every run named like ``first`` (speed*.json for speed.json, the
+    runs check_results recomputes): ``first`` first, then the others by name."""
+    stem = Path(first).stem
+    runs = sorted((root / STUDY).glob(f"{stem}*.json"), key=lambda p: (p.name != first, p.name))
+    return "\n\n".join(printer(committed(root, f"{STUDY}/{p.name}")) for p in runs)
 
 
 TABLES: list[Table] = [
@@ -58,7 +48,7 @@ TABLES: list[Table] = [
     partial(_run, steps_markdown, "longer-400-steps-seed0.json"),
     tuned_nets,
     partial(_run, test_seeds_markdown, "test-seeds-6000.json"),
-    finetune_runs,
+    partial(_runs, finetune_markdown, "finetune.json"),
     partial(_run, curve_markdown, "curve.json"),
-    speed_runs,
+    partial(_runs, speed_markdown, "speed.json"),
 ]
