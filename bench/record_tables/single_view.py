@@ -34,12 +34,19 @@ def tuned_nets(root: Path) -> str:
     return tuned_nets_markdown([committed(root, str(path.relative_to(root))) for path in runs])
 
 
-def _runs(printer, first: str, root: Path) -> str:
-    """``printer``'s tables of every run named like ``first`` (speed*.json for speed.json, the
-    runs check_results recomputes): ``first`` first, then the others by name."""
-    stem = Path(first).stem
-    runs = sorted((root / STUDY).glob(f"{stem}*.json"), key=lambda p: (p.name != first, p.name))
-    return "\n\n".join(printer(committed(root, f"{STUDY}/{p.name}")) for p in runs)
+def study_runs(printer, runs: tuple[str, ...], root: Path) -> str:
+    """``printer``'s tables of ``runs``, in the record's order; every run named like the first
+    (speed*.json for speed.json, the runs check_results recomputes) must be one of them, so that
+    none goes unprinted (ValueError)."""
+    found = {p.name for p in (root / STUDY).glob(f"{Path(runs[0]).stem}*.json")}
+    if found - set(runs):
+        raise ValueError(f"{STUDY}: {', '.join(sorted(found - set(runs)))} not in the record")
+    return "\n\n".join(printer(committed(root, f"{STUDY}/{name}")) for name in runs)
+
+
+FINETUNE_RUNS = (
+    "finetune.json", "finetune-tuned-nets.json", "finetune-whole-replicate.json",
+)  # fmt: skip
 
 
 TABLES: list[Table] = [
@@ -48,7 +55,7 @@ TABLES: list[Table] = [
     partial(_run, steps_markdown, "longer-400-steps-seed0.json"),
     tuned_nets,
     partial(_run, test_seeds_markdown, "test-seeds-6000.json"),
-    partial(_runs, finetune_markdown, "finetune.json"),
+    partial(study_runs, finetune_markdown, FINETUNE_RUNS),
     partial(_run, curve_markdown, "curve.json"),
-    partial(_runs, speed_markdown, "speed.json"),
+    partial(study_runs, speed_markdown, ("speed.json", "speed-540-steps.json")),
 ]

@@ -69,3 +69,14 @@ def test_a_record_needs_a_printer_and_there_are_records(tmp_path):
         record_tables.differences("new_study", tmp_path)
     with pytest.raises(FileNotFoundError, match="no records"):
         record_tables.records(tmp_path / "elsewhere")
+
+
+def test_a_study_run_the_record_does_not_list_is_refused(tmp_path):
+    from drkfs_lab.record_tables import single_view
+
+    study = tmp_path / single_view.STUDY
+    study.mkdir(parents=True)
+    for name in ("speed.json", "speed-540-steps.json", "speed-on-a-gpu.json"):
+        shutil.copy(ROOT / single_view.STUDY / "speed.json", study / name)
+    with pytest.raises(ValueError, match="speed-on-a-gpu.json not in the record"):
+        single_view.study_runs(str, ("speed.json", "speed-540-steps.json"), tmp_path)
