@@ -9,7 +9,7 @@ seeds, judged on held-out shapes and views by metrics no loss computes.
     python bench/single_view.py --out bench/single_view --curve --until 3000   # learning curve
     python bench/single_view.py --out bench/single_view --finetune  # the fine-tuning protocol
     python bench/single_view.py --out bench/single_view --finetune --tuned-nets  # with the
-                                                  # loss's fine-tuned nets, from SoftRas' network
+                                                  # loss's fine-tuned nets too
     python bench/single_view.py --out bench/single_view --speed \
         --losses "DR-KFS (a third of the cameras a step)"           # cheaper steps
     python bench/single_view.py --out bench/single_view --steps 400 --seeds 0 \
@@ -106,8 +106,8 @@ def single_view(
     tuned_nets: Annotated[
         bool,
         typer.Option(
-            help="With --finetune: SoftRas' network only, with a second DR-KFS arm whose nets "
-            "are fine-tuned for the loss (writes OUT/finetune-tuned-nets.json)."
+            help="With --finetune: a second DR-KFS arm from each start network, its nets "
+            "fine-tuned for the loss (writes OUT/finetune-tuned-nets.json)."
         ),
     ] = False,
 ) -> None:

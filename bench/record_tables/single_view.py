@@ -45,7 +45,7 @@ def study_runs(printer, runs: tuple[str, ...], root: Path) -> str:
 
 
 FINETUNE_RUNS = (
-    "finetune.json", "finetune-tuned-nets.json", "finetune-whole-replicate.json",
+    "finetune.json", "finetune-whole-replicate.json", "finetune-tuned-nets.json",
 )  # fmt: skip
 
 

@@ -5,7 +5,7 @@ it, and with another image term of DR-KFS's weight beside it (the matched contro
 ``single_view.FINETUNE``). At a seed every arm starts from the same weights and sees the same
 batches, drawn afresh (seed + ``BATCH_SEED_SHIFT``); each is judged on the study's test shapes
 beside the network it started from. ``single_view.FINETUNE_TUNED`` adds a second DR-KFS arm to
-SoftRas' start, the loss's fine-tuned nets in the shipped ones' place."""
+each start, the loss's fine-tuned nets in the shipped ones' place."""
 
 from __future__ import annotations
 

@@ -139,14 +139,19 @@ FINETUNE = {
     SOFTRAS: (SOFTRAS, RECIPE_IOU, "silhouette IoU + 1 x pixel MSE"),
     CHAMFER: (CHAMFER, "DR-KFS + 1 x Chamfer-L2", "silhouette IoU + 1 x Chamfer-L2"),
 }
-# the same from SoftRas' network with a second DR-KFS arm, the loss's fine-tuned nets in the
-# shipped ones' place (--finetune --tuned-nets)
+# the same with a second DR-KFS arm from each start, the loss's fine-tuned nets in the shipped
+# ones' place (--finetune --tuned-nets)
 TUNED_RECIPE_IOU = f"{DRKFS_TUNED} + 1 x silhouette IoU"
-FINETUNE_TUNED = {SOFTRAS: (*FINETUNE[SOFTRAS], TUNED_RECIPE_IOU)}
+TUNED_RECIPE_CHAMFER = f"{DRKFS_TUNED} + 1 x Chamfer-L2"
+FINETUNE_TUNED = {
+    SOFTRAS: (*FINETUNE[SOFTRAS], TUNED_RECIPE_IOU),
+    CHAMFER: (*FINETUNE[CHAMFER], TUNED_RECIPE_CHAMFER),
+}
 FINETUNE_RECIPES = (
     Recipe("DR-KFS + 1 x Chamfer-L2", ((1.0, DRKFS_SHADED), (1.0, CHAMFER))),
     Recipe("silhouette IoU + 1 x Chamfer-L2", ((1.0, IOU), (1.0, CHAMFER))),
     Recipe(TUNED_RECIPE_IOU, ((1.0, DRKFS_TUNED), (1.0, IOU))),
+    Recipe(TUNED_RECIPE_CHAMFER, ((1.0, DRKFS_TUNED), (1.0, CHAMFER))),
 )
 
 

@@ -349,27 +349,32 @@ def test_the_finetuning_arms_start_from_one_network_and_are_judged_beside_it(tmp
 
 
 def test_a_second_drkfs_arm_is_compared_with_own_loss_control_and_the_first_drkfs_arm():
-    own, drkfs, control, tuned = (arm(study.SOFTRAS, r) for r in FINETUNE_TUNED[study.SOFTRAS])
-    assert FINETUNE_TUNED[study.SOFTRAS][:3] == FINETUNE[study.SOFTRAS]
-    assert compared(study.SOFTRAS, FINETUNE_TUNED) == [
-        (drkfs, own), (drkfs, control), (control, own),
-        (tuned, own), (tuned, control), (tuned, drkfs),
-    ]  # fmt: skip
+    assert list(FINETUNE_TUNED) == list(FINETUNE)
+    for start in FINETUNE:
+        own, drkfs, control, tuned = (arm(start, r) for r in FINETUNE_TUNED[start])
+        assert FINETUNE_TUNED[start][:3] == FINETUNE[start]
+        assert compared(start, FINETUNE_TUNED) == [
+            (drkfs, own), (drkfs, control), (control, own),
+            (tuned, own), (tuned, control), (tuned, drkfs),
+        ]  # fmt: skip
     assert by_name(study.TUNED_RECIPE_IOU).terms == ((1.0, study.DRKFS_TUNED), (1.0, study.IOU))
+    tuned_chamfer = by_name(study.TUNED_RECIPE_CHAMFER).terms
+    assert tuned_chamfer == ((1.0, study.DRKFS_TUNED), (1.0, study.CHAMFER))
     for protocol in (FINETUNE, FINETUNE_TUNED):
         arms = {s: [arm(s, r) for r in recipes] for s, recipes in protocol.items()}
         assert protocol_of({"arms": arms}) == protocol
 
 
 @pytest.mark.slow
-def test_the_tuned_nets_arm_trains_from_softras_network_in_a_run_of_its_own(tmp_path):
+def test_the_tuned_nets_arms_train_from_each_start_in_a_run_of_their_own(tmp_path):
     out = tmp_path / "out"
     args = ["--quick", "--finetune", "--tuned-nets", "--seeds", "0", "--out", str(out)]
     result = CliRunner().invoke(app, args)
     assert result.exit_code == 0, result.output
     found = json.loads((out / "finetune-tuned-nets.json").read_text())
     assert not (out / "finetune.json").exists()
-    assert list(found["arms"]) == [study.SOFTRAS]
+    assert list(found["arms"]) == list(FINETUNE_TUNED)
     assert found["command"].split(" --seeds")[0].endswith("--finetune --tuned-nets")
-    for challenger, against in compared(study.SOFTRAS, FINETUNE_TUNED):
+    pairs = [pair for start in FINETUNE_TUNED for pair in compared(start, FINETUNE_TUNED)]
+    for challenger, against in pairs:
         assert found["shares"]["pooled"][f"{challenger} | {against}"]["Chamfer-L1"]["cells"] > 0
