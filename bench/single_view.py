@@ -10,6 +10,8 @@ seeds, judged on held-out shapes and views by metrics no loss computes.
     python bench/single_view.py --out bench/single_view --finetune  # the fine-tuning protocol
     python bench/single_view.py --out bench/single_view --finetune --tuned-nets  # with the
                                                   # loss's fine-tuned nets too
+    python bench/single_view.py --out bench/single_view --finetune --tuned-nets \
+        --test-seeds 6000                         # its networks judged on other test shapes
     python bench/single_view.py --out bench/single_view --speed \
         --losses "DR-KFS (a third of the cameras a step)"           # cheaper steps
     python bench/single_view.py --out bench/single_view --steps 400 --seeds 0 \
@@ -46,7 +48,8 @@ def single_view(
         int | None,
         typer.Option(
             help="Judge the networks a finished study saved in OUT on test shapes from this "
-            "seed on, instead of training (writes OUT/test-seeds-<seed>.json).",
+            "seed on, instead of training (writes OUT/test-seeds-<seed>.json); with --finetune, "
+            "the fine-tuning run's (writes OUT/finetune[-tuned-nets]-test-seeds-<seed>.json).",
             show_default=False,
         ),
     ] = None,
@@ -162,9 +165,17 @@ def single_view(
         typer.echo(curve_markdown(results))  # bench/records/single_view.md's table
         return
     if finetune:
-        from drkfs_lab.studies.finetune import finetune_markdown, run_finetune
+        from drkfs_lab.studies.finetune import finetune_markdown, judge_finetuned, run_finetune
 
-        results = run_finetune(out, seed_list, quick, device, threads, progress, tuned_nets)
+        if test_seeds is None:
+            results = run_finetune(out, seed_list, quick, device, threads, progress, tuned_nets)
+        else:
+            try:
+                results = judge_finetuned(
+                    out, test_seeds, seed_list, quick, threads, progress, tuned_nets
+                )
+            except ValueError as error:
+                raise typer.BadParameter(str(error), param_hint="--test-seeds") from None
         typer.echo(finetune_markdown(results))  # bench/records/single_view.md's tables
         return
     if controls:

@@ -9,6 +9,7 @@ each start, the loss's fine-tuned nets in the shipped ones' place."""
 
 from __future__ import annotations
 
+import hashlib
 import time
 from pathlib import Path
 
@@ -26,11 +27,14 @@ from .single_view import (
     means_table,
     run_header,
     shares,
+    study_sets,
     train,
     training_data,
+    views_of,
     wins_table,
     write_json,
 )
+from .views import ViewRenderer
 
 BATCH_SEED_SHIFT = 1000  # the fine-tuning's batches: none of the first training's order
 
@@ -72,8 +76,7 @@ def run_finetune(
     of its arms at every seed (OUT/networks-finetuned, resumable), judged on the test shapes
     -> OUT/finetune.json; with ``tuned_nets`` by ``FINETUNE_TUNED`` ->
     OUT/finetune-tuned-nets.json."""
-    protocol = FINETUNE_TUNED if tuned_nets else FINETUNE
-    flag = "--finetune --tuned-nets" if tuned_nets else "--finetune"
+    protocol, flag, stem = _run_of(tuned_nets)
     began = time.perf_counter()
     plan = QUICK if quick else FULL
     dev = torch.device(device)
@@ -104,18 +107,85 @@ def run_finetune(
     )  # fmt: skip
     results = {
         **run_header(flag, quick, seeds, dev, out, lfd),
-        "steps": {"start": plan.steps, "fine-tuning": plan.steps},
-        "arms": {start: [arm(start, r) for r in recipes] for start, recipes in protocol.items()},
-        "recipes": {
-            r: [list(t) for t in by_name(r).terms] for recipes in protocol.values() for r in recipes
-        },  # fmt: skip
+        **_protocol_record(plan, protocol),
         "tables": {f"seed {s}": t for s, t in tables.items()},
         **summarise_finetune(tables, test_set, protocol),
         "seconds_per_step": seconds,
         "seconds_total": time.perf_counter() - began,
     }
-    name = "finetune-tuned-nets.json" if tuned_nets else "finetune.json"
-    return write_json(out / name, results)
+    return write_json(out / f"{stem}.json", results)
+
+
+def judge_finetuned(
+    out: Path,
+    test_seed: int,
+    seeds: tuple[int, ...] = (0, 1, 2),
+    quick: bool = False,
+    threads: int = 2,
+    progress=print,
+    tuned_nets: bool = False,
+) -> dict:
+    """The networks a fine-tuning run saved in OUT (its starts in OUT/networks, its arms in
+    OUT/networks-finetuned), judged on test shapes of seeds from ``test_seed`` on, as
+    ``single_view.judge_saved`` judges the study's -> OUT/finetune-test-seeds-<seed>.json, with
+    ``tuned_nets`` OUT/finetune-tuned-nets-test-seeds-<seed>.json. Each network's sha256 is
+    recorded: no CPU but the one that trained them remakes them to the bit. A network missing
+    is a ValueError naming it and the command that trains it."""
+    protocol, flag, stem = _run_of(tuned_nets)
+    began = time.perf_counter()
+    plan, cpu = (QUICK if quick else FULL), torch.device("cpu")
+    starts, tuned = (Networks(out / folder, plan, cpu)
+                     for folder in ("networks", "networks-finetuned"))  # fmt: skip
+    store = {n: starts if n in protocol else tuned for n in judged(protocol)}
+    saved = {seed: {n: store[n].path(seed, n) for n in store} for seed in seeds}
+    for seed, paths in saved.items():
+        for network, path in paths.items():
+            if not path.is_file():
+                command = f"python bench/single_view.py {flag} --seeds {seed} --out {out}"
+                raise ValueError(f"{path}: no saved network {network!r}; `{command}` trains it")
+    _, _, test_set = study_sets(plan, test_seed)
+    views = views_of(test_set, out / "data" / "views.pt", ViewRenderer())
+    tables, lfd = judge_seeds(
+        plan, threads, seeds,
+        lambda seed: {n: store[n].get(seed, n, any_key=True)["model"] for n in store},
+        test_set, views, progress,
+    )  # fmt: skip
+    results = {
+        **run_header(f"{flag} --test-seeds {test_seed}", quick, seeds, cpu, out, lfd),
+        "test_seeds": [test_seed, test_seed + plan.test_per_family - 1],
+        "networks": {
+            f"seed {seed}": {n: _sha256(p) for n, p in paths.items()}
+            for seed, paths in saved.items()
+        },  # fmt: skip
+        **_protocol_record(plan, protocol),
+        "tables": {f"seed {s}": t for s, t in tables.items()},
+        **summarise_finetune(tables, test_set, protocol),
+        "seconds_total": time.perf_counter() - began,
+    }
+    return write_json(out / f"{stem}-test-seeds-{test_seed}.json", results)
+
+
+def _sha256(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def _run_of(tuned_nets: bool) -> tuple[dict, str, str]:
+    """(protocol, command-line flags, JSON name's stem) of a plain or a --tuned-nets run."""
+    if tuned_nets:
+        return FINETUNE_TUNED, "--finetune --tuned-nets", "finetune-tuned-nets"
+    return FINETUNE, "--finetune", "finetune"
+
+
+def _protocol_record(plan, protocol: dict) -> dict:
+    """What a run's JSON says of its protocol: the steps, each start's arms, each recipe's
+    terms."""
+    return {
+        "steps": {"start": plan.steps, "fine-tuning": plan.steps},
+        "arms": {start: [arm(start, r) for r in recipes] for start, recipes in protocol.items()},
+        "recipes": {
+            r: [list(t) for t in by_name(r).terms] for recipes in protocol.values() for r in recipes
+        },  # fmt: skip
+    }
 
 
 def protocol_of(results: dict) -> dict:

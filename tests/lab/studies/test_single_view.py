@@ -15,7 +15,14 @@ from typer.testing import CliRunner
 from drkfs_lab.benchmark.point_metrics import is_watertight
 from drkfs_lab.single_view import app
 from drkfs_lab.studies import single_view as study
-from drkfs_lab.studies.finetune import arm, compared, finetune_markdown, protocol_of
+from drkfs_lab.studies.finetune import (
+    arm,
+    compared,
+    finetune_markdown,
+    judge_finetuned,
+    protocol_of,
+    summarise_finetune,
+)
 from drkfs_lab.studies.network import TEST_SEED as NETWORK_TEST_SEED
 from drkfs_lab.studies.shape_generator import (
     FLATTEN_WEIGHT,
@@ -366,7 +373,9 @@ def test_a_second_drkfs_arm_is_compared_with_own_loss_control_and_the_first_drkf
 
 
 @pytest.mark.slow
-def test_the_tuned_nets_arms_train_from_each_start_in_a_run_of_their_own(tmp_path):
+def test_the_tuned_nets_arms_train_in_a_run_of_their_own_and_judge_again_on_other_shapes(
+    tmp_path,
+):
     out = tmp_path / "out"
     args = ["--quick", "--finetune", "--tuned-nets", "--seeds", "0", "--out", str(out)]
     result = CliRunner().invoke(app, args)
@@ -378,3 +387,23 @@ def test_the_tuned_nets_arms_train_from_each_start_in_a_run_of_their_own(tmp_pat
     pairs = [pair for start in FINETUNE_TUNED for pair in compared(start, FINETUNE_TUNED)]
     for challenger, against in pairs:
         assert found["shares"]["pooled"][f"{challenger} | {against}"]["Chamfer-L1"]["cells"] > 0
+    # the saved networks judged on other test shapes, none trained again
+    saved = sorted(p.stat().st_mtime_ns for p in out.glob("networks*/seed0/*.pt"))
+    result = CliRunner().invoke(app, [*args, "--test-seeds", "7000"])
+    assert result.exit_code == 0, result.output
+    other = json.loads((out / "finetune-tuned-nets-test-seeds-7000.json").read_text())
+    assert sorted(p.stat().st_mtime_ns for p in out.glob("networks*/seed0/*.pt")) == saved
+    assert other["arms"] == found["arms"] and other["test_seeds"][0] == 7000
+    assert set(other["tables"]["seed 0"]).isdisjoint(found["tables"]["seed 0"])
+    for network, digest in other["networks"]["seed 0"].items():
+        assert len(digest) == 64, network
+    tables = {0: other["tables"]["seed 0"]}
+    shapes = study_sets(QUICK, 7000)[2]
+    again = summarise_finetune(tables, shapes, protocol_of(other))
+    assert again["shares"] == other["shares"]
+
+
+def test_judging_a_finetuning_run_not_saved_names_the_network_and_its_command(tmp_path):
+    with pytest.raises(ValueError, match=r"softras_silhouette_iou\.pt: no saved network") as error:
+        judge_finetuned(tmp_path, 7000, seeds=(0,), quick=True)
+    assert f"python bench/single_view.py --finetune --seeds 0 --out {tmp_path}" in str(error.value)
