@@ -46,6 +46,7 @@ def study_runs(printer, runs: tuple[str, ...], root: Path) -> str:
 
 FINETUNE_RUNS = (
     "finetune.json", "finetune-whole-replicate.json", "finetune-tuned-nets.json",
+    "finetune-tuned-nets-test-seeds-6000.json",
 )  # fmt: skip
 
 
