@@ -48,8 +48,9 @@ def single_view(
         int | None,
         typer.Option(
             help="Judge the networks a finished study saved in OUT on test shapes from this "
-            "seed on, instead of training (writes OUT/test-seeds-<seed>.json); with --finetune, "
-            "the fine-tuning run's (writes OUT/finetune[-tuned-nets]-test-seeds-<seed>.json).",
+            "seed on, on the CPU at the study's seeds and plan, instead of training (writes "
+            "OUT/test-seeds-<seed>.json); with --finetune, the fine-tuning run's networks (writes "
+            "OUT/finetune[-tuned-nets]-test-seeds-<seed>.json).",
             show_default=False,
         ),
     ] = None,
@@ -165,16 +166,19 @@ def single_view(
         typer.echo(curve_markdown(results))  # bench/records/single_view.md's table
         return
     if finetune:
-        from drkfs_lab.studies.finetune import finetune_markdown, judge_finetuned, run_finetune
+        from drkfs_lab.studies.finetune import (
+            SavedRunError,
+            finetune_markdown,
+            judge_finetuned,
+            run_finetune,
+        )
 
         if test_seeds is None:
             results = run_finetune(out, seed_list, quick, device, threads, progress, tuned_nets)
         else:
             try:
-                results = judge_finetuned(
-                    out, test_seeds, seed_list, quick, threads, progress, tuned_nets
-                )
-            except ValueError as error:
+                results = judge_finetuned(out, test_seeds, threads, progress, tuned_nets)
+            except SavedRunError as error:
                 raise typer.BadParameter(str(error), param_hint="--test-seeds") from None
         typer.echo(finetune_markdown(results))  # bench/records/single_view.md's tables
         return

@@ -10,6 +10,7 @@ each start, the loss's fine-tuned nets in the shipped ones' place."""
 from __future__ import annotations
 
 import hashlib
+import json
 import time
 from pathlib import Path
 
@@ -63,6 +64,10 @@ def compared(start: str, protocol: dict = FINETUNE) -> list[tuple[str, str]]:
     return pairs
 
 
+class SavedRunError(ValueError):
+    """A fine-tuning run's JSON or networks missing from OUT, or not each other's."""
+
+
 def run_finetune(
     out: Path,
     seeds: tuple[int, ...] = (0, 1, 2),
@@ -75,16 +80,14 @@ def run_finetune(
     """Every start network (OUT/networks, trained there first if missing) fine-tuned with each
     of its arms at every seed (OUT/networks-finetuned, resumable), judged on the test shapes
     -> OUT/finetune.json; with ``tuned_nets`` by ``FINETUNE_TUNED`` ->
-    OUT/finetune-tuned-nets.json."""
+    OUT/finetune-tuned-nets.json. The JSON holds each network's sha256: no CPU but the one
+    that trained them remakes them to the bit, and ``judge_finetuned`` judges only these."""
     protocol, flag, stem = _run_of(tuned_nets)
     began = time.perf_counter()
     plan = QUICK if quick else FULL
     dev = torch.device(device)
     test_set, views, terms = training_data(out, plan, dev)
-    starts, tuned = (
-        Networks(out / "networks", plan, dev),
-        Networks(out / "networks-finetuned", plan, dev),
-    )
+    starts, tuned, store = _stores(out, plan, dev, protocol)
     seconds: dict = {}
     for seed in seeds:
         for start, recipes in protocol.items():
@@ -99,14 +102,15 @@ def run_finetune(
                 seconds.setdefault(name, {})[f"seed {seed}"] = tuned.get(seed, name)[
                     "seconds_per_step"
                 ]
-    names = judged(protocol)
     tables, lfd = judge_seeds(
         plan, threads, seeds,
-        lambda seed: {n: (tuned.get(seed, n) or starts.get(seed, n))["model"] for n in names},
+        lambda seed: {n: store[n].get(seed, n, any_key=True)["model"] for n in store},
         test_set, views["test"], progress,
     )  # fmt: skip
     results = {
         **run_header(flag, quick, seeds, dev, out, lfd),
+        "quick": quick,
+        "networks": _digests(store, seeds),
         **_protocol_record(plan, protocol),
         "tables": {f"seed {s}": t for s, t in tables.items()},
         **summarise_finetune(tables, test_set, protocol),
@@ -117,32 +121,32 @@ def run_finetune(
 
 
 def judge_finetuned(
-    out: Path,
-    test_seed: int,
-    seeds: tuple[int, ...] = (0, 1, 2),
-    quick: bool = False,
-    threads: int = 2,
-    progress=print,
-    tuned_nets: bool = False,
+    out: Path, test_seed: int, threads: int = 2, progress=print, tuned_nets: bool = False
 ) -> dict:
-    """The networks a fine-tuning run saved in OUT (its starts in OUT/networks, its arms in
-    OUT/networks-finetuned), judged on test shapes of seeds from ``test_seed`` on, as
-    ``single_view.judge_saved`` judges the study's -> OUT/finetune-test-seeds-<seed>.json, with
-    ``tuned_nets`` OUT/finetune-tuned-nets-test-seeds-<seed>.json. Each network's sha256 is
-    recorded: no CPU but the one that trained them remakes them to the bit. A network missing
-    is a ValueError naming it and the command that trains it."""
+    """The networks of the fine-tuning run OUT/finetune.json (with ``tuned_nets``
+    OUT/finetune-tuned-nets.json; its starts in OUT/networks, its arms in
+    OUT/networks-finetuned) judged on test shapes of seeds from ``test_seed`` on, at that run's
+    seeds and plan, as ``single_view.judge_saved`` judges the study's ->
+    OUT/finetune[-tuned-nets]-test-seeds-<seed>.json. ``SavedRunError`` where the run or a
+    network is missing, or a network is not the one the run judged (its sha256)."""
     protocol, flag, stem = _run_of(tuned_nets)
     began = time.perf_counter()
-    plan, cpu = (QUICK if quick else FULL), torch.device("cpu")
-    starts, tuned = (Networks(out / folder, plan, cpu)
-                     for folder in ("networks", "networks-finetuned"))  # fmt: skip
-    store = {n: starts if n in protocol else tuned for n in judged(protocol)}
-    saved = {seed: {n: store[n].path(seed, n) for n in store} for seed in seeds}
-    for seed, paths in saved.items():
-        for network, path in paths.items():
-            if not path.is_file():
-                command = f"python bench/single_view.py {flag} --seeds {seed} --out {out}"
-                raise ValueError(f"{path}: no saved network {network!r}; `{command}` trains it")
+    run_path, again = out / f"{stem}.json", f"`python bench/single_view.py {flag} --out {out}`"
+    if not run_path.is_file():
+        raise SavedRunError(f"{run_path}: no fine-tuning run to judge again; {again} makes it")
+    run = json.loads(run_path.read_text())
+    if "networks" not in run:
+        raise SavedRunError(
+            f"{run_path} names no digest of its networks, so those in {out} may be others; "
+            f"{again} judges them and names them"
+        )
+    plan, seeds, cpu = (QUICK if run["quick"] else FULL), run["seeds"], torch.device("cpu")
+    *_, store = _stores(out, plan, cpu, protocol)
+    for seed in seeds:
+        for name, network in store.items():
+            path = network.path(seed, name)
+            if not path.is_file() or _sha256(path) != run["networks"][f"seed {seed}"][name]:
+                raise SavedRunError(f"{path}: not the network {run_path.name} judged")
     _, _, test_set = study_sets(plan, test_seed)
     views = views_of(test_set, out / "data" / "views.pt", ViewRenderer())
     tables, lfd = judge_seeds(
@@ -151,18 +155,29 @@ def judge_finetuned(
         test_set, views, progress,
     )  # fmt: skip
     results = {
-        **run_header(f"{flag} --test-seeds {test_seed}", quick, seeds, cpu, out, lfd),
+        **run_header(f"{flag} --test-seeds {test_seed}", run["quick"], seeds, cpu, out, lfd),
         "test_seeds": [test_seed, test_seed + plan.test_per_family - 1],
-        "networks": {
-            f"seed {seed}": {n: _sha256(p) for n, p in paths.items()}
-            for seed, paths in saved.items()
-        },  # fmt: skip
+        "networks": _digests(store, seeds),
         **_protocol_record(plan, protocol),
         "tables": {f"seed {s}": t for s, t in tables.items()},
         **summarise_finetune(tables, test_set, protocol),
         "seconds_total": time.perf_counter() - began,
     }
     return write_json(out / f"{stem}-test-seeds-{test_seed}.json", results)
+
+
+def _stores(out: Path, plan, device: torch.device, protocol: dict) -> tuple:
+    """(the starts' store OUT/networks, the arms' OUT/networks-finetuned, each network of
+    ``judged(protocol)`` -> its store)."""
+    starts, tuned = (Networks(out / folder, plan, device)
+                     for folder in ("networks", "networks-finetuned"))  # fmt: skip
+    return starts, tuned, {n: starts if n in protocol else tuned for n in judged(protocol)}
+
+
+def _digests(store: dict[str, Networks], seeds) -> dict:
+    """ "seed S" -> network -> the sha256 of its saved file."""
+    return {f"seed {s}": {n: _sha256(where.path(s, n)) for n, where in store.items()}
+            for s in seeds}  # fmt: skip
 
 
 def _sha256(path: Path) -> str:

@@ -2,6 +2,7 @@
 typed into a record, a stale table, an indented one or a record without a printer is named;
 ``write`` puts the printed tables in place."""
 
+import json
 import shutil
 
 import pytest
@@ -71,12 +72,16 @@ def test_a_record_needs_a_printer_and_there_are_records(tmp_path):
         record_tables.records(tmp_path / "elsewhere")
 
 
-def test_a_study_run_the_record_does_not_list_is_refused(tmp_path):
+def test_a_studys_runs_print_in_the_records_order_and_one_unlisted_is_refused(tmp_path):
     from drkfs_lab.record_tables import single_view
 
     study = tmp_path / single_view.STUDY
     study.mkdir(parents=True)
-    for name in ("speed.json", "speed-540-steps.json", "speed-on-a-gpu.json"):
-        shutil.copy(ROOT / single_view.STUDY / "speed.json", study / name)
+    for name in ("speed.json", "speed-540-steps.json"):  # the second sorts first by name
+        (study / name).write_text(json.dumps({"name": name}))
+    listed = ("speed.json", "speed-540-steps.json")
+    printed = single_view.study_runs(lambda run: run["name"], listed, tmp_path)
+    assert printed == "speed.json\n\nspeed-540-steps.json"
+    (study / "speed-on-a-gpu.json").write_text("{}")
     with pytest.raises(ValueError, match="speed-on-a-gpu.json not in the record"):
-        single_view.study_runs(str, ("speed.json", "speed-540-steps.json"), tmp_path)
+        single_view.study_runs(str, listed, tmp_path)

@@ -2,6 +2,7 @@
 shape generator, its regularisers, the views it sees, the split of shapes and views, and (slow) the
 quick plan end to end, resumed, and judged on other test seeds."""
 
+import hashlib
 import json
 import math
 from dataclasses import replace
@@ -16,12 +17,13 @@ from drkfs_lab.benchmark.point_metrics import is_watertight
 from drkfs_lab.single_view import app
 from drkfs_lab.studies import single_view as study
 from drkfs_lab.studies.finetune import (
+    SavedRunError,
     arm,
     compared,
     finetune_markdown,
     judge_finetuned,
+    judged,
     protocol_of,
-    summarise_finetune,
 )
 from drkfs_lab.studies.network import TEST_SEED as NETWORK_TEST_SEED
 from drkfs_lab.studies.shape_generator import (
@@ -387,23 +389,38 @@ def test_the_tuned_nets_arms_train_in_a_run_of_their_own_and_judge_again_on_othe
     pairs = [pair for start in FINETUNE_TUNED for pair in compared(start, FINETUNE_TUNED)]
     for challenger, against in pairs:
         assert found["shares"]["pooled"][f"{challenger} | {against}"]["Chamfer-L1"]["cells"] > 0
-    # the saved networks judged on other test shapes, none trained again
+    # the saved networks judged again: on the run's own test shapes as the run judged them,
+    # on other test shapes beside them, none trained again
     saved = sorted(p.stat().st_mtime_ns for p in out.glob("networks*/seed0/*.pt"))
+    again = judge_finetuned(out, study.TEST_SEED, tuned_nets=True)
+    assert again["tables"] == found["tables"] and again["networks"] == found["networks"]
     result = CliRunner().invoke(app, [*args, "--test-seeds", "7000"])
     assert result.exit_code == 0, result.output
     other = json.loads((out / "finetune-tuned-nets-test-seeds-7000.json").read_text())
     assert sorted(p.stat().st_mtime_ns for p in out.glob("networks*/seed0/*.pt")) == saved
     assert other["arms"] == found["arms"] and other["test_seeds"][0] == 7000
     assert set(other["tables"]["seed 0"]).isdisjoint(found["tables"]["seed 0"])
-    for network, digest in other["networks"]["seed 0"].items():
-        assert len(digest) == 64, network
-    tables = {0: other["tables"]["seed 0"]}
-    shapes = study_sets(QUICK, 7000)[2]
-    again = summarise_finetune(tables, shapes, protocol_of(other))
-    assert again["shares"] == other["shares"]
 
 
-def test_judging_a_finetuning_run_not_saved_names_the_network_and_its_command(tmp_path):
-    with pytest.raises(ValueError, match=r"softras_silhouette_iou\.pt: no saved network") as error:
-        judge_finetuned(tmp_path, 7000, seeds=(0,), quick=True)
-    assert f"python bench/single_view.py --finetune --seeds 0 --out {tmp_path}" in str(error.value)
+def test_a_finetuning_run_is_judged_again_only_with_the_networks_it_judged(tmp_path):
+    command = f"`python bench/single_view.py --finetune --out {tmp_path}`"
+    with pytest.raises(SavedRunError, match="no fine-tuning run to judge again") as error:
+        judge_finetuned(tmp_path, 7000)
+    assert command in str(error.value)
+    run = tmp_path / "finetune.json"
+    run.write_text(json.dumps({"quick": True, "seeds": [0]}))  # a run that named no networks
+    with pytest.raises(SavedRunError, match="names no digest of its networks"):
+        judge_finetuned(tmp_path, 7000)
+    networks = {}
+    for name in judged(FINETUNE):
+        folder = "networks" if name in FINETUNE else "networks-finetuned"
+        path = Networks(tmp_path / folder, QUICK, torch.device("cpu")).path(0, name)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_bytes(name.encode())
+        networks[name] = hashlib.sha256(name.encode()).hexdigest()
+    changed = arm(study.CHAMFER, FINETUNE[study.CHAMFER][1])
+    networks[changed] = hashlib.sha256(b"another network").hexdigest()
+    run.write_text(json.dumps({"quick": True, "seeds": [0], "networks": {"seed 0": networks}}))
+    with pytest.raises(SavedRunError, match="not the network finetune.json judged") as error:
+        judge_finetuned(tmp_path, 7000)
+    assert "chamfer-l2_then_dr-kfs_1_x_chamfer-l2.pt" in str(error.value)
