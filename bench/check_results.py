@@ -383,8 +383,8 @@ def readme_as_a_loss_is_the_single_view_studys(root: Path) -> None:
         f"({against_iou['wins']} of {against_iou['cells']} test cells",
         f"on {sl[0]} and {sl[1]} of {cells} cells by LFD in two runs on two CPUs ({sl[2]} on "
         f"other test shapes), {sc[0]} and {sc[1]} by Chamfer-L1 ({sc[2]}), and IoU + 1 × pixel "
-        f"MSE on {ml[0]} and {ml[1]} by LFD ({ml[2]}), not by unseen silhouettes "
-        f"({', '.join(map(str, ms))}).",
+        f"MSE on {ml[0]} and {ml[1]} by LFD ({ml[2]}), by unseen silhouettes on only "
+        f"{', '.join(map(str, ms))}.",
     ):
         assert figure in readme.replace("\n", " "), f"README's 'As a loss' differs at {figure!r}"
 
