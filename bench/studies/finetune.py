@@ -102,11 +102,7 @@ def run_finetune(
                 seconds.setdefault(name, {})[f"seed {seed}"] = tuned.get(seed, name)[
                     "seconds_per_step"
                 ]
-    tables, lfd = judge_seeds(
-        plan, threads, seeds,
-        lambda seed: {n: store[n].get(seed, n, any_key=True)["model"] for n in store},
-        test_set, views["test"], progress,
-    )  # fmt: skip
+    tables, lfd = _judge(store, plan, threads, seeds, test_set, views["test"], progress)
     results = {
         **run_header(flag, quick, seeds, dev, out, lfd),
         "quick": quick,
@@ -142,22 +138,21 @@ def judge_finetuned(
         )
     plan, seeds, cpu = (QUICK if run["quick"] else FULL), run["seeds"], torch.device("cpu")
     *_, store = _stores(out, plan, cpu, protocol)
+    digests: dict = {}
     for seed in seeds:
         for name, network in store.items():
             path = network.path(seed, name)
-            if not path.is_file() or _sha256(path) != run["networks"][f"seed {seed}"][name]:
+            digest = _sha256(path) if path.is_file() else None
+            if digest != run["networks"][f"seed {seed}"][name]:
                 raise SavedRunError(f"{path}: not the network {run_path.name} judged")
+            digests.setdefault(f"seed {seed}", {})[name] = digest
     _, _, test_set = study_sets(plan, test_seed)
     views = views_of(test_set, out / "data" / "views.pt", ViewRenderer())
-    tables, lfd = judge_seeds(
-        plan, threads, seeds,
-        lambda seed: {n: store[n].get(seed, n, any_key=True)["model"] for n in store},
-        test_set, views, progress,
-    )  # fmt: skip
+    tables, lfd = _judge(store, plan, threads, seeds, test_set, views, progress)
     results = {
         **run_header(f"{flag} --test-seeds {test_seed}", run["quick"], seeds, cpu, out, lfd),
         "test_seeds": [test_seed, test_seed + plan.test_per_family - 1],
-        "networks": _digests(store, seeds),
+        "networks": digests,
         **_protocol_record(plan, protocol),
         "tables": {f"seed {s}": t for s, t in tables.items()},
         **summarise_finetune(tables, test_set, protocol),
@@ -172,6 +167,15 @@ def _stores(out: Path, plan, device: torch.device, protocol: dict) -> tuple:
     starts, tuned = (Networks(out / folder, plan, device)
                      for folder in ("networks", "networks-finetuned"))  # fmt: skip
     return starts, tuned, {n: starts if n in protocol else tuned for n in judged(protocol)}
+
+
+def _judge(store: dict[str, Networks], plan, threads: int, seeds, shapes, views, progress):
+    """``judge_seeds`` of every network of ``store`` as saved there, on ``shapes``."""
+    return judge_seeds(
+        plan, threads, seeds,
+        lambda seed: {n: where.get(seed, n, any_key=True)["model"] for n, where in store.items()},
+        shapes, views, progress,
+    )  # fmt: skip
 
 
 def _digests(store: dict[str, Networks], seeds) -> dict:
