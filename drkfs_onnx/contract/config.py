@@ -44,11 +44,13 @@ NETS_TRAINED_AT = {
 ONE_REACH = {"solid_ramp": 0, "solid_inner_drop": 0, "solid_inner_power": 1.0}
 # The own-ring pairing from its own ring alone.
 OWN_RING_ONLY = {"turned_part_share": 0.0, "solid_both_rings": False}
-# Fields added after configs were first recorded (the manifest, feature graphs, features files,
-# results), with the value every record without them was made with.
-ADDED_FIELDS = {
-    "turn_degrees": 0.0, "solid_weight": 0.0, **ONE_REACH, **OWN_RING_ONLY, **FULL_PARTS,
-    **TWO_SIDED,
+# The one migration of recorded configs (the manifest, feature graphs, features files,
+# results): each metric version -> the fields it added, with the value every record made before
+# it holds. A record lacking a field was made before the version that added it.
+ADDED_BY_VERSION = {
+    "drkfs-1.0": {"turn_degrees": 0.0, "solid_weight": 0.0, **ONE_REACH, **OWN_RING_ONLY,
+                  **FULL_PARTS, "back_light": 1.0, "back_push": 0.0},
+    "drkfs-1.1": {"winding": "file"},
 }  # fmt: skip
 # Every setting by the stage of the data flow it shapes (settings per stage, as PyTorch3D's
 # RasterizationSettings and BlendParams, here as field names of the one frozen config, which
@@ -441,14 +443,16 @@ class PipelineConfig:
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> PipelineConfig:
-        """A config written by ``to_dict``; a field it lacks (a record from before the field
-        existed) takes the value such records were made with (``ADDED_FIELDS``), else the
-        default."""
+        """A config written by ``to_dict``; a field it lacks (a record from before the version
+        that added it) takes the value such records were made with (``ADDED_BY_VERSION``)."""
         names = {f.name for f in dataclasses.fields(cls)}
         unknown = sorted(set(data) - names)
         if unknown:
             raise ValueError(f"unknown config keys: {', '.join(unknown)}")
-        return cls(**{**ADDED_FIELDS, **data})
+        before: dict[str, Any] = {}
+        for added in ADDED_BY_VERSION.values():
+            before.update(added)
+        return cls(**{**before, **data})
 
     @classmethod
     def from_json(cls, text: str) -> PipelineConfig:

@@ -5,6 +5,7 @@ import dataclasses
 import pytest
 
 from drkfs_onnx.contract.config import (
+    ADDED_BY_VERSION,
     FREE_FIELDS,
     FULL_PARTS,
     GRAPH_FREE_FIELDS,
@@ -22,6 +23,7 @@ from drkfs_onnx.contract.config import (
     PipelineConfig,
     ShadingSettings,
 )
+from drkfs_onnx.contract.versions import VERSIONS, metric_config
 
 
 def test_paper_preset_is_the_papers_pipeline():
@@ -158,9 +160,13 @@ def test_invalid_configs_are_refused(bad):
 
 
 def test_a_record_without_later_fields_reads_as_it_was_made():
-    """A config written before a field existed (a features file, a results JSON) takes the
-    value it was made with: one ring, no solid change, one reach, the own ring alone, the
-    descriptors' part in full, faces seen from behind lit as their fronts."""
+    """A config written before a version added a field (a features file, a results JSON) takes
+    the value it was made with: before drkfs-1.0 one ring, no solid change, one reach, the own
+    ring alone, the descriptors' part in full, faces seen from behind lit as their fronts;
+    before drkfs-1.1 the file's winding."""
+    made_at_1_0 = metric_config("drkfs-1.0").to_dict()
+    del made_at_1_0["winding"]
+    assert PipelineConfig.from_dict(made_at_1_0) == metric_config("drkfs-1.0")
     record = PipelineConfig(back_light=0.0, back_push=0.05).to_dict()
     added = ("turn_degrees", "solid_weight", *ONE_REACH, *OWN_RING_ONLY, *FULL_PARTS, *TWO_SIDED)
     for name in added:
@@ -172,6 +178,13 @@ def test_a_record_without_later_fields_reads_as_it_was_made():
     )  # fmt: skip
     assert (old.turned_part_share, old.solid_both_rings) == (0.0, False)
     assert old.moderate_slope == 1.0
+
+
+def test_each_field_a_version_added_is_a_field_of_the_config_and_added_once():
+    added = [name for fields in ADDED_BY_VERSION.values() for name in fields]
+    assert len(added) == len(set(added))
+    assert set(added) <= set(PipelineConfig().to_dict())
+    assert set(ADDED_BY_VERSION) <= set(VERSIONS)
 
 
 def test_unknown_keys_are_refused():
