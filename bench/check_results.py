@@ -47,6 +47,7 @@ from drkfs_lab.studies.single_view import (
     RECIPE_IOU,
     SOFTRAS,
     Shape,
+    every_pair,
     means,
     summarise,
     summarise_controls,
@@ -232,6 +233,18 @@ def single_view_curve_recomputes(root: Path) -> None:
     for point, found in results["points"].items():
         again = means([found["table"]], _test_set(found["table"]), results["losses"])["mean"]
         assert again == found["means"], f"curve.json's means at {point} steps do not recompute"
+
+
+def single_view_steps_runs_recompute(root: Path) -> None:
+    """Each --steps run's means and shares recompute from its table, and those of its networks
+    judged on other test shapes (longer-*-test-seeds-*.json) from their per-seed tables."""
+    for path in sorted((root / "bench/single_view").glob("longer-*.json")):
+        results = _json(root, str(path.relative_to(root)))
+        tables = list(results["tables"].values()) if "tables" in results else [results["table"]]
+        rows = list(results["means"]["mean"])
+        again = every_pair(tables, _test_set(tables[0]), rows)
+        for key in ("means", "shares"):
+            assert again[key] == results[key], f"{path.name}'s {key} do not recompute"
 
 
 def single_view_speed_recomputes(root: Path) -> None:
@@ -469,6 +482,7 @@ CHECKS: list[Callable[[Path], str | None]] = [
     single_view_other_test_seeds_recompute,
     single_view_finetuning_recomputes,
     single_view_curve_recomputes,
+    single_view_steps_runs_recompute,
     single_view_speed_recomputes,
     readme_score_scale_is_the_benchmarks,
     readme_batch_table_is_torch_batchs,

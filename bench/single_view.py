@@ -16,6 +16,8 @@ seeds, judged on held-out shapes and views by metrics no loss computes.
         --losses "DR-KFS (a third of the cameras a step)"           # cheaper steps
     python bench/single_view.py --out bench/single_view --steps 400 --seeds 0 \
         --losses "SoftRas (silhouette IoU),DR-KFS"                          # more steps
+    python bench/single_view.py --out bench/single_view --steps 200 --seeds 0,1,2 \
+        --test-seeds 6000                     # the --steps runs' networks on other test shapes
 
 Output: runs/single-view unless --out says otherwise.
 """
@@ -50,7 +52,8 @@ def single_view(
             help="Judge the networks a finished study saved in OUT on test shapes from this "
             "seed on, on the CPU at the study's seeds and plan, instead of training (writes "
             "OUT/test-seeds-<seed>.json); with --finetune, the fine-tuning run's networks (writes "
-            "OUT/finetune[-tuned-nets]-test-seeds-<seed>.json).",
+            "OUT/finetune[-tuned-nets]-test-seeds-<seed>.json); with --steps, those the --steps "
+            "runs of --seeds judged (writes OUT/longer-<steps>-steps-test-seeds-<seed>.json).",
             show_default=False,
         ),
     ] = None,
@@ -118,9 +121,12 @@ def single_view(
     """Train SoftRas' shape generator with each loss and judge the reconstructions."""
     from drkfs_lab.studies.single_view import (
         CURVE_STATE,
+        SavedRunError,
         controls_markdown,
         curve_markdown,
+        judge_longer,
         judge_saved,
+        means_table,
         run_controls,
         run_curve,
         run_longer,
@@ -145,6 +151,13 @@ def single_view(
             raise typer.BadParameter(str(error), param_hint="--losses") from None
         typer.echo(speed_markdown(results))  # bench/records/single_view.md's tables
         return
+    if steps is not None and test_seeds is not None:
+        try:
+            results = judge_longer(out, steps, seed_list, test_seeds, threads, progress)
+        except SavedRunError as error:
+            raise typer.BadParameter(str(error), param_hint="--test-seeds") from None
+        typer.echo("\n".join(means_table(results["means"]["mean"], "network")))
+        return
     if steps is not None:
         for seed in seed_list:
             try:
@@ -167,7 +180,6 @@ def single_view(
         return
     if finetune:
         from drkfs_lab.studies.finetune import (
-            SavedRunError,
             finetune_markdown,
             judge_finetuned,
             run_finetune,

@@ -14,6 +14,7 @@ from drkfs_lab.studies.single_view import (
     controls_markdown,
     curve_markdown,
     markdown,
+    pooled_runs,
     steps_markdown,
     test_seeds_markdown,
     tuned_nets_markdown,
@@ -31,7 +32,9 @@ def _run(printer, name: str, root: Path) -> str:
 def tuned_nets(root: Path) -> str:
     """The nets fine-tuned for the loss, pooled over every seed's run at the study's steps."""
     runs = sorted((root / STUDY).glob("longer-200-steps-seed*.json"))
-    return tuned_nets_markdown([committed(root, str(path.relative_to(root))) for path in runs])
+    return tuned_nets_markdown(
+        pooled_runs([committed(root, str(path.relative_to(root))) for path in runs])
+    )
 
 
 def study_runs(printer, runs: tuple[str, ...], root: Path) -> str:

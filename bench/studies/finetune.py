@@ -9,8 +9,6 @@ each start, the loss's fine-tuned nets in the shipped ones' place."""
 
 from __future__ import annotations
 
-import hashlib
-import json
 import time
 from pathlib import Path
 
@@ -23,10 +21,13 @@ from .single_view import (
     QUICK,
     Networks,
     by_name,
+    checked,
     judge_seeds,
     means,
     means_table,
     run_header,
+    saved_run,
+    sha256_of,
     shares,
     study_sets,
     train,
@@ -62,10 +63,6 @@ def compared(start: str, protocol: dict = FINETUNE) -> list[tuple[str, str]]:
     for other in others:
         pairs += [(other, own), (other, control), (other, drkfs)]
     return pairs
-
-
-class SavedRunError(ValueError):
-    """A fine-tuning run's JSON or networks missing from OUT, or not each other's."""
 
 
 def run_finetune(
@@ -127,25 +124,15 @@ def judge_finetuned(
     network is missing, or a network is not the one the run judged (its sha256)."""
     protocol, flag, stem = _run_of(tuned_nets)
     began = time.perf_counter()
-    run_path, again = out / f"{stem}.json", f"`python bench/single_view.py {flag} --out {out}`"
-    if not run_path.is_file():
-        raise SavedRunError(f"{run_path}: no fine-tuning run to judge again; {again} makes it")
-    run = json.loads(run_path.read_text())
-    if "networks" not in run:
-        raise SavedRunError(
-            f"{run_path} names no digest of its networks, so those in {out} may be others; "
-            f"{again} judges them and names them"
-        )
+    run_path = out / f"{stem}.json"
+    run = saved_run(run_path, f"`python bench/single_view.py {flag} --out {out}`")
     plan, seeds, cpu = (QUICK if run["quick"] else FULL), run["seeds"], torch.device("cpu")
     *_, store = _stores(out, plan, cpu, protocol)
-    digests: dict = {}
-    for seed in seeds:
-        for name, network in store.items():
-            path = network.path(seed, name)
-            digest = _sha256(path) if path.is_file() else None
-            if digest != run["networks"][f"seed {seed}"][name]:
-                raise SavedRunError(f"{path}: not the network {run_path.name} judged")
-            digests.setdefault(f"seed {seed}", {})[name] = digest
+    digests = {
+        f"seed {s}": {n: checked(run_path, where.path(s, n), run["networks"][f"seed {s}"][n])
+                      for n, where in store.items()}
+        for s in seeds
+    }  # fmt: skip
     _, _, test_set = study_sets(plan, test_seed)
     views = views_of(test_set, out / "data" / "views.pt", ViewRenderer())
     tables, lfd = _judge(store, plan, threads, seeds, test_set, views, progress)
@@ -180,12 +167,8 @@ def _judge(store: dict[str, Networks], plan, threads: int, seeds, shapes, views,
 
 def _digests(store: dict[str, Networks], seeds) -> dict:
     """ "seed S" -> network -> the sha256 of its saved file."""
-    return {f"seed {s}": {n: _sha256(where.path(s, n)) for n, where in store.items()}
+    return {f"seed {s}": {n: sha256_of(where.path(s, n)) for n, where in store.items()}
             for s in seeds}  # fmt: skip
-
-
-def _sha256(path: Path) -> str:
-    return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
 def _run_of(tuned_nets: bool) -> tuple[dict, str, str]:

@@ -16,6 +16,7 @@ trained at every seed, chosen before any test shape is judged.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import time
 from collections.abc import Iterator
@@ -799,53 +800,119 @@ def run_longer(
     ``names``' generators trained at ``seed`` for ``steps`` steps (OUT/networks-<steps>-steps,
     resumable), judged on the study's test shapes beside the study's networks of the same
     losses and of SoftRas', DR-KFS' and the recipe's (OUT/networks) ->
-    OUT/longer-<steps>-steps-seed<seed>.json."""
+    OUT/longer-<steps>-steps-seed<seed>.json, which names each network's folder, loss and
+    sha256 for ``judge_longer``."""
     study_plan = QUICK if quick else FULL
     plan = replace(study_plan, steps=steps)
     dev = torch.device(device)
     test_set, views, terms = training_data(out, plan, dev)
     longer = Networks(out / f"networks-{steps}-steps", plan, dev)
-    study = Networks(out / "networks", study_plan, dev)
-    models, seconds = {}, {}
+    stored, seconds = {}, {}  # row -> (its store, its loss)
     for name in names:
-        if longer.get(seed, name) is None:
-            longer.put(
-                seed, name, train(plan, by_name(name), seed, views["train"], terms, progress)
-            )
-        saved = longer.get(seed, name)
-        models[f"{name}, {steps} steps"], seconds[name] = saved["model"], saved["seconds_per_step"]
+        saved = longer.trained(seed, name, plan, views["train"], terms, progress)
+        stored[f"{name}, {steps} steps"], seconds[name] = (longer, name), saved["seconds_per_step"]
     # beside them the study's networks of the same losses, and of SoftRas', DR-KFS' and the recipe
+    study = Networks(out / "networks", study_plan, dev)
     for name in dict.fromkeys([*names, SOFTRAS, DRKFS_SHADED, RECIPE]):
-        saved, row = study.get(seed, name), f"{name}, {study_plan.steps} steps"
-        if saved is not None and row not in models:
-            models[row] = saved["model"]
+        row = f"{name}, {study_plan.steps} steps"
+        if row not in stored and study.get(seed, name) is not None:
+            stored[row] = (study, name)
+    models = {row: store.get(seed, name)["model"] for row, (store, name) in stored.items()}
     judge = Judge(PipelineConfig(), threads, plan.unseen_views, plan.lfd, image_judges=False)
     try:
         table = judge_all(judge, models, test_set, views["test"], {}, progress)
     finally:
         judge.close()
-    rows = list(models)
     results = {
         "command": f"python bench/single_view.py{' --quick' if quick else ''} --out {out} "
         f"--steps {steps} --seeds {seed} --losses '{','.join(names)}'",
         **machine(),
         "lfd": judge.lfd_note,
+        "quick": quick,
         "seed": seed,
         "steps": [study_plan.steps, steps],
         "seconds_per_step": seconds,
-        "table": table,
-        "means": means([table], test_set, rows),
-        "shares": {
-            challenger: {
-                against: shares([table], challenger, against)
-                for against in rows
-                if against != challenger
+        "networks": {
+            row: {
+                "folder": store.folder.name,
+                "loss": name,
+                "sha256": sha256_of(store.path(seed, name)),
             }
-            for challenger in rows
+            for row, (store, name) in stored.items()
         },  # fmt: skip
+        "table": table,
+        **every_pair([table], test_set, list(models)),
     }
-    (out / f"longer-{steps}-steps-seed{seed}.json").write_text(json.dumps(results, indent=1))
-    return results
+    return write_json(out / f"longer-{steps}-steps-seed{seed}.json", results)
+
+
+def every_pair(tables: list[dict], test_set: list[Shape], rows: list[str]) -> dict:
+    """The means of ``rows`` over ``tables``' cells, and each row's shares against each other."""
+    return {
+        "means": means(tables, test_set, rows),
+        "shares": {c: {a: shares(tables, c, a) for a in rows if a != c} for c in rows},
+    }
+
+
+def judge_longer(
+    out: Path, steps: int, seeds: tuple[int, ...], test_seed: int, threads: int = 2, progress=print
+) -> dict:
+    """The networks each --steps run OUT/longer-<steps>-steps-seed<S>.json of ``seeds`` judged,
+    judged again on test shapes of seeds from ``test_seed`` on (as many a family as the runs'
+    plan) -> OUT/longer-<steps>-steps-test-seeds-<seed>.json: each seed's table, and every
+    row's means and shares pooled over the seeds. ``SavedRunError`` where a run is missing,
+    names no digests or judged other rows or another plan than the first seed's, or where a
+    network is missing or not the one its run judged."""
+    began = time.perf_counter()
+    seeds = tuple(dict.fromkeys(seeds))
+    paths = {seed: out / f"longer-{steps}-steps-seed{seed}.json" for seed in seeds}
+    runs = {seed: saved_run(path, f"`python bench/single_view.py --out {out} --steps {steps} "
+                                  f"--seeds {seed} --losses <losses>`")
+            for seed, path in paths.items()}  # fmt: skip
+    first = runs[seeds[0]]
+    for seed, run in runs.items():
+        if (run["quick"], list(run["networks"])) != (first["quick"], list(first["networks"])):
+            raise SavedRunError(
+                f"{paths[seed]} judged other networks than {paths[seeds[0]].name}: "
+                "judge seeds whose runs trained the same losses"
+            )
+    plan, cpu = (QUICK if first["quick"] else FULL), torch.device("cpu")
+
+    # a store of either folder under the study's plan: its networks are loaded by their
+    # digests, whatever plan their key names (``get(any_key=True)``)
+    def stored(seed: int) -> dict[str, tuple[Networks, str]]:  # row -> (its store, its loss)
+        return {row: (Networks(out / n["folder"], plan, cpu), n["loss"])
+                for row, n in runs[seed]["networks"].items()}  # fmt: skip
+
+    digests = {
+        f"seed {seed}": {
+            row: checked(paths[seed], store.path(seed, name), runs[seed]["networks"][row]["sha256"])
+            for row, (store, name) in stored(seed).items()
+        }
+        for seed in seeds
+    }
+    _, _, test_set = study_sets(plan, test_seed)
+    views = views_of(test_set, out / "data" / "views.pt", ViewRenderer())
+
+    def models_at(seed: int) -> dict:
+        return {row: store.get(seed, name, any_key=True)["model"]
+                for row, (store, name) in stored(seed).items()}  # fmt: skip
+
+    tables, lfd = judge_seeds(plan, threads, seeds, models_at, test_set, views, progress)
+    results = {
+        "command": f"python bench/single_view.py --out {out} --steps {steps} "
+        f"--seeds {','.join(map(str, seeds))} --test-seeds {test_seed}",
+        **machine(),
+        "lfd": lfd,
+        "seeds": list(seeds),
+        "steps": first["steps"],
+        "test_seeds": [test_seed, test_seed + plan.test_per_family - 1],
+        "networks": digests,
+        "tables": {f"seed {s}": t for s, t in tables.items()},
+        **every_pair(list(tables.values()), test_set, list(first["networks"])),
+        "seconds_total": time.perf_counter() - began,
+    }
+    return write_json(out / f"longer-{steps}-steps-test-seeds-{test_seed}.json", results)
 
 
 def controls_goal(tables: list[dict], chamfer_l1: dict[str, float | None], recipe: str) -> dict:
@@ -941,6 +1008,39 @@ def write_json(path: Path, results: dict) -> dict:
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(results, indent=1))
     return results
+
+
+class SavedRunError(ValueError):
+    """A run's JSON or networks missing from OUT, or not each other's."""
+
+
+def sha256_of(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def saved_run(path: Path, again: str) -> dict:
+    """The run ``path`` (its JSON), which names the sha256 of each network it judged;
+    ``SavedRunError`` where it is missing or names none (``again``: the command that makes it,
+    where the run does not name its own)."""
+    if not path.is_file():
+        raise SavedRunError(f"{path}: no run to judge again; {again} makes it")
+    run = json.loads(path.read_text())
+    if "networks" not in run:
+        again = f"`{run['command']}`" if "command" in run else again
+        raise SavedRunError(
+            f"{path} names no digest of its networks, so those beside it may be others; "
+            f"{again} judges them and names them"
+        )
+    return run
+
+
+def checked(run: Path, network: Path, digest: str) -> str:
+    """``network``'s sha256, where it is the one the run ``run`` judged (``digest``);
+    ``SavedRunError`` where it is missing or another."""
+    found = sha256_of(network) if network.is_file() else None
+    if found is None or found != digest:
+        raise SavedRunError(f"{network}: not the network {run.name} judged")
+    return found
 
 
 def curve_control(out: Path) -> str:
@@ -1125,13 +1225,16 @@ def wins_table(shares_by: dict, first: str) -> list[str]:
 
 def steps_markdown(run: dict) -> str:
     """bench/records/single_view.md's table of one --steps run (OUT/longer-<steps>-steps-
-    seed<S>.json): each network's means over the test shapes, a loss's rows together, fewer
-    steps first."""
+    seed<S>.json) or of its networks judged on other test shapes (``judge_longer``): each
+    network's means over the test shapes, a loss's rows together, fewer steps first."""
     judged = [c for c in COLUMNS if c[0] not in ("normal consistency", "volumetric IoU")]
     rows = run["means"]["mean"]
     losses = list(dict.fromkeys(name.rsplit(", ", 1)[0] for name in rows))
     order = sorted(rows, key=lambda n: (losses.index(n.rsplit(", ", 1)[0]), int(n.split()[-2])))
-    head = f"| seed {run['seed']}, {len(run['table'])} test shapes | "
+    seeds = ", ".join(map(str, run.get("seeds", [run.get("seed")])))
+    shapes = len(next(iter(run["tables"].values())) if "tables" in run else run["table"])
+    other = f" from seed {run['test_seeds'][0]}" if "test_seeds" in run else ""
+    head = f"| seed {seeds}, {shapes} test shapes{other} | "
     lines = [head + " | ".join(c[1] for c in judged) + " |", "|---|" + "---:|" * len(judged)]
     for name in order:
         cells = " | ".join(table_cell(rows[name][m], s, d) for m, _, s, d in judged)
@@ -1139,12 +1242,14 @@ def steps_markdown(run: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
-def tuned_nets_markdown(runs: list[dict]) -> str:
-    """bench/records/single_view.md's tables of the nets fine-tuned for the loss, from the
-    --steps runs at the study's steps of ``EXTRA`` (OUT/longer-200-steps-seed<S>.json, one a
-    seed): every network's means pooled over the runs' seeds, and each tuned loss's cells
-    closer than the same loss with the shipped nets and than SoftRas', pooled and per seed."""
-    steps = runs[0]["steps"][1]
+def tuned_nets_markdown(results: dict) -> str:
+    """bench/records/single_view.md's tables of the nets fine-tuned for the loss at the
+    study's steps, from ``results`` with their "steps" and each seed's "tables" (the --steps
+    runs of ``EXTRA``, ``pooled_runs``, or their networks judged on other test shapes,
+    OUT/longer-200-steps-test-seeds-<seed>.json): every network's means pooled over the seeds,
+    and each tuned loss's cells closer than the same loss with the shipped nets and than
+    SoftRas', pooled and per seed."""
+    steps = results["steps"][1]
 
     def at(name: str) -> str:  # the runs' row names
         return f"{name}, {steps} steps"
@@ -1152,14 +1257,20 @@ def tuned_nets_markdown(runs: list[dict]) -> str:
     tuned = [r.name for r in EXTRA]
     shipped = {tuned[0]: DRKFS_SHADED, tuned[1]: RECIPE}
     rows = [at(n) for n in (SOFTRAS, DRKFS_SHADED, tuned[0], RECIPE, tuned[1])]
-    tables = {run["seed"]: run["table"] for run in runs}
-    shapes = [Shape(n, n.split()[0], None, None) for n in runs[0]["table"]]
+    tables = results["tables"]
+    shapes = [Shape(n, n.split()[0], None, None) for n in next(iter(tables.values()))]
     pairs = [(at(n), at(against)) for n in tuned for against in (shipped[n], SOFTRAS)]
-    per = {"pooled": list(tables.values()), **{f"seed {s}": [t] for s, t in tables.items()}}
+    per = {"pooled": list(tables.values()), **{key: [t] for key, t in tables.items()}}
     wins = {key: {f"{c} | {a}": shares(ts, c, a) for c, a in pairs} for key, ts in per.items()}
     pooled = means(per["pooled"], shapes, rows)["mean"]
     blocks = (means_table(pooled, "network"), wins_table(wins, "network"))
     return "\n\n".join("\n".join(block) for block in blocks) + "\n"
+
+
+def pooled_runs(runs: list[dict]) -> dict:
+    """The --steps runs (OUT/longer-<steps>-steps-seed<S>.json, one a seed) as one
+    run's "steps" and "tables" (seed -> table)."""
+    return {"steps": runs[0]["steps"], "tables": {f"seed {r['seed']}": r["table"] for r in runs}}
 
 
 def markdown(results: dict) -> str:

@@ -17,7 +17,6 @@ from drkfs_lab.benchmark.point_metrics import is_watertight
 from drkfs_lab.single_view import app
 from drkfs_lab.studies import single_view as study
 from drkfs_lab.studies.finetune import (
-    SavedRunError,
     arm,
     compared,
     finetune_markdown,
@@ -47,6 +46,7 @@ from drkfs_lab.studies.single_view import (
     TRAIN_SEED,
     VALIDATION_SEED,
     Networks,
+    SavedRunError,
     SilhouetteDRKFS,
     Terms,
     by_name,
@@ -288,6 +288,22 @@ def test_more_steps_train_beside_the_studys_networks_and_are_judged_with_them(qu
     )
     unknown = CliRunner().invoke(app, [*args, "--losses", "IoU"])
     assert unknown.exit_code != 0 and "no loss 'IoU'" in unknown.output
+    # the run's networks, each named by its sha256, judged again: on its own test shapes as
+    # the run judged them, and on other test shapes
+    assert longer["networks"]["SoftRas (silhouette IoU), 3 steps"] == {
+        "folder": "networks-3-steps", "loss": "SoftRas (silhouette IoU)",
+        "sha256": hashlib.sha256((out / "networks-3-steps/seed0/softras_silhouette_iou.pt")
+                                 .read_bytes()).hexdigest(),
+    }  # fmt: skip
+    assert {n["folder"] for r, n in longer["networks"].items() if "2 steps" in r} == {"networks"}
+    assert set(longer["networks"]) == rows
+    assert study.judge_longer(out, 3, (0,), TEST_SEED)["tables"]["seed 0"] == longer["table"]
+    result = CliRunner().invoke(app, [*args, "--test-seeds", "7000"])
+    assert result.exit_code == 0, result.output
+    other = json.loads((out / "longer-3-steps-test-seeds-7000.json").read_text())
+    assert other["networks"]["seed 0"] == {r: n["sha256"] for r, n in longer["networks"].items()}
+    assert other["test_seeds"][0] == 7000 and set(other["means"]["mean"]) == rows
+    assert set(other["tables"]["seed 0"]).isdisjoint(longer["table"])
 
 
 def test_a_training_stopped_and_resumed_ends_where_a_straight_one_does(tmp_path):
@@ -402,9 +418,40 @@ def test_the_tuned_nets_arms_train_in_a_run_of_their_own_and_judge_again_on_othe
     assert set(other["tables"]["seed 0"]).isdisjoint(found["tables"]["seed 0"])
 
 
+def test_a_steps_run_is_judged_again_only_with_the_networks_it_judged(tmp_path):
+    def refusal(seeds: str = "0") -> str:
+        args = ["--out", str(tmp_path), "--steps", "3", "--seeds", seeds, "--test-seeds", "7000"]
+        result = CliRunner().invoke(app, args)
+        assert result.exit_code == 2, result.output
+        return " ".join(result.output.split())
+
+    assert "longer-3-steps-seed0.json: no run to judge again" in refusal()
+    run = tmp_path / "longer-3-steps-seed0.json"
+    command = "python bench/single_view.py --steps 3 --seeds 0 --losses 'SoftRas (silhouette IoU)'"
+    run.write_text(json.dumps({"command": command, "quick": True}))  # it named no networks
+    assert f"names no digest of its networks, so those beside it may be others; `{command}`" in (
+        refusal()
+    )
+    row = "SoftRas (silhouette IoU), 3 steps"
+    network = {"folder": "networks-3-steps", "loss": "SoftRas (silhouette IoU)"}
+    other = {row: {**network, "sha256": hashlib.sha256(b"another network").hexdigest()}}
+    run.write_text(json.dumps({"quick": True, "networks": other}))
+    missing = "softras_silhouette_iou.pt: not the network longer-3-steps-seed0.json judged"
+    assert missing in refusal()
+    path = tmp_path / "networks-3-steps" / "seed0" / "softras_silhouette_iou.pt"
+    path.parent.mkdir(parents=True)
+    path.write_bytes(b"a network")
+    assert missing in refusal()  # there, but another
+    # seeds judged together must have judged the same rows under the same plan
+    (tmp_path / "longer-3-steps-seed1.json").write_text(json.dumps({"quick": True, "networks": {}}))
+    assert "longer-3-steps-seed1.json judged other networks than longer-3-steps-seed0.json" in (
+        refusal("0,1")
+    )
+
+
 def test_a_finetuning_run_is_judged_again_only_with_the_networks_it_judged(tmp_path):
     command = f"`python bench/single_view.py --finetune --out {tmp_path}`"
-    with pytest.raises(SavedRunError, match="no fine-tuning run to judge again") as error:
+    with pytest.raises(SavedRunError, match="no run to judge again") as error:
         judge_finetuned(tmp_path, 7000)
     assert command in str(error.value)
     run = tmp_path / "finetune.json"
