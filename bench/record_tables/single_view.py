@@ -1,7 +1,8 @@
 """bench/records/single_view.md's tables, as the single-view study's own printers make them from
 its committed runs (bench/single_view/*.json), in the record's order: the comparison at 200
-steps, the matched controls, 400 steps, the nets fine-tuned for the loss, other test shapes,
-the fine-tuning protocol, the learning curve, the speed runs."""
+steps, the matched controls, 400 steps, the nets fine-tuned for the loss, other test shapes
+(the study's networks', then the --steps runs'), the fine-tuning protocol, the learning curve,
+the speed runs."""
 
 from __future__ import annotations
 
@@ -59,6 +60,8 @@ TABLES: list[Table] = [
     partial(_run, steps_markdown, "longer-400-steps-seed0.json"),
     tuned_nets,
     partial(_run, test_seeds_markdown, "test-seeds-6000.json"),
+    partial(_run, steps_markdown, "longer-400-steps-test-seeds-6000.json"),
+    partial(_run, tuned_nets_markdown, "longer-200-steps-test-seeds-6000.json"),
     partial(study_runs, finetune_markdown, FINETUNE_RUNS),
     partial(_run, curve_markdown, "curve.json"),
     partial(study_runs, speed_markdown, ("speed.json", "speed-540-steps.json")),
