@@ -96,14 +96,22 @@ def moderated_part(part: T, slope: float, low: float, high: float, ops: ArrayOps
 def pairing_solid(
     i: int, j: int, solid: Callable[[int, int], Any], config: PipelineConfig, ops: ArrayOps
 ) -> Any:
-    """``solid_weight`` times the views' solid change of A's ring ``i`` against B's ring ``j``,
-    from ``solid(i, j)``, the (..., K) ``solid_change.view_solid_changes`` of one ring's views:
-    their mean; in the own-ring pairing with ``solid_both_rings``, the mean of each camera's
-    larger change of its two rings (the turned ring sees a sliver the own ring misses)."""
+    """``solid_weight`` times the mean of ``pairing_views``: the views' solid change of A's ring
+    ``i`` against B's ring ``j``."""
+    return config.solid_weight * pairing_views(i, j, solid, config, ops).mean(-1)
+
+
+def pairing_views(
+    i: int, j: int, solid: Callable[[int, int], Any], config: PipelineConfig, ops: ArrayOps
+) -> Any:
+    """(..., K) each camera's solid change of A's ring ``i`` against B's ring ``j``, from
+    ``solid(i, j)``, the ``solid_change.view_solid_changes`` of one ring's views; in the
+    own-ring pairing with ``solid_both_rings``, each camera's larger change of its two rings
+    (the turned ring sees a sliver the own ring misses)."""
     views = solid(i, j)
     if config.solid_both_rings and _own_rings(i, j, config):
         views = ops.maximum(views, solid(1, 1))
-    return config.solid_weight * views.mean(-1)
+    return views
 
 
 def ring_rows(ring: int, config: PipelineConfig) -> slice:
