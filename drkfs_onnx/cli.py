@@ -12,7 +12,7 @@ import typer
 
 from .contract.cli_options import RUNS, Normalize, config_options, pair_report
 from .contract.config import PipelineConfig
-from .contract.mesh import MeshError, load_mesh
+from .contract.mesh import MeshError, check_normalization, load_mesh
 from .synthetic.examples import REFERENCE, example_meshes, write_examples
 
 app = typer.Typer(
@@ -50,11 +50,12 @@ def score(
     as_json: Annotated[bool, typer.Option("--json", help="Print a JSON object.")] = False,
 ) -> None:
     """Score MESH_A against the reference MESH_B (0 for identical meshes)."""
-    scorer = _metric(config, normalize)
-    start = time.perf_counter()
     try:
+        check_normalization(normalize)  # before the nets load
+        scorer = _metric(config, normalize)
+        start = time.perf_counter()
         value = _score(scorer, mesh_a, mesh_b)
-    except MeshError as exc:
+    except (MeshError, ValueError) as exc:  # a mesh the user gave, or an option's value
         typer.echo(f"error: {exc}", err=True)
         raise typer.Exit(2) from exc
     seconds = time.perf_counter() - start

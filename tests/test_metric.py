@@ -6,7 +6,7 @@ import warnings
 
 import pytest
 import torch
-from conftest import icosphere
+from conftest import ROOT, icosphere
 
 import drkfs_onnx
 from drkfs_onnx import DRKFS, PipelineConfig
@@ -165,3 +165,14 @@ def test_demo_ranks_the_structural_edits_above_the_mild_ones(tmp_path):
     assert scores["chair.obj"] == 0.0
     mild = max(scores["chair_retessellated.obj"], scores["chair_leg_shifted.obj"])
     assert min(scores["chair_no_leg.obj"], scores["chair_no_back.obj"]) > mild
+
+
+def test_drkfs_score_refuses_an_unknown_frame_in_one_line_before_loading_the_nets():
+    from typer.testing import CliRunner
+
+    from drkfs_onnx.cli import app
+
+    chair = str(ROOT / "examples" / "chair.obj")
+    result = CliRunner().invoke(app, ["score", chair, chair, "--normalize", "both"])
+    assert result.exit_code == 2
+    assert result.output == "error: unknown normalisation 'both'; use one of joint, each, none\n"
