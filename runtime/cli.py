@@ -387,7 +387,7 @@ def _score_rows(
         bar = typer.progressbar(
             results,
             length=len(rows),
-            label=f"scoring {len(rows)} pair{'s' if len(rows) > 1 else ''}",
+            label=f"scoring {len(rows)} pair{'' if len(rows) == 1 else 's'}",
             file=sys.stderr,
         )
         with bar as stream:

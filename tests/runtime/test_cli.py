@@ -198,6 +198,9 @@ def test_batch_resume_is_keyed_by_the_pair_and_the_settings_not_the_row(tmp_path
     assert sorted((r["mesh_a"], r["error"]) for r in records) == sorted(
         [(str(NO_LEG), ""), (str(CHAIR), ""), (str(missing), "")]
     )  # one record per pair: no duplicates, no stale error
+    done = _run("batch", pairs, "--out", out, *FAST)
+    assert done.exit_code == 0 and "0 scored, 0 failed, 3 already done" in done.output
+    assert "scoring 0 pairs" in done.output
     assert {r["model_version"] for r in records} != {""}
     # other settings are other results: nothing is "already done"
     wider = _run("batch", pairs, "--out", out, "--width", "0.5")
