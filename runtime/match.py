@@ -80,6 +80,10 @@ def patch_distances(
     return queries.per_patch(distances), queries.per_patch(share)
 
 
+def _two_sided(config: PipelineConfig) -> bool:
+    return all(getattr(config, name) == value for name, value in TWO_SIDED.items())
+
+
 def check_features(
     features: MeshFeatures, config: PipelineConfig, model: str, normalization: str
 ) -> None:
@@ -87,12 +91,14 @@ def check_features(
     another feature graph than ``model`` (a sha256) or under another normalisation."""
     made, asked = features.config.shaping("features"), config.shaping("features")
     if made != asked:
-        light = {name: getattr(made, name) for name in TWO_SIDED}
-        hint = (
-            "; it was described under two-sided light: score with --two-sided, or describe it again"
-            if light == TWO_SIDED and made.replace(**TWO_SIDED) == asked.replace(**TWO_SIDED)
-            else ""
-        )
+        hint = ""
+        if made.replace(**TWO_SIDED) == asked.replace(**TWO_SIDED):  # they differ in light alone
+            if _two_sided(made):
+                hint = "; it was described under two-sided light: score with --two-sided, or "
+                hint += "describe it again"
+            elif _two_sided(asked):
+                hint = "; scoring asks two-sided light (--two-sided): score without it, or "
+                hint += "describe the reference again with it"
         raise ValueError(
             f"{features.source}: features described for {in_words(serving_version(made))} "
             f"views, scoring asks {in_words(serving_version(asked))}: "

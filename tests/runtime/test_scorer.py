@@ -210,13 +210,17 @@ def test_no_winding_of_a_files_faces_scores_above_its_subdivision(name):
 def test_features_made_under_another_light_are_refused_with_the_difference(scorer, tmp_path):
     """The graph describes views however lit, but the views and descriptors of a mesh are its
     renders': a reference described with two-sided light (the default's before openings were
-    seen dark) does not serve faces seen from behind in shadow, and the refusal names the flag
-    that does."""
+    seen dark) does not serve faces seen from behind in shadow, nor the reverse, and the refusal
+    names the flag that does."""
     two_sided = Scorer(scorer.config.replace(**TWO_SIDED), threads=2)
     two_sided.features(EXAMPLES / "chair.obj").save(tmp_path / "lit.npz")
     refused = r"lit\.npz: .*back_light 1(\.0)? \(asked 0(\.0)?\).*score with --two-sided"
     with pytest.raises(ValueError, match=refused):
         scorer.score(EXAMPLES / "chair_no_leg.obj", tmp_path / "lit.npz")
+    scorer.features(EXAMPLES / "chair.obj").save(tmp_path / "dark.npz")
+    asked = r"dark\.npz: .*scoring asks two-sided light \(--two-sided\): score without it"
+    with pytest.raises(ValueError, match=asked):
+        two_sided.score(EXAMPLES / "chair_no_leg.obj", tmp_path / "dark.npz")
     shadowed = Scorer(scorer.config.replace(back_push=0.0), threads=2)
     shadowed.features(EXAMPLES / "chair.obj").save(tmp_path / "unpushed.npz")
     with pytest.raises(ValueError, match=r"unpushed\.npz: .*back_push 0(\.0)? \(asked 0\.05\)"):
