@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from drkfs_lab.benchmark import as_they_come, sets
-from drkfs_lab.benchmark.run import as_they_come_checks, tier_accuracy
+from drkfs_lab.benchmark.run import as_they_come_checks, as_they_come_line, tier_accuracy
 from drkfs_onnx import PipelineConfig, check_mesh, load_mesh
 from drkfs_onnx.contract.cameras import rotation
 from drkfs_onnx.contract.versions import LATEST
@@ -110,14 +110,7 @@ def main() -> None:
         "seconds": time.perf_counter() - start,
     }
     for name, row in results["methods"].items():
-        held = row["held_out"]
-        checks = row["checks"]["held_out"]
-        print(
-            f"{name}: held out inv<sur {held['invisible_vs_surface']:.3f} sur<str "
-            f"{held['surface_vs_structural']:.3f} inv<str {held['invisible_vs_structural']:.3f}; "
-            f"2-degree turns below every surface variant "
-            f"{checks['turn_2_below_every_surface']['share']:.2f}"
-        )
+        print(f"{name}: {as_they_come_line(row, 'held_out')}")
     if args.out:
         args.out.parent.mkdir(parents=True, exist_ok=True)
         args.out.write_text(json.dumps(results, indent=1) + "\n")

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from drkfs_lab.benchmark import as_they_come, sets
-from drkfs_lab.benchmark.run import as_they_come_checks, tier_accuracy
+from drkfs_lab.benchmark.run import as_they_come_checks, as_they_come_line, tier_accuracy
 from drkfs_onnx import check_mesh
 from drkfs_onnx.contract import match_rules
 from drkfs_onnx.contract.array_ops import NUMPY_OPS
@@ -119,13 +119,7 @@ def main() -> None:
     print(f"the default recomposed within {drift:.2g}")
     for name, row in results["methods"].items():
         for side in ("training", "held_out"):
-            shares, checks = row[side], row["checks"][side]
-            print(
-                f"{name:22} {side:9} inv<sur {shares['invisible_vs_surface']:.3f} sur<str "
-                f"{shares['surface_vs_structural']:.3f} inv<str "
-                f"{shares['invisible_vs_structural']:.3f}; 2-degree turns below every surface "
-                f"variant {checks['turn_2_below_every_surface']['share']:.2f}"
-            )
+            print(f"{name:22} {as_they_come_line(row, side)}")
     if args.out:
         args.out.parent.mkdir(parents=True, exist_ok=True)
         args.out.write_text(json.dumps(results, indent=1) + "\n")

@@ -262,6 +262,18 @@ def real_checks(bench: sets.BenchSet, values: dict[int, float | None]) -> dict:
     return result
 
 
+def as_they_come_line(method: dict, side: str) -> str:
+    """One side of a method's "meshes as they come" results (``tier_accuracy`` beside its
+    ``as_they_come_checks`` as "checks") as a progress line: the three tier shares and the
+    2-degree turns' check."""
+    shares, turns = method[side], method["checks"][side]["turn_2_below_every_surface"]
+    return (
+        f"{side}: inv<sur {shares['invisible_vs_surface']:.3f} sur<str "
+        f"{shares['surface_vs_structural']:.3f} inv<str {shares['invisible_vs_structural']:.3f}; "
+        f"2-degree turns below every surface variant {turns['share']:.2f}"
+    )
+
+
 def as_they_come_checks(
     bench: sets.BenchSet, values: dict[int, float | None], group: str = as_they_come.GROUP
 ) -> dict:
