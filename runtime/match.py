@@ -84,6 +84,12 @@ def _two_sided(config: PipelineConfig) -> bool:
     return all(getattr(config, name) == value for name, value in TWO_SIDED.items())
 
 
+def _light_alone(made: PipelineConfig, asked: PipelineConfig) -> bool:
+    """Whether two configs (``shaping`` keys, not configs to run) differ in light alone."""
+    a, b = made.to_dict(), asked.to_dict()
+    return all(a[name] == b[name] for name in a if name not in TWO_SIDED)
+
+
 def check_features(
     features: MeshFeatures, config: PipelineConfig, model: str, normalization: str
 ) -> None:
@@ -92,7 +98,7 @@ def check_features(
     made, asked = features.config.shaping("features"), config.shaping("features")
     if made != asked:
         hint = ""
-        if made.replace(**TWO_SIDED) == asked.replace(**TWO_SIDED):  # they differ in light alone
+        if _light_alone(made, asked):
             if _two_sided(made):
                 hint = "; it was described under two-sided light: score with --two-sided, or "
                 hint += "describe it again"
