@@ -172,6 +172,7 @@ def test_the_parts_split_each_score_into_its_two_terms_and_name_every_misordered
         assert ((upper, lower) in listed) == wrong
 
 
+@pytest.mark.slow  # three runs of the script, each importing the lab (about 15 s on 2 cores)
 def test_the_shares_recomputed_without_some_variants_leave_out_exactly_their_pairs(tmp_path):
     import json
     import subprocess
