@@ -92,13 +92,12 @@ def run_finetune(
             weights = weights["model"].state_dict()
             for recipe in recipes:
                 name = arm(start, recipe)
-                if tuned.get(seed, name) is None:
-                    trained = train(plan, by_name(recipe), seed + BATCH_SEED_SHIFT,
-                                    views["train"], terms, progress, start=weights)  # fmt: skip
-                    tuned.put(seed, name, trained)
-                seconds.setdefault(name, {})[f"seed {seed}"] = tuned.get(seed, name)[
-                    "seconds_per_step"
-                ]
+                saved = tuned.get(seed, name)
+                if saved is None:
+                    saved = train(plan, by_name(recipe), seed + BATCH_SEED_SHIFT,
+                                  views["train"], terms, progress, start=weights)  # fmt: skip
+                    tuned.put(seed, name, saved)
+                seconds.setdefault(name, {})[f"seed {seed}"] = saved["seconds_per_step"]
     tables, lfd = _judge(store, plan, threads, seeds, test_set, views["test"], progress)
     results = {
         **run_header(flag, quick, seeds, dev, out, lfd),

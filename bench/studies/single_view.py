@@ -807,17 +807,19 @@ def run_longer(
     dev = torch.device(device)
     test_set, views, terms = training_data(out, plan, dev)
     longer = Networks(out / f"networks-{steps}-steps", plan, dev)
-    stored, seconds = {}, {}  # row -> (its store, its loss)
+    stored, models, seconds = {}, {}, {}  # row -> (its store, its loss); row -> generator
     for name in names:
         saved = longer.trained(seed, name, plan, views["train"], terms, progress)
-        stored[f"{name}, {steps} steps"], seconds[name] = (longer, name), saved["seconds_per_step"]
+        row = f"{name}, {steps} steps"
+        stored[row], models[row] = (longer, name), saved["model"]
+        seconds[name] = saved["seconds_per_step"]
     # beside them the study's networks of the same losses, and of SoftRas', DR-KFS' and the recipe
     study = Networks(out / "networks", study_plan, dev)
     for name in dict.fromkeys([*names, SOFTRAS, DRKFS_SHADED, RECIPE]):
         row = f"{name}, {study_plan.steps} steps"
-        if row not in stored and study.get(seed, name) is not None:
-            stored[row] = (study, name)
-    models = {row: store.get(seed, name)["model"] for row, (store, name) in stored.items()}
+        saved = None if row in stored else study.get(seed, name)
+        if saved is not None:
+            stored[row], models[row] = (study, name), saved["model"]
     judge = Judge(PipelineConfig(), threads, plan.unseen_views, plan.lfd, image_judges=False)
     try:
         table = judge_all(judge, models, test_set, views["test"], {}, progress)
