@@ -19,6 +19,7 @@ from drkfs_onnx.contract.cli_options import (
     DESCRIBING_OPTIONS,
     Normalize,
     ReferenceNormalize,
+    at_least,
     choices,
     config_options,
     pair_report,
@@ -41,7 +42,10 @@ app = typer.Typer(
 
 Threads = Annotated[
     int | None,
-    typer.Option(min=1, help="onnxruntime and renderer threads (default: all cores)."),
+    typer.Option(
+        callback=at_least(1),
+        help="onnxruntime and renderer threads, at least 1 (default: all cores).",
+    ),
 ]
 Width = Annotated[
     float | None,
@@ -61,7 +65,7 @@ Model = Annotated[
 MaxFaces = Annotated[
     int,
     typer.Option(
-        min=0,
+        callback=at_least(0),
         help="Refuse a mesh with more faces, before it is rendered (rendering costs about 0.8 GB "
         "a million faces); 0: no bound.",
     ),
@@ -183,7 +187,12 @@ def explain(
     as_json: Annotated[
         bool, typer.Option("--json", help="Print the score and the top patches as JSON.")
     ] = False,
-    top: Annotated[int, typer.Option(min=1, help="How many patches to outline and list.")] = 5,
+    top: Annotated[
+        int,
+        typer.Option(
+            callback=at_least(1), help="How many patches to outline and list (at least 1)."
+        ),
+    ] = 5,
     threads: Threads = None,
     normalize: Normalize = "joint",
 ) -> None:
@@ -287,7 +296,10 @@ RayAddress = Annotated[
 ]
 Workers = Annotated[
     int | None,
-    typer.Option(min=1, help="Ray workers, one scorer each (default: the cluster's CPUs/threads)."),
+    typer.Option(
+        callback=at_least(1),
+        help="Ray workers, at least 1, one scorer each (default: the cluster's CPUs/threads).",
+    ),
 ]
 
 
@@ -300,7 +312,8 @@ def batch(
     threads: Annotated[
         int | None,
         typer.Option(
-            min=1, help="Threads per scorer (default: all cores; with --ray, 1 per worker)."
+            callback=at_least(1),
+            help="Threads per scorer, at least 1 (default: all cores; with --ray, 1 per worker).",
         ),
     ] = None,
     normalize: Normalize = "joint",

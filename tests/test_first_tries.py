@@ -120,7 +120,7 @@ def test_max_faces_refuses_a_larger_mesh_before_rendering_and_fails_only_its_row
     assert _run("batch", pairs, "--out", out, "--max-faces", "1000", *FAST).exit_code == 1
     first, second = csv.DictReader(out.open())
     assert "over the bound of 1,000" in first["error"] and float(second["score"]) > 0
-    assert f"[default: {MAX_FACES}; x>=0]" in " ".join(_run("pair", "--help").output.split())
+    assert f"0: no bound. [default: {MAX_FACES}]" in " ".join(_run("pair", "--help").output.split())
     unbounded = _run("features", big, "--out", tmp_path / "b.npz", "--max-faces", "0", *FAST)
     assert unbounded.exit_code == 0
 

@@ -29,6 +29,19 @@ RUNS = Path("runs")
 PRESETS = {"default": LATEST, "paper": "drkfs-paper", "structure": "drkfs-structure-1.1"}
 
 
+def at_least(low: float) -> Callable:
+    """An option's callback refusing a value below ``low`` in the one line every other bad
+    input gets, rc 2 (click's own range check prints its usage block)."""
+
+    def check(param: typer.CallbackParam, value):
+        if value is not None and value < low:
+            typer.echo(f"error: {param.opts[0]} must be at least {low:g}, not {value:g}", err=True)
+            raise typer.Exit(2)
+        return value
+
+    return check
+
+
 def choices(values) -> str:
     """An option's metavar listing the values it takes: help shows them, not <str>."""
     return "[" + "|".join(values) + "]"
@@ -95,7 +108,7 @@ Reduction = Annotated[
 SolidWeight = Annotated[
     float | None,
     typer.Option(
-        min=0.0,
+        callback=at_least(0),
         help="Override the weight of the views' solid change (the default's 1.2; 0: the "
         "descriptors' match alone).",
     ),
