@@ -1,0 +1,271 @@
+"""Would turning each mesh onto its reference before it is rendered forgive a turn about any axis
+while keeping what a viewer sees, and at what cost? The turn is found as registration finds one:
+points sampled on the mesh's surface fitted to planes through its nearest points of the
+reference's (point-to-plane ICP, rotation alone, about the reference's bounding-box centre, where
+the benchmark's turns and the metric's frame sit), none of a turn up to ``--least-degrees`` (what
+fitting two samplings of one surface finds), all of one from twice that, at most
+``--most-degrees``, so that a larger turn still counts from there.
+
+Measured without changing the metric: the default's scorer, each compared mesh described again
+after the turn is applied, on "meshes as they come", the synthetic tiers, both sides of the real
+tiers, the bars, the slide check (on the runtime path) and (with --human) people's judgments.
+Retrieval is not scored: each of its 10,920 ordered pairs would describe its query again.
+
+    python bench/turn_alignment.py --out bench/results/turn_alignment.json --human DIR
+
+The cost is the turn's search alone, against describing a mesh (render and nets), both timed
+in the run: a metric that aligned would describe the turned mesh instead of the mesh.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from drkfs_lab.benchmark import as_they_come, human, sets
+from drkfs_lab.benchmark.methods import DrkfsOnnx, Method, Placed
+from drkfs_lab.benchmark.real_tiers import HELDOUT_MESHES, TRAINING_MESHES
+from drkfs_lab.benchmark.run import (
+    as_they_come_checks,
+    as_they_come_line,
+    bars_summary,
+    lever_summary,
+    score_everything,
+    tier_accuracy,
+)
+from drkfs_lab.real_levers import runtime_slide
+from drkfs_onnx import PipelineConfig, load_mesh
+from drkfs_onnx.contract.mesh import frame_of, place
+from drkfs_onnx.contract.versions import LATEST
+from drkfs_onnx.runtime import Scorer
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+REFERENCE_SAMPLES = 8192  # the reference's points, each with its face's normal
+SAMPLES = 2048  # the turned mesh's points
+STEPS = 3  # Gauss-Newton steps of a search, each against the nearest points found anew
+REACH = 0.1  # a point farther from the reference's nearest (unit-sphere frame) is not fitted
+FACING = 0.5  # nor one whose face's normal and its nearest's meet at a cosine below this
+LEAST_DEGREES = [0.0, 0.1]
+
+
+def surface_samples(
+    verts: np.ndarray, faces: np.ndarray, count: int, seed: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """(count, 3) points drawn uniformly by area on the surface and (count, 3) their faces'
+    unit normals (either sign); none where the surface has no area."""
+    corners = verts[faces]
+    cross = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    area = np.linalg.norm(cross, axis=1)
+    if not area.sum() > 0:
+        return np.zeros((0, 3)), np.zeros((0, 3))
+    rng = np.random.default_rng(seed)
+    drawn = rng.choice(len(faces), count, p=area / area.sum())
+    u, v = rng.random((2, count))
+    folded = u + v > 1  # a draw in the square's far half folded back into the triangle
+    u[folded], v[folded] = 1 - u[folded], 1 - v[folded]
+    c = corners[drawn]
+    points = c[:, 0] + u[:, None] * (c[:, 1] - c[:, 0]) + v[:, None] * (c[:, 2] - c[:, 0])
+    return points, cross[drawn] / area[drawn, None]
+
+
+def turn_of(vector: np.ndarray) -> np.ndarray:
+    """(3, 3) the rotation by |vector| radians about ``vector`` (Rodrigues)."""
+    angle = float(np.linalg.norm(vector))
+    if angle == 0.0:
+        return np.eye(3)
+    k = np.cross(np.eye(3), vector / angle)  # the cross-product matrix of the unit axis
+    return np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * k @ k
+
+
+def aligning_turn(
+    points: np.ndarray, normals: np.ndarray, reference: tuple[np.ndarray, np.ndarray, cKDTree],
+    least_degrees: float, most_degrees: float, steps: int,
+) -> np.ndarray:  # fmt: skip
+    """(3, 3) the rotation about the origin that best lays ``points`` on the reference's
+    surface (Gauss-Newton on the point-to-plane distances to the nearest reference points,
+    the rotation linearised at each step), as much of it as ``kept_turn`` keeps."""
+    ref_points, ref_normals, tree = reference
+    turn = np.eye(3)
+    for _ in range(steps):
+        moved, moved_normals = points @ turn.T, normals @ turn.T
+        distance, nearest = tree.query(moved)
+        kept = (distance < REACH) & (np.abs((moved_normals * ref_normals[nearest]).sum(1)) > FACING)
+        if kept.sum() < 3:
+            break
+        n = ref_normals[nearest[kept]]
+        residual = ((moved[kept] - ref_points[nearest[kept]]) * n).sum(1)
+        step = np.linalg.lstsq(np.cross(moved[kept], n), -residual, rcond=None)[0]
+        turn = turn_of(step) @ turn
+    return turn_of(kept_turn(rotation_vector(turn), least_degrees, most_degrees))
+
+
+def kept_turn(vector: np.ndarray, least_degrees: float, most_degrees: float) -> np.ndarray:
+    """The part of a found turn (axis times radians) that is applied: none up to
+    ``least_degrees`` (what a fit of two samplings of one surface finds: a file's faces, a
+    simplification's), all of it from twice that, a smoothstep between (the applied turn
+    grows continuously with the found one); at most ``most_degrees``."""
+    angle = float(np.degrees(np.linalg.norm(vector)))
+    if angle <= least_degrees:
+        return np.zeros(3)
+    ramp = 1.0 if angle >= 2 * least_degrees else (angle - least_degrees) / least_degrees
+    kept = ramp * ramp * (3 - 2 * ramp) * min(angle, most_degrees)
+    return vector * kept / angle
+
+
+def rotation_vector(turn: np.ndarray) -> np.ndarray:
+    """The axis times the angle (radians) of a rotation matrix."""
+    skew = np.array([turn[2, 1] - turn[1, 2], turn[0, 2] - turn[2, 0], turn[1, 0] - turn[0, 1]])
+    sine, cosine = np.linalg.norm(skew) / 2, (np.trace(turn) - 1) / 2
+    if sine == 0.0:
+        return np.zeros(3)
+    return skew / (2 * sine) * np.arctan2(sine, cosine)
+
+
+class Aligned(Method):
+    """The default's scorer with each compared mesh (A) turned onto the reference (B) first:
+    ``prepare`` samples a mesh as a reference and describes it, ``compare`` finds A's turn onto
+    B, describes A turned and matches it against B."""
+
+    def __init__(self, method: DrkfsOnnx, name: str, least: float, most: float, steps: int):
+        self.method, self.outputs = method, (name,)
+        self.bounds, self.steps = (least, most), steps
+        self.search_seconds, self.searches, self.degrees = 0.0, 0, {}
+
+    def prepare(self, placed):
+        start = time.perf_counter()
+        points, normals = surface_samples(placed.verts, placed.faces, REFERENCE_SAMPLES, 0)
+        reference = (points, normals, cKDTree(points)) if len(points) else None
+        sampling = time.perf_counter() - start
+        features, seconds = self.method.prepare(placed)
+        return (placed, reference, features), sampling + seconds
+
+    def compare(self, a, b):
+        (placed, _, features), (_, reference, reference_features) = a, b
+        start = time.perf_counter()
+        points, normals = surface_samples(placed.verts, placed.faces, SAMPLES, 1)
+        turn = np.eye(3)
+        if reference is not None and len(points):
+            turn = aligning_turn(points, normals, reference, *self.bounds, self.steps)
+        self.search_seconds += time.perf_counter() - start
+        self.searches += 1
+        self.degrees[placed.key] = float(np.degrees(np.linalg.norm(rotation_vector(turn))))
+        if not np.array_equal(turn, np.eye(3)):
+            turned = Placed(f"{placed.key}@aligned", placed.verts @ turn.T, placed.faces)
+            features = self.method.prepare(turned)[0]
+        return self.method.compare(features, reference_features)
+
+
+def new_mesh_seconds(repeats: int, threads: int, most_degrees: float, steps: int) -> dict:
+    """Seconds to describe a new mesh (the example chair) and to search its turn onto a
+    reference (the chair without a leg, sampled once), interleaved."""
+    scorer = Scorer(threads=threads, cache_size=0)
+    chair, no_leg = load_mesh(EXAMPLES / "chair.obj"), load_mesh(EXAMPLES / "chair_no_leg.obj")
+    frame = frame_of(no_leg.vertices)
+    placed = place(no_leg.vertices, frame)
+    points, normals = surface_samples(placed, no_leg.faces, REFERENCE_SAMPLES, 0)
+    reference = (points, normals, cKDTree(points))
+    scorer.features(chair, frame)  # opens the graph's session
+    seconds = {"describe": 0.0, "search a turn": 0.0}
+    for _ in range(repeats):
+        start = time.perf_counter()
+        scorer.features(chair, frame)
+        middle = time.perf_counter()
+        found, found_normals = surface_samples(
+            place(chair.vertices, frame), chair.faces, SAMPLES, 1
+        )
+        aligning_turn(found, found_normals, reference, LEAST_DEGREES[-1], most_degrees, steps)
+        seconds["describe"] += (middle - start) / repeats
+        seconds["search a turn"] += (time.perf_counter() - middle) / repeats
+    return {**seconds, "ratio": 1 + seconds["search a turn"] / seconds["describe"]}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", type=Path, help="the JSON to write (default: print only)")
+    parser.add_argument("--least-degrees", type=float, nargs="+", default=LEAST_DEGREES)
+    parser.add_argument("--most-degrees", type=float, default=4.0)
+    parser.add_argument("--steps", type=int, default=STEPS, help="Gauss-Newton steps a search")
+    parser.add_argument("--threads", type=int, default=2)
+    parser.add_argument("--repeats", type=int, default=10, help="new meshes timed")
+    parser.add_argument("--human", type=Path, help="a Geo-metric clone (see drkfs bench --human)")
+    args = parser.parse_args()
+    start = time.perf_counter()
+    bench = sets.tier_set(quick=False)
+    sets.real_tiers(bench, [*TRAINING_MESHES, *HELDOUT_MESHES])
+    sets.bars(bench)
+    as_they_come.add_section(bench)
+    jod = human.add_human(bench, args.human) if args.human else None
+    bench.retrieval.clear()
+    default = DrkfsOnnx("default", PipelineConfig(), None, args.threads)
+    aligned = [
+        Aligned(
+            default, f"aligned, none up to {least:g} degrees", least, args.most_degrees, args.steps
+        )
+        for least in args.least_degrees
+    ]
+    methods = {m.outputs[0]: m for m in (default, *aligned)}
+    scores, costs = score_everything(bench, list(methods.values()), print)
+    rows = {}
+    for name, values in scores.comparisons.items():
+        rows[name] = {
+            **lever_summary(bench, values),
+            "bars": bars_summary(bench, values),
+            "slide": runtime_slide(methods[name]),
+            "human": None if jod is None else human.human_agreement(bench, values, jod),
+            "as_they_come": {
+                **tier_accuracy(bench, values, as_they_come.GROUP),
+                "checks": as_they_come_checks(bench, values),
+            },
+        }
+        for side in ("training", "held_out"):
+            print(f"{name}: {as_they_come_line(rows[name]['as_they_come'], side)}")
+    describe = costs["default"]["seconds_per_mesh"]
+    results = {
+        "command": "python bench/turn_alignment.py"
+        + (
+            " --least-degrees " + " ".join(f"{x:g}" for x in args.least_degrees)
+            if args.least_degrees != LEAST_DEGREES
+            else ""
+        )
+        + (f" --most-degrees {args.most_degrees:g}" if args.most_degrees != 4.0 else "")
+        + (f" --steps {args.steps}" if args.steps != STEPS else "")
+        + (f" --out {args.out}" if args.out else "")
+        + (" --human DIR" if args.human else ""),
+        "metric": LATEST,
+        "least_degrees": args.least_degrees,
+        "most_degrees": args.most_degrees,
+        "search": {
+            "reference_samples": REFERENCE_SAMPLES,
+            "samples": SAMPLES,
+            "steps": args.steps,
+            "reach": REACH,
+            "facing": FACING,
+        },  # fmt: skip
+        "methods": rows,
+        "seconds": {
+            "describe_a_mesh": describe,
+            **{f"{m.outputs[0]}: search a turn": m.search_seconds / m.searches for m in aligned},
+        },
+        "new_mesh_seconds": new_mesh_seconds(
+            args.repeats, args.threads, args.most_degrees, args.steps
+        ),
+        "degrees": {m.outputs[0]: m.degrees for m in aligned},
+        "values": {
+            name: {f"{c.base}/{c.label}": values.get(i) for i, c in enumerate(bench.comparisons)}
+            for name, values in scores.comparisons.items()
+        },
+        "run_seconds": time.perf_counter() - start,
+    }
+    print(json.dumps(results["seconds"]))
+    if args.out:
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        args.out.write_text(json.dumps(results, indent=1) + "\n")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,60 @@
+"""bench/turn_alignment.py: each compared mesh turned onto its reference before it is described,
+by a fit of surface points, as registration finds a turn."""
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from drkfs_lab import turn_alignment
+from drkfs_onnx import load_mesh
+from drkfs_onnx.contract.cameras import rotation
+from drkfs_onnx.contract.mesh import frame_of, place
+
+CHAIR = load_mesh(turn_alignment.EXAMPLES / "chair.obj")
+
+
+def _found_degrees(verts, faces, least=0.0, most=4.0) -> np.ndarray:
+    """The turn (axis times degrees) found from the chair's placed frame onto the chair."""
+    frame = frame_of(CHAIR.vertices)
+    reference = turn_alignment.surface_samples(
+        place(CHAIR.vertices, frame), CHAIR.faces, turn_alignment.REFERENCE_SAMPLES, 0
+    )
+    points, normals = turn_alignment.surface_samples(
+        place(verts, frame), faces, turn_alignment.SAMPLES, 1
+    )
+    turn = turn_alignment.aligning_turn(
+        points, normals, (*reference, cKDTree(reference[0])), least, most, turn_alignment.STEPS
+    )
+    return np.degrees(turn_alignment.rotation_vector(turn))
+
+
+def _turned(axis: int, degrees: float) -> np.ndarray:
+    centre = frame_of(CHAIR.vertices)[0]
+    return (CHAIR.vertices - centre) @ rotation(axis, degrees).T + centre
+
+
+def test_a_two_degree_tilt_is_found_and_turned_back_about_its_axis():
+    for axis in range(3):
+        found = _found_degrees(_turned(axis, 2.0), CHAIR.faces)
+        expected = np.zeros(3)
+        expected[axis] = -2.0  # the turn that lays the tilted chair back on the chair
+        assert np.abs(found - expected).max() < 0.05, (axis, found)
+
+
+def test_the_same_surface_in_other_faces_is_not_turned_and_a_large_turn_is_kept_past_the_bound():
+    flipped = CHAIR.faces[:, ::-1]
+    soup = CHAIR.vertices[CHAIR.faces].reshape(-1, 3)
+    assert not _found_degrees(CHAIR.vertices, flipped, least=0.1).any()
+    assert not _found_degrees(soup, np.arange(len(soup)).reshape(-1, 3), least=0.1).any()
+    bounded = _found_degrees(_turned(0, 3.0), CHAIR.faces, most=1.0)
+    assert abs(np.linalg.norm(bounded) - 1.0) < 1e-9 and bounded[0] < 0
+
+
+def test_the_kept_turn_grows_continuously_from_none_to_all_of_the_found_one():
+    found = [0.05, 0.1, 0.12, 0.15, 0.18, 0.2, 1.0, 3.0, 5.0]
+    kept = [
+        np.degrees(np.linalg.norm(turn_alignment.kept_turn(np.radians([d, 0, 0]), 0.1, 4.0)))
+        for d in found
+    ]
+    assert kept[:2] == [0.0, 0.0]
+    assert kept == sorted(kept)
+    assert np.allclose(kept[5:], [0.2, 1.0, 3.0, 4.0])
