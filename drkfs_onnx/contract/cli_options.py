@@ -34,7 +34,7 @@ def at_least(low: float) -> Callable:
     input gets, rc 2 (click's own range check prints its usage block)."""
 
     def check(param: typer.CallbackParam, value):
-        if value is not None and value < low:
+        if value is not None and not value >= low:  # NaN too
             typer.echo(f"error: {param.opts[0]} must be at least {low:g}, not {value:g}", err=True)
             raise typer.Exit(2)
         return value

@@ -447,6 +447,8 @@ def test_bad_command_lines_get_one_clear_error_line_each(tmp_path):
         (("pair", NO_LEG, CHAIR, "--threads", "-1"), "error: --threads must be at least 1, not -1"),
         (("pair", NO_LEG, CHAIR, "--solid-weight", "-0.5"),
          "error: --solid-weight must be at least 0, not -0.5"),
+        (("pair", NO_LEG, CHAIR, "--solid-weight", "nan"),
+         "error: --solid-weight must be at least 0, not nan"),
         (("batch", good, "--out", tmp_path / "o.csv", "--workers", "0"),
          "error: --workers must be at least 1, not 0"),
         (("batch", tmp_path / "none.csv", "--out", tmp_path / "o.csv"), "no such pairs file"),
@@ -462,6 +464,9 @@ def test_bad_command_lines_get_one_clear_error_line_each(tmp_path):
         assert result.exit_code == 2, (args, result.output)
         assert message in " ".join(result.output.split()), (args, result.output)
         assert result.output.count("\n") == 1, (args, result.output)
+    at_the_bounds = ("--threads", "1", "--top", "1", "--solid-weight", "0")
+    explained = _run("explain", NO_LEG, CHAIR, "--out", tmp_path / "p.png", *at_the_bounds, *FAST)
+    assert explained.exit_code == 0, explained.output
 
 
 def _csv(folder: Path, text: str, name: str = "pairs.csv") -> Path:
