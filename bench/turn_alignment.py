@@ -9,9 +9,11 @@ fitting two samplings of one surface finds), all of one from twice that, at most
 Measured without changing the metric: the default's scorer, each compared mesh described again
 after the turn is applied, on "meshes as they come", the synthetic tiers, both sides of the real
 tiers, the bars, the slide check (on the runtime path) and (with --human) people's judgments.
-Retrieval is not scored: each of its 10,920 ordered pairs would describe its query again.
+Retrieval only with --retrieval: each of its 10,920 ordered pairs describes its query again.
 
     python bench/turn_alignment.py --out bench/results/turn_alignment.json --human DIR
+    python bench/turn_alignment.py \
+        --least-degrees 0.1 --fitted 0.6 --retrieval --out OUT --human DIR
 
 The cost is the turn's search alone, against describing a mesh (render and nets), both timed
 in the run: a metric that aligned would describe the turned mesh instead of the mesh.
@@ -35,6 +37,7 @@ from drkfs_lab.benchmark.run import (
     as_they_come_line,
     bars_summary,
     lever_summary,
+    retrieval_summary,
     score_everything,
     tier_accuracy,
 )
@@ -84,14 +87,16 @@ def turn_of(vector: np.ndarray) -> np.ndarray:
 
 def aligning_turn(
     points: np.ndarray, normals: np.ndarray, reference: tuple[np.ndarray, np.ndarray, cKDTree],
-    least_degrees: float, most_degrees: float, steps: int,
+    least_degrees: float, most_degrees: float, steps: int, fitted: float = 1.0,
 ) -> np.ndarray:  # fmt: skip
     """(3, 3) the rotation about the origin that best lays ``points`` on the reference's
     surface (Gauss-Newton on the point-to-plane distances to the nearest reference points,
-    the rotation linearised at each step), as much of it as ``kept_turn`` keeps."""
+    the rotation linearised at each step), as much of it as ``kept_turn`` keeps. The first
+    step fits every point; each later one the share ``fitted`` of them nearest their planes
+    (a trimmed fit: a part moved, added or thickened does not pull the turn)."""
     ref_points, ref_normals, tree = reference
     turn = np.eye(3)
-    for _ in range(steps):
+    for step_number in range(steps):
         moved, moved_normals = points @ turn.T, normals @ turn.T
         distance, nearest = tree.query(moved)
         kept = (distance < REACH) & (np.abs((moved_normals * ref_normals[nearest]).sum(1)) > FACING)
@@ -99,7 +104,11 @@ def aligning_turn(
             break
         n = ref_normals[nearest[kept]]
         residual = ((moved[kept] - ref_points[nearest[kept]]) * n).sum(1)
-        step = np.linalg.lstsq(np.cross(moved[kept], n), -residual, rcond=None)[0]
+        rows = np.cross(moved[kept], n)
+        if step_number and fitted < 1.0:
+            near = np.abs(residual) <= np.quantile(np.abs(residual), fitted)
+            rows, residual = rows[near], residual[near]
+        step = np.linalg.lstsq(rows, -residual, rcond=None)[0]
         turn = turn_of(step) @ turn
     return turn_of(kept_turn(rotation_vector(turn), least_degrees, most_degrees))
 
@@ -131,10 +140,16 @@ class Aligned(Method):
     ``prepare`` samples a mesh as a reference and describes it, ``compare`` finds A's turn onto
     B, describes A turned and matches it against B."""
 
-    def __init__(self, method: DrkfsOnnx, name: str, least: float, most: float, steps: int):
+    def __init__(
+        self, method: DrkfsOnnx, name: str, least: float, most: float, steps: int, fitted: float
+    ):
         self.method, self.outputs = method, (name,)
-        self.bounds, self.steps = (least, most), steps
+        self.bounds, self.search = (least, most), (steps, fitted)
         self.search_seconds, self.searches, self.degrees = 0.0, 0, {}
+
+    def for_retrieval(self) -> Aligned:
+        """A twin whose searches count apart: retrieval's are not the comparisons'."""
+        return Aligned(self.method, self.outputs[0], *self.bounds, *self.search)
 
     def prepare(self, placed):
         start = time.perf_counter()
@@ -150,7 +165,7 @@ class Aligned(Method):
         points, normals = surface_samples(placed.verts, placed.faces, SAMPLES, 1)
         turn = np.eye(3)
         if reference is not None and len(points):
-            turn = aligning_turn(points, normals, reference, *self.bounds, self.steps)
+            turn = aligning_turn(points, normals, reference, *self.bounds, *self.search)
         self.search_seconds += time.perf_counter() - start
         self.searches += 1
         self.degrees[placed.key] = float(np.degrees(np.linalg.norm(rotation_vector(turn))))
@@ -160,9 +175,12 @@ class Aligned(Method):
         return self.method.compare(features, reference_features)
 
 
-def new_mesh_seconds(repeats: int, threads: int, most_degrees: float, steps: int) -> dict:
-    """Seconds to describe a new mesh (the example chair) and to search its turn onto a
-    reference (the chair without a leg, sampled once), interleaved."""
+def new_mesh_seconds(
+    repeats: int, threads: int, most_degrees: float, steps: int, fitted: float
+) -> dict:
+    """Seconds to describe a new mesh (the example chair), to sample it as a reference (its
+    points and their KD-tree) and to search its turn onto a reference (the chair without a leg),
+    interleaved; the ratio is a new mesh's cost with a search, or with both, over without."""
     scorer = Scorer(threads=threads, cache_size=0)
     chair, no_leg = load_mesh(EXAMPLES / "chair.obj"), load_mesh(EXAMPLES / "chair_no_leg.obj")
     frame = frame_of(no_leg.vertices)
@@ -170,18 +188,33 @@ def new_mesh_seconds(repeats: int, threads: int, most_degrees: float, steps: int
     points, normals = surface_samples(placed, no_leg.faces, REFERENCE_SAMPLES, 0)
     reference = (points, normals, cKDTree(points))
     scorer.features(chair, frame)  # opens the graph's session
-    seconds = {"describe": 0.0, "search a turn": 0.0}
+    seconds = {"describe": 0.0, "sample as a reference": 0.0, "search a turn": 0.0}
     for _ in range(repeats):
         start = time.perf_counter()
         scorer.features(chair, frame)
-        middle = time.perf_counter()
+        described = time.perf_counter()
+        sampled = surface_samples(place(chair.vertices, frame), chair.faces, REFERENCE_SAMPLES, 0)
+        cKDTree(sampled[0])
+        as_reference = time.perf_counter()
         found, found_normals = surface_samples(
             place(chair.vertices, frame), chair.faces, SAMPLES, 1
         )
-        aligning_turn(found, found_normals, reference, LEAST_DEGREES[-1], most_degrees, steps)
-        seconds["describe"] += (middle - start) / repeats
-        seconds["search a turn"] += (time.perf_counter() - middle) / repeats
-    return {**seconds, "ratio": 1 + seconds["search a turn"] / seconds["describe"]}
+        aligning_turn(
+            found, found_normals, reference, LEAST_DEGREES[-1], most_degrees, steps, fitted
+        )
+        for name, seconds_taken in zip(
+            seconds,
+            (described - start, as_reference - described, time.perf_counter() - as_reference),
+            strict=True,
+        ):
+            seconds[name] += seconds_taken / repeats
+    describe = seconds["describe"]
+    return {
+        **seconds,
+        "ratio": 1 + seconds["search a turn"] / describe,
+        "ratio as a reference too": 1
+        + (seconds["search a turn"] + seconds["sample as a reference"]) / describe,
+    }
 
 
 def main() -> None:
@@ -190,9 +223,13 @@ def main() -> None:
     parser.add_argument("--least-degrees", type=float, nargs="+", default=LEAST_DEGREES)
     parser.add_argument("--most-degrees", type=float, default=4.0)
     parser.add_argument("--steps", type=int, default=STEPS, help="Gauss-Newton steps a search")
+    parser.add_argument(
+        "--fitted", type=float, default=1.0, help="share of the points a step after the first fits"
+    )
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--repeats", type=int, default=10, help="new meshes timed")
     parser.add_argument("--human", type=Path, help="a Geo-metric clone (see drkfs bench --human)")
+    parser.add_argument("--retrieval", action="store_true", help="score retrieval too (slow)")
     args = parser.parse_args()
     start = time.perf_counter()
     bench = sets.tier_set(quick=False)
@@ -200,11 +237,17 @@ def main() -> None:
     sets.bars(bench)
     as_they_come.add_section(bench)
     jod = human.add_human(bench, args.human) if args.human else None
-    bench.retrieval.clear()
+    if args.retrieval:
+        sets.retrieval(bench, list(sets.ALL_FAMILIES), sets.RETRIEVAL_PER_FAMILY)
     default = DrkfsOnnx("default", PipelineConfig(), None, args.threads)
     aligned = [
         Aligned(
-            default, f"aligned, none up to {least:g} degrees", least, args.most_degrees, args.steps
+            default,
+            f"aligned, none up to {least:g} degrees",
+            least,
+            args.most_degrees,
+            args.steps,
+            args.fitted,
         )
         for least in args.least_degrees
     ]
@@ -216,6 +259,11 @@ def main() -> None:
             **lever_summary(bench, values),
             "bars": bars_summary(bench, values),
             "slide": runtime_slide(methods[name]),
+            **(
+                {"retrieval": retrieval_summary(bench, scores.retrieval[name])}
+                if args.retrieval
+                else {}
+            ),
             "human": None if jod is None else human.human_agreement(bench, values, jod),
             "as_they_come": {
                 **tier_accuracy(bench, values, as_they_come.GROUP),
@@ -234,6 +282,8 @@ def main() -> None:
         )
         + (f" --most-degrees {args.most_degrees:g}" if args.most_degrees != 4.0 else "")
         + (f" --steps {args.steps}" if args.steps != STEPS else "")
+        + (f" --fitted {args.fitted:g}" if args.fitted != 1.0 else "")
+        + (" --retrieval" if args.retrieval else "")
         + (f" --out {args.out}" if args.out else "")
         + (" --human DIR" if args.human else ""),
         "metric": LATEST,
@@ -243,6 +293,7 @@ def main() -> None:
             "reference_samples": REFERENCE_SAMPLES,
             "samples": SAMPLES,
             "steps": args.steps,
+            **({"fitted": args.fitted} if args.fitted != 1.0 else {}),
             "reach": REACH,
             "facing": FACING,
         },  # fmt: skip
@@ -252,7 +303,7 @@ def main() -> None:
             **{f"{m.outputs[0]}: search a turn": m.search_seconds / m.searches for m in aligned},
         },
         "new_mesh_seconds": new_mesh_seconds(
-            args.repeats, args.threads, args.most_degrees, args.steps
+            args.repeats, args.threads, args.most_degrees, args.steps, args.fitted
         ),
         "degrees": {m.outputs[0]: m.degrees for m in aligned},
         "values": {

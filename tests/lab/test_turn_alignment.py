@@ -5,25 +5,31 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from drkfs_lab import turn_alignment
-from drkfs_onnx import load_mesh
+from drkfs_lab.benchmark.methods import DrkfsOnnx, Placed
+from drkfs_lab.benchmark.torch_checks import chair, diagonal, shifted
+from drkfs_onnx import PipelineConfig, load_mesh
 from drkfs_onnx.contract.cameras import rotation
 from drkfs_onnx.contract.mesh import frame_of, place
+from drkfs_onnx.synthetic.shapes import assemble
 
 CHAIR = load_mesh(turn_alignment.EXAMPLES / "chair.obj")
 
 
-def _found_degrees(verts, faces, least=0.0, most=4.0) -> np.ndarray:
-    """The turn (axis times degrees) found from the chair's placed frame onto the chair."""
-    frame = frame_of(CHAIR.vertices)
+def _found_degrees(verts, faces, least=0.0, most=4.0, fitted=1.0, onto=None) -> np.ndarray:
+    """The turn (axis times degrees) found for a mesh onto ``onto`` (verts, faces; the example
+    chair unless given), both placed in its frame."""
+    ref_verts, ref_faces = (CHAIR.vertices, CHAIR.faces) if onto is None else onto
+    frame = frame_of(ref_verts)
     reference = turn_alignment.surface_samples(
-        place(CHAIR.vertices, frame), CHAIR.faces, turn_alignment.REFERENCE_SAMPLES, 0
+        place(ref_verts, frame), ref_faces, turn_alignment.REFERENCE_SAMPLES, 0
     )
     points, normals = turn_alignment.surface_samples(
         place(verts, frame), faces, turn_alignment.SAMPLES, 1
     )
     turn = turn_alignment.aligning_turn(
-        points, normals, (*reference, cKDTree(reference[0])), least, most, turn_alignment.STEPS
-    )
+        points, normals, (*reference, cKDTree(reference[0])), least, most,
+        turn_alignment.STEPS, fitted,
+    )  # fmt: skip
     return np.degrees(turn_alignment.rotation_vector(turn))
 
 
@@ -49,6 +55,17 @@ def test_the_same_surface_in_other_faces_is_not_turned_and_a_large_turn_is_kept_
     assert abs(np.linalg.norm(bounded) - 1.0) < 1e-9 and bounded[0] < 0
 
 
+def test_a_trimmed_fit_is_not_pulled_by_one_part_moved():
+    parts = chair()
+    slid = assemble(shifted(parts, "leg_3", (0.05 * diagonal(parts), 0.0, 0.0)), 1)
+    every_point, trimmed = (
+        np.linalg.norm(_found_degrees(*slid, fitted=fitted, onto=assemble(parts, 1)))
+        for fitted in (1.0, 0.6)
+    )
+    assert every_point > 0.5  # the slid leg turns the chair
+    assert trimmed < 0.01
+
+
 def test_the_kept_turn_grows_continuously_from_none_to_all_of_the_found_one():
     found = [0.05, 0.1, 0.12, 0.15, 0.18, 0.2, 1.0, 3.0, 5.0]
     kept = [
@@ -56,5 +73,19 @@ def test_the_kept_turn_grows_continuously_from_none_to_all_of_the_found_one():
         for d in found
     ]
     assert kept[:2] == [0.0, 0.0]
+    assert np.allclose(kept[2:4], [0.12 * 0.104, 0.15 * 0.5])  # smoothstep at 0.2 and 0.5
     assert kept == sorted(kept)
     assert np.allclose(kept[5:], [0.2, 1.0, 3.0, 4.0])
+
+
+def test_a_tilted_mesh_scored_after_its_turn_is_searched_scores_as_the_mesh_itself():
+    default = DrkfsOnnx("default", PipelineConfig(), None, threads=2)
+    aligned = turn_alignment.Aligned(default, "aligned", 0.1, 4.0, turn_alignment.STEPS, 0.6)
+    frame = frame_of(CHAIR.vertices)
+    chair = Placed("chair", place(CHAIR.vertices, frame), CHAIR.faces)
+    tilted = Placed("tilted", place(_turned(0, 2.0), frame), CHAIR.faces)
+    plain = default.compare(default.prepare(tilted)[0], default.prepare(chair)[0])[0]
+    turned_back = aligned.compare(aligned.prepare(tilted)[0], aligned.prepare(chair)[0])[0]
+    assert plain > 0.01
+    assert turned_back < 0.01 * plain
+    assert abs(aligned.degrees["tilted"] - 2.0) < 0.05
