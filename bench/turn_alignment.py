@@ -16,7 +16,9 @@ Retrieval only with --retrieval: each of its 10,920 ordered pairs describes its 
         --least-degrees 0.1 --fitted 0.6 --retrieval --out OUT --human DIR
 
 The cost is the turn's search alone, against describing a mesh (render and nets), both timed
-in the run: a metric that aligned would describe the turned mesh instead of the mesh.
+in the run: a metric that aligned would describe the turned mesh instead of the mesh. With
+``--nearest blas`` the nearest points are found by the runtime's BLAS product, as a server
+install (no scipy) would find them.
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ from __future__ import annotations
 import argparse
 import json
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -46,11 +49,13 @@ from drkfs_onnx import PipelineConfig, load_mesh
 from drkfs_onnx.contract.mesh import frame_of, place
 from drkfs_onnx.contract.versions import LATEST
 from drkfs_onnx.runtime import Scorer
+from drkfs_onnx.runtime.nearest import lift, nearest_lifted
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 REFERENCE_SAMPLES = 8192  # the reference's points, each with its face's normal
 SAMPLES = 2048  # the turned mesh's points
 STEPS = 3  # Gauss-Newton steps of a search, each against the nearest points found anew
+NEAREST = ("kd", "blas")  # scipy's KD-tree; runtime/nearest.py's BLAS product (base install)
 REACH = 0.1  # a point farther from the reference's nearest (unit-sphere frame) is not fitted
 FACING = 0.5  # nor one whose face's normal and its nearest's meet at a cosine below this
 LEAST_DEGREES = [0.0, 0.1]
@@ -135,26 +140,76 @@ def rotation_vector(turn: np.ndarray) -> np.ndarray:
     return skew / (2 * sine) * np.arctan2(sine, cosine)
 
 
+class BlasNearest:
+    """Each query point's nearest of ``points`` by the runtime's BLAS search (no scipy), with
+    cKDTree's ``query`` signature."""
+
+    def __init__(self, points: np.ndarray):
+        self.points, self.lifted = points, lift(points)
+
+    def query(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        nearest = nearest_lifted(x, self.lifted)
+        return np.linalg.norm(x - self.points[nearest], axis=1), nearest
+
+
+@dataclass(frozen=True)
+class Search:
+    """How a turn is searched: the points sampled on each side, the steps, the share of points
+    each step after the first fits, and the nearest-point search (``NEAREST``)."""
+
+    reference_samples: int = REFERENCE_SAMPLES
+    samples: int = SAMPLES
+    steps: int = STEPS
+    fitted: float = 1.0
+    nearest: str = "kd"
+
+    def reference(self, verts: np.ndarray, faces: np.ndarray):
+        """A reference's points, their normals and their nearest-point search; None where the
+        surface has no area."""
+        points, normals = surface_samples(verts, faces, self.reference_samples, 0)
+        if not len(points):
+            return None
+        return points, normals, (cKDTree if self.nearest == "kd" else BlasNearest)(points)
+
+    def turn(self, verts, faces, reference, least: float, most: float) -> np.ndarray:
+        """(3, 3) the turn applied to a mesh before it is compared with ``reference``."""
+        points, normals = surface_samples(verts, faces, self.samples, 1)
+        if reference is None or not len(points):
+            return np.eye(3)
+        return aligning_turn(
+            points, normals, reference, least, most, self.steps, self.fitted
+        )  # fmt: skip
+
+    def settings(self) -> dict:
+        """The JSON's record of the search (its defaults' fields left out where unchanged)."""
+        return {
+            "reference_samples": self.reference_samples,
+            "samples": self.samples,
+            "steps": self.steps,
+            **({"fitted": self.fitted} if self.fitted != 1.0 else {}),
+            **({"nearest": self.nearest} if self.nearest != "kd" else {}),
+            "reach": REACH,
+            "facing": FACING,
+        }
+
+
 class Aligned(Method):
     """The default's scorer with each compared mesh (A) turned onto the reference (B) first:
     ``prepare`` samples a mesh as a reference and describes it, ``compare`` finds A's turn onto
     B, describes A turned and matches it against B."""
 
-    def __init__(
-        self, method: DrkfsOnnx, name: str, least: float, most: float, steps: int, fitted: float
-    ):
+    def __init__(self, method: DrkfsOnnx, name: str, least: float, most: float, search: Search):
         self.method, self.outputs = method, (name,)
-        self.bounds, self.search = (least, most), (steps, fitted)
+        self.bounds, self.search = (least, most), search
         self.search_seconds, self.searches, self.degrees = 0.0, 0, {}
 
     def for_retrieval(self) -> Aligned:
         """A twin whose searches count apart: retrieval's are not the comparisons'."""
-        return Aligned(self.method, self.outputs[0], *self.bounds, *self.search)
+        return Aligned(self.method, self.outputs[0], *self.bounds, self.search)
 
     def prepare(self, placed):
         start = time.perf_counter()
-        points, normals = surface_samples(placed.verts, placed.faces, REFERENCE_SAMPLES, 0)
-        reference = (points, normals, cKDTree(points)) if len(points) else None
+        reference = self.search.reference(placed.verts, placed.faces)
         sampling = time.perf_counter() - start
         features, seconds = self.method.prepare(placed)
         return (placed, reference, features), sampling + seconds
@@ -162,10 +217,7 @@ class Aligned(Method):
     def compare(self, a, b):
         (placed, _, features), (_, reference, reference_features) = a, b
         start = time.perf_counter()
-        points, normals = surface_samples(placed.verts, placed.faces, SAMPLES, 1)
-        turn = np.eye(3)
-        if reference is not None and len(points):
-            turn = aligning_turn(points, normals, reference, *self.bounds, *self.search)
+        turn = self.search.turn(placed.verts, placed.faces, reference, *self.bounds)
         self.search_seconds += time.perf_counter() - start
         self.searches += 1
         self.degrees[placed.key] = float(np.degrees(np.linalg.norm(rotation_vector(turn))))
@@ -175,33 +227,24 @@ class Aligned(Method):
         return self.method.compare(features, reference_features)
 
 
-def new_mesh_seconds(
-    repeats: int, threads: int, most_degrees: float, steps: int, fitted: float
-) -> dict:
+def new_mesh_seconds(repeats: int, threads: int, most_degrees: float, search: Search) -> dict:
     """Seconds to describe a new mesh (the example chair), to sample it as a reference (its
-    points and their KD-tree) and to search its turn onto a reference (the chair without a leg),
+    points and their search) and to search its turn onto a reference (the chair without a leg),
     interleaved; the ratio is a new mesh's cost with a search, or with both, over without."""
     scorer = Scorer(threads=threads, cache_size=0)
     chair, no_leg = load_mesh(EXAMPLES / "chair.obj"), load_mesh(EXAMPLES / "chair_no_leg.obj")
     frame = frame_of(no_leg.vertices)
-    placed = place(no_leg.vertices, frame)
-    points, normals = surface_samples(placed, no_leg.faces, REFERENCE_SAMPLES, 0)
-    reference = (points, normals, cKDTree(points))
+    reference = search.reference(place(no_leg.vertices, frame), no_leg.faces)
+    placed = place(chair.vertices, frame)
     scorer.features(chair, frame)  # opens the graph's session
     seconds = {"describe": 0.0, "sample as a reference": 0.0, "search a turn": 0.0}
     for _ in range(repeats):
         start = time.perf_counter()
         scorer.features(chair, frame)
         described = time.perf_counter()
-        sampled = surface_samples(place(chair.vertices, frame), chair.faces, REFERENCE_SAMPLES, 0)
-        cKDTree(sampled[0])
+        search.reference(placed, chair.faces)
         as_reference = time.perf_counter()
-        found, found_normals = surface_samples(
-            place(chair.vertices, frame), chair.faces, SAMPLES, 1
-        )
-        aligning_turn(
-            found, found_normals, reference, LEAST_DEGREES[-1], most_degrees, steps, fitted
-        )
+        search.turn(placed, chair.faces, reference, LEAST_DEGREES[-1], most_degrees)
         for name, seconds_taken in zip(
             seconds,
             (described - start, as_reference - described, time.perf_counter() - as_reference),
@@ -226,6 +269,9 @@ def main() -> None:
     parser.add_argument(
         "--fitted", type=float, default=1.0, help="share of the points a step after the first fits"
     )
+    parser.add_argument("--reference-samples", type=int, default=REFERENCE_SAMPLES)
+    parser.add_argument("--samples", type=int, default=SAMPLES)
+    parser.add_argument("--nearest", choices=NEAREST, default=NEAREST[0])
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--repeats", type=int, default=10, help="new meshes timed")
     parser.add_argument("--human", type=Path, help="a Geo-metric clone (see drkfs bench --human)")
@@ -240,14 +286,16 @@ def main() -> None:
     if args.retrieval:
         sets.retrieval(bench, list(sets.ALL_FAMILIES), sets.RETRIEVAL_PER_FAMILY)
     default = DrkfsOnnx("default", PipelineConfig(), None, args.threads)
+    search = Search(
+        args.reference_samples, args.samples, args.steps, args.fitted, args.nearest
+    )  # fmt: skip
     aligned = [
         Aligned(
             default,
             f"aligned, none up to {least:g} degrees",
             least,
             args.most_degrees,
-            args.steps,
-            args.fitted,
+            search,
         )
         for least in args.least_degrees
     ]
@@ -283,28 +331,26 @@ def main() -> None:
         + (f" --most-degrees {args.most_degrees:g}" if args.most_degrees != 4.0 else "")
         + (f" --steps {args.steps}" if args.steps != STEPS else "")
         + (f" --fitted {args.fitted:g}" if args.fitted != 1.0 else "")
+        + (
+            f" --reference-samples {args.reference_samples}"
+            if args.reference_samples != REFERENCE_SAMPLES
+            else ""
+        )
+        + (f" --samples {args.samples}" if args.samples != SAMPLES else "")
+        + (f" --nearest {args.nearest}" if args.nearest != NEAREST[0] else "")
         + (" --retrieval" if args.retrieval else "")
         + (f" --out {args.out}" if args.out else "")
         + (" --human DIR" if args.human else ""),
         "metric": LATEST,
         "least_degrees": args.least_degrees,
         "most_degrees": args.most_degrees,
-        "search": {
-            "reference_samples": REFERENCE_SAMPLES,
-            "samples": SAMPLES,
-            "steps": args.steps,
-            **({"fitted": args.fitted} if args.fitted != 1.0 else {}),
-            "reach": REACH,
-            "facing": FACING,
-        },  # fmt: skip
+        "search": search.settings(),
         "methods": rows,
         "seconds": {
             "describe_a_mesh": describe,
             **{f"{m.outputs[0]}: search a turn": m.search_seconds / m.searches for m in aligned},
         },
-        "new_mesh_seconds": new_mesh_seconds(
-            args.repeats, args.threads, args.most_degrees, args.steps, args.fitted
-        ),
+        "new_mesh_seconds": new_mesh_seconds(args.repeats, args.threads, args.most_degrees, search),
         "degrees": {m.outputs[0]: m.degrees for m in aligned},
         "values": {
             name: {f"{c.base}/{c.label}": values.get(i) for i, c in enumerate(bench.comparisons)}

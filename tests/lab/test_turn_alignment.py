@@ -2,7 +2,6 @@
 by a fit of surface points, as registration finds a turn."""
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from drkfs_lab import turn_alignment
 from drkfs_lab.benchmark.methods import DrkfsOnnx, Placed
@@ -15,21 +14,14 @@ from drkfs_onnx.synthetic.shapes import assemble
 CHAIR = load_mesh(turn_alignment.EXAMPLES / "chair.obj")
 
 
-def _found_degrees(verts, faces, least=0.0, most=4.0, fitted=1.0, onto=None) -> np.ndarray:
+def _found_degrees(verts, faces, least=0.0, most=4.0, onto=None, **search) -> np.ndarray:
     """The turn (axis times degrees) found for a mesh onto ``onto`` (verts, faces; the example
-    chair unless given), both placed in its frame."""
+    chair unless given), both placed in its frame, by a ``Search(**search)``."""
     ref_verts, ref_faces = (CHAIR.vertices, CHAIR.faces) if onto is None else onto
     frame = frame_of(ref_verts)
-    reference = turn_alignment.surface_samples(
-        place(ref_verts, frame), ref_faces, turn_alignment.REFERENCE_SAMPLES, 0
-    )
-    points, normals = turn_alignment.surface_samples(
-        place(verts, frame), faces, turn_alignment.SAMPLES, 1
-    )
-    turn = turn_alignment.aligning_turn(
-        points, normals, (*reference, cKDTree(reference[0])), least, most,
-        turn_alignment.STEPS, fitted,
-    )  # fmt: skip
+    found = turn_alignment.Search(**search)
+    reference = found.reference(place(ref_verts, frame), ref_faces)
+    turn = found.turn(place(verts, frame), faces, reference, least, most)
     return np.degrees(turn_alignment.rotation_vector(turn))
 
 
@@ -44,6 +36,13 @@ def test_a_two_degree_tilt_is_found_and_turned_back_about_its_axis():
         expected = np.zeros(3)
         expected[axis] = -2.0  # the turn that lays the tilted chair back on the chair
         assert np.abs(found - expected).max() < 0.05, (axis, found)
+
+
+def test_the_runtime_blas_search_finds_the_turn_the_kd_tree_finds():
+    tilted = _turned(2, 2.0)
+    kd = _found_degrees(tilted, CHAIR.faces, fitted=0.6)
+    blas = _found_degrees(tilted, CHAIR.faces, fitted=0.6, nearest="blas")
+    assert np.abs(blas - kd).max() < 1e-3 and abs(kd[2] + 2.0) < 0.05
 
 
 def test_the_same_surface_in_other_faces_is_not_turned_and_a_large_turn_is_kept_past_the_bound():
@@ -80,7 +79,9 @@ def test_the_kept_turn_grows_continuously_from_none_to_all_of_the_found_one():
 
 def test_a_tilted_mesh_scored_after_its_turn_is_searched_scores_as_the_mesh_itself():
     default = DrkfsOnnx("default", PipelineConfig(), None, threads=2)
-    aligned = turn_alignment.Aligned(default, "aligned", 0.1, 4.0, turn_alignment.STEPS, 0.6)
+    aligned = turn_alignment.Aligned(
+        default, "aligned", 0.1, 4.0, turn_alignment.Search(fitted=0.6)
+    )
     frame = frame_of(CHAIR.vertices)
     chair = Placed("chair", place(CHAIR.vertices, frame), CHAIR.faces)
     tilted = Placed("tilted", place(_turned(0, 2.0), frame), CHAIR.faces)
