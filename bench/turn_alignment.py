@@ -34,6 +34,7 @@ from scipy.spatial import cKDTree
 
 from drkfs_lab.benchmark import as_they_come, human, sets
 from drkfs_lab.benchmark.methods import DrkfsOnnx, Method, Placed
+from drkfs_lab.benchmark.point_metrics import sample_surface
 from drkfs_lab.benchmark.real_tiers import HELDOUT_MESHES, TRAINING_MESHES
 from drkfs_lab.benchmark.run import (
     as_they_come_checks,
@@ -59,26 +60,6 @@ NEAREST = ("kd", "blas")  # scipy's KD-tree; runtime/nearest.py's BLAS product (
 REACH = 0.1  # a point farther from the reference's nearest (unit-sphere frame) is not fitted
 FACING = 0.5  # nor one whose face's normal and its nearest's meet at a cosine below this
 LEAST_DEGREES = [0.0, 0.1]
-
-
-def surface_samples(
-    verts: np.ndarray, faces: np.ndarray, count: int, seed: int
-) -> tuple[np.ndarray, np.ndarray]:
-    """(count, 3) points drawn uniformly by area on the surface and (count, 3) their faces'
-    unit normals (either sign); none where the surface has no area."""
-    corners = verts[faces]
-    cross = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
-    area = np.linalg.norm(cross, axis=1)
-    if not area.sum() > 0:
-        return np.zeros((0, 3)), np.zeros((0, 3))
-    rng = np.random.default_rng(seed)
-    drawn = rng.choice(len(faces), count, p=area / area.sum())
-    u, v = rng.random((2, count))
-    folded = u + v > 1  # a draw in the square's far half folded back into the triangle
-    u[folded], v[folded] = 1 - u[folded], 1 - v[folded]
-    c = corners[drawn]
-    points = c[:, 0] + u[:, None] * (c[:, 1] - c[:, 0]) + v[:, None] * (c[:, 2] - c[:, 0])
-    return points, cross[drawn] / area[drawn, None]
 
 
 def turn_of(vector: np.ndarray) -> np.ndarray:
@@ -166,18 +147,19 @@ class Search:
     def reference(self, verts: np.ndarray, faces: np.ndarray):
         """A reference's points, their normals and their nearest-point search; None where the
         surface has no area."""
-        points, normals = surface_samples(verts, faces, self.reference_samples, 0)
-        if not len(points):
+        found = sample_surface(verts, faces, self.reference_samples, 0)
+        if not len(found.points):
             return None
-        return points, normals, (cKDTree if self.nearest == "kd" else BlasNearest)(points)
+        finder = (cKDTree if self.nearest == "kd" else BlasNearest)(found.points)
+        return found.points, found.normals, finder
 
     def turn(self, verts, faces, reference, least: float, most: float) -> np.ndarray:
         """(3, 3) the turn applied to a mesh before it is compared with ``reference``."""
-        points, normals = surface_samples(verts, faces, self.samples, 1)
-        if reference is None or not len(points):
+        found = sample_surface(verts, faces, self.samples, 1)
+        if reference is None or not len(found.points):
             return np.eye(3)
         return aligning_turn(
-            points, normals, reference, least, most, self.steps, self.fitted
+            found.points, found.normals, reference, least, most, self.steps, self.fitted
         )  # fmt: skip
 
     def settings(self) -> dict:
@@ -260,9 +242,29 @@ def new_mesh_seconds(repeats: int, threads: int, most_degrees: float, search: Se
     }
 
 
+def command_line(parser: argparse.ArgumentParser, args: argparse.Namespace) -> str:
+    """The command a run records: each option set to other than its default, in the order
+    declared, the Geo-metric clone as DIR; the threads and repeats, which change how fast and
+    not what, left out."""
+    words = ["python bench/turn_alignment.py"]
+    for name, value in vars(args).items():
+        if name in ("threads", "repeats") or value == parser.get_default(name):
+            continue
+        flag = "--" + name.replace("_", "-")
+        if value is True:
+            words.append(flag)
+        elif name == "human":
+            words.append(f"{flag} DIR")
+        else:
+            shown = value if isinstance(value, list) else [value]
+            words.append(
+                " ".join([flag, *(f"{x:g}" if isinstance(x, float) else str(x) for x in shown)])
+            )
+    return " ".join(words)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", type=Path, help="the JSON to write (default: print only)")
     parser.add_argument("--least-degrees", type=float, nargs="+", default=LEAST_DEGREES)
     parser.add_argument("--most-degrees", type=float, default=4.0)
     parser.add_argument("--steps", type=int, default=STEPS, help="Gauss-Newton steps a search")
@@ -272,10 +274,11 @@ def main() -> None:
     parser.add_argument("--reference-samples", type=int, default=REFERENCE_SAMPLES)
     parser.add_argument("--samples", type=int, default=SAMPLES)
     parser.add_argument("--nearest", choices=NEAREST, default=NEAREST[0])
+    parser.add_argument("--retrieval", action="store_true", help="score retrieval too (slow)")
+    parser.add_argument("--out", type=Path, help="the JSON to write (default: print only)")
+    parser.add_argument("--human", type=Path, help="a Geo-metric clone (see drkfs bench --human)")
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--repeats", type=int, default=10, help="new meshes timed")
-    parser.add_argument("--human", type=Path, help="a Geo-metric clone (see drkfs bench --human)")
-    parser.add_argument("--retrieval", action="store_true", help="score retrieval too (slow)")
     args = parser.parse_args()
     start = time.perf_counter()
     bench = sets.tier_set(quick=False)
@@ -322,25 +325,7 @@ def main() -> None:
             print(f"{name}: {as_they_come_line(rows[name]['as_they_come'], side)}")
     describe = costs["default"]["seconds_per_mesh"]
     results = {
-        "command": "python bench/turn_alignment.py"
-        + (
-            " --least-degrees " + " ".join(f"{x:g}" for x in args.least_degrees)
-            if args.least_degrees != LEAST_DEGREES
-            else ""
-        )
-        + (f" --most-degrees {args.most_degrees:g}" if args.most_degrees != 4.0 else "")
-        + (f" --steps {args.steps}" if args.steps != STEPS else "")
-        + (f" --fitted {args.fitted:g}" if args.fitted != 1.0 else "")
-        + (
-            f" --reference-samples {args.reference_samples}"
-            if args.reference_samples != REFERENCE_SAMPLES
-            else ""
-        )
-        + (f" --samples {args.samples}" if args.samples != SAMPLES else "")
-        + (f" --nearest {args.nearest}" if args.nearest != NEAREST[0] else "")
-        + (" --retrieval" if args.retrieval else "")
-        + (f" --out {args.out}" if args.out else "")
-        + (" --human DIR" if args.human else ""),
+        "command": command_line(parser, args),
         "metric": LATEST,
         "least_degrees": args.least_degrees,
         "most_degrees": args.most_degrees,

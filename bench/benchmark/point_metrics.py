@@ -25,10 +25,13 @@ class SurfaceSamples:
 
 
 def sample_surface(verts: np.ndarray, faces: np.ndarray, count: int, seed: int = 0):
-    """``count`` points drawn uniformly by area, with their faces' unit normals."""
+    """``count`` points drawn uniformly by area, with their faces' unit normals; none on a
+    surface without area."""
     corners = verts[faces]
     cross = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
     area = np.linalg.norm(cross, axis=1)
+    if not area.sum() > 0:
+        return SurfaceSamples(np.zeros((0, 3)), np.zeros((0, 3)))
     rng = np.random.default_rng(seed)
     face = rng.choice(len(faces), size=count, p=area / area.sum())
     u, v = rng.random((2, count))
