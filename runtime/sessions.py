@@ -23,15 +23,19 @@ class ModelMismatch(ValueError):
     """A feature graph built for another pipeline config than the one asked for."""
 
 
-def session_options(threads: int | None) -> ort.SessionOptions:
+def session_options(threads: int | None, spinning: bool = False) -> ort.SessionOptions:
     """Graph optimisation ALL (NCHWc convs, faster than BASIC: docs/design_notes.md);
-    threads=None lets onnxruntime use every core."""
+    threads=None lets onnxruntime use every core. ``spinning``: the idle intra-op threads
+    busy-wait for the next run, as onnxruntime's default; off, they sleep, and the renderer's
+    threads and numpy's BLAS that run between descriptions get the cores (bench/score.py,
+    "spinning")."""
     options = ort.SessionOptions()
     options.graph_optimization_level = ort.GraphOptimizationLevel.ORT_ENABLE_ALL
     options.execution_mode = ort.ExecutionMode.ORT_SEQUENTIAL
     options.intra_op_num_threads = threads or 0
     options.inter_op_num_threads = 1
     options.log_severity_level = 3
+    options.add_session_config_entry("session.intra_op.allow_spinning", "1" if spinning else "0")
     return options
 
 
@@ -45,10 +49,10 @@ class Graph:
     metadata: dict[str, str]
 
     @classmethod
-    def open(cls, data: bytes, source: str, threads: int | None) -> Graph:
+    def open(cls, data: bytes, source: str, threads: int | None, spinning: bool = False) -> Graph:
         try:
             session = ort.InferenceSession(
-                data, session_options(threads), providers=["CPUExecutionProvider"]
+                data, session_options(threads, spinning), providers=["CPUExecutionProvider"]
             )
         except Exception as exc:  # onnxruntime raises its own types for a file it cannot read
             raise ModelMismatch(f"{source}: not a readable ONNX model ({exc})") from exc
