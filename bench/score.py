@@ -99,7 +99,7 @@ def _nearest_search(queries: np.ndarray, targets: np.ndarray, repeats: int) -> d
     match graph in onnxruntime (both return each query's nearest target), and of the float32
     product of the two sets alone: the search's floor with this BLAS."""
     from drkfs_onnx.contract.model_files import MATCH_FILE, models_dir
-    from drkfs_onnx.runtime.nearest import lift, nearest_lifted
+    from drkfs_onnx.contract.nearest import lift, nearest_lifted
     from drkfs_onnx.runtime.sessions import Graph
 
     shipped = models_dir() / MATCH_FILE
@@ -174,7 +174,7 @@ def run_spinning(spinning: bool, repeats: int) -> dict:
     search or a global match runs between descriptions, with the feature graph's idle threads
     spinning (onnxruntime's default) or asleep (the Scorer's)."""
     from drkfs_onnx import load_mesh
-    from drkfs_onnx.runtime.nearest import lift, nearest_lifted
+    from drkfs_onnx.contract.nearest import lift, nearest_lifted
     from drkfs_onnx.runtime import Scorer
     from drkfs_onnx.runtime.sessions import Graph
 

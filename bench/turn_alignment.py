@@ -48,9 +48,9 @@ from drkfs_lab.benchmark.run import (
 from drkfs_lab.real_levers import runtime_slide
 from drkfs_onnx import PipelineConfig, load_mesh
 from drkfs_onnx.contract.mesh import frame_of, place
+from drkfs_onnx.contract.nearest import lift, nearest_lifted
 from drkfs_onnx.contract.versions import LATEST
 from drkfs_onnx.runtime import Scorer
-from drkfs_onnx.runtime.nearest import lift, nearest_lifted
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 REFERENCE_SAMPLES = 8192  # the reference's points, each with its face's normal

@@ -12,10 +12,11 @@ import numpy as np
 from drkfs_onnx.contract import match_rules
 from drkfs_onnx.contract.array_ops import NUMPY_OPS
 from drkfs_onnx.contract.config import PipelineConfig
+from drkfs_onnx.contract.nearest import lift
 from drkfs_onnx.contract.solid_change import view_range
 from drkfs_onnx.contract.versions import CUSTOM, served_versions
 
-from .nearest import lift, row_hashes
+from .nearest import row_hashes
 
 FORMAT = "drkfs-features-4"  # 4: records the normalisation
 

@@ -12,11 +12,12 @@ import numpy as np
 from drkfs_onnx.contract import match_rules
 from drkfs_onnx.contract.array_ops import NUMPY_OPS
 from drkfs_onnx.contract.config import TWO_SIDED, PipelineConfig
+from drkfs_onnx.contract.nearest import nearest_lifted
 from drkfs_onnx.contract.solid_change import solid_reaches, view_solid_changes
 from drkfs_onnx.contract.versions import in_words, serving_version
 
 from .features import MeshFeatures
-from .nearest import exact_copies, nearest_lifted
+from .nearest import exact_copies
 
 # Query rows per block of window matching: (rows, W, D) float64 differences stay ~10 MiB at W = 9.
 WINDOW_ROWS = 1024

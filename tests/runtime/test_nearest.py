@@ -1,38 +1,13 @@
-"""The runtime's nearest search finds each query's nearest target."""
+"""Exact copies among descriptor rows are found by their bits."""
 
 import numpy as np
-import pytest
 
-from drkfs_onnx.runtime import nearest
-from drkfs_onnx.runtime.nearest import (
-    exact_copies,
-    lift,
-    nearest_lifted,
-    row_hashes,
-)
+from drkfs_onnx.runtime.nearest import exact_copies, row_hashes
 
 
 def _unit_rows(rng, n, dim=128):
     rows = rng.normal(size=(n, dim))
     return (rows / np.linalg.norm(rows, axis=1, keepdims=True)).astype(np.float32)
-
-
-def test_nearest_equals_brute_force_over_several_blocks(monkeypatch):
-    rng = np.random.default_rng(0)
-    targets = _unit_rows(rng, 300)
-    monkeypatch.setattr(nearest, "BLOCK_BYTES", 4 * 300 * 64)  # blocks of 64 query rows
-    # near-duplicates of targets and unrelated rows: 600 queries, 10 blocks, the last one partial
-    near = targets[rng.integers(0, 300, 400)] + 1e-2 * _unit_rows(rng, 400)
-    queries = np.concatenate([near, _unit_rows(rng, 200)]).astype(np.float32)
-    q, t = queries.astype(np.float64), targets.astype(np.float64)
-    got = nearest_lifted(queries, lift(targets))
-    assert got.shape == (len(queries),)
-    assert np.array_equal(got, ((q[:, None] - t[None]) ** 2).sum(-1).argmin(1))
-
-
-def test_no_targets_is_an_error():
-    with pytest.raises(ValueError, match="no target"):
-        nearest_lifted(np.zeros((2, 128), np.float32), lift(np.zeros((0, 128), np.float32)))
 
 
 def test_exact_copies_are_bit_identical_rows_only():
