@@ -91,6 +91,8 @@ class Sweep(Method):
     symmetric = True  # both directions, averaged
 
     def __init__(self, config: PipelineConfig, threads: int, prefix: str = ""):
+        if config.align_degrees:
+            raise ValueError("the sweep describes each mesh as placed: no turn onto B")
         self.scorer = Scorer(config, threads=threads)  # the shipped graphs serve every config
         self.variants = match_variants(config)
         self.outputs = tuple(prefix + name for name in self.variants)

@@ -524,6 +524,8 @@ class Recombined(Method):
                  solid_ceiling: float | None = None,
                  both_rings: str | None = None, both_parts: float = 0.0,
                  part_power: tuple[float, ...] | None = None):  # fmt: skip
+        if method.scorer.config.align_degrees:
+            raise ValueError("a recombined lever describes each mesh as placed: no turn onto B")
         self.method, self.outputs, self.symmetric = method, (name,), method.symmetric
         self.floor, self.netted, self.moved, self.by_area = floor, netted, moved, by_area
         self.local, self.near, self.solid_ceiling = local, near, solid_ceiling
@@ -543,7 +545,7 @@ class Recombined(Method):
         )  # fmt: skip
 
     def prepare(self, placed):
-        features, seconds = self.method.prepare(placed)
+        (_, features, _), seconds = self.method.prepare(placed)
         if self.solid is None:
             return (features, features.views), seconds
         views, render_s = placed.views(self.solid)

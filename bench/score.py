@@ -223,7 +223,7 @@ def run_case(path: Path, preset: str, repeats: int) -> dict:
     new_s, reference = best_time(lambda: _new_mesh(scorer, mesh), repeats)
     placed = place(mesh.vertices, reference.frame)
     render_s, _ = best_time(lambda: scorer.renderer.render(placed, mesh.faces), repeats)
-    prediction = scorer.features(other, reference.frame)
+    prediction = scorer.compared(other, reference)
     described_mb = _held_mb(reference)
     match_s, ort_score = best_time(lambda: scorer.match(prediction, reference), 5 * repeats)
     runtime = {"new_mesh_s": new_s, "render_s": render_s, "features_s": new_s - render_s}

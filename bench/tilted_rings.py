@@ -50,7 +50,7 @@ def scores(bench: sets.BenchSet, scorer: Scorer, degrees: float, progress) -> di
         found = []
         for axis, d in [(0, 0.0), *turns]:
             moved = verts if d == 0 else turned(verts, centre, axis, d)
-            a = scorer.features(check_mesh(moved, faces, c.shape), reference.frame)
+            a = scorer.compared(check_mesh(moved, faces, c.shape), reference)
             found.append(best_pairing(a, reference, scorer.config).score)
         plain[i], least[i] = found[0], min(found)
         if i % 50 == 0:

@@ -43,7 +43,7 @@ def main() -> None:
                 reference = scorer.features(check_mesh(verts, faces, key))
                 for variant in (v for v in variants if v.name in LABELS):
                     mesh = check_mesh(variant.verts, variant.faces, f"{key}/{variant.name}")
-                    a = scorer.features(mesh, reference.frame)
+                    a = scorer.compared(mesh, reference)
                     best = best_pairing(a, reference, scorer.config)
                     rows.setdefault(key, {})[variant.name] = {
                         "score": best.score,

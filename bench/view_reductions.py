@@ -68,7 +68,7 @@ def scores(bench: sets.BenchSet, scorer: Scorer, progress) -> dict[str, dict[int
         ref_verts, ref_faces = bench.shapes[c.reference]
         reference = scorer.features(check_mesh(ref_verts, ref_faces, c.reference))
         verts, faces = bench.shapes[c.shape]
-        a = scorer.features(check_mesh(verts, faces, c.shape), reference.frame)
+        a = scorer.compared(check_mesh(verts, faces, c.shape), reference)
         found["the default"][i] = best_pairing(a, reference, config).score
         pairings = parts(a, reference, config)
         for order in ORDERS:

@@ -7,10 +7,12 @@ import functools
 from collections.abc import Callable
 from typing import NamedTuple
 
+import numpy as np
 import torch
 from torch import nn
 
 from .contract import match_rules
+from .contract.alignment import SurfaceSamples, aligning_turn, reference_surface, turns_nothing
 from .contract.config import PipelineConfig
 from .contract.mesh import Mesh, check_normalization, normalize_pair, place_by, reference_frame
 from .match import best_match_distances, match_score, pairing_scores, window_index
@@ -46,6 +48,13 @@ def _without_autocast(method: Callable) -> Callable:
     return run
 
 
+def _as_numpy(meshes: MeshBatch, index: int) -> tuple[np.ndarray, np.ndarray]:
+    """Mesh ``index`` of a batch as float64 verts (V, 3) and faces (F, 3), detached (its
+    padding faces have no area: no sample falls on them)."""
+    verts = meshes.verts[index].detach().to("cpu", torch.float64).numpy()
+    return verts, meshes.faces[index].cpu().numpy()
+
+
 def _unbatched(meshes: MeshBatch, views: torch.Tensor | None) -> torch.Tensor | None:
     """A batch's (B, ...) views as ``meshes.unbatch`` gives its descriptors, or None."""
     return None if views is None else meshes.unbatch(views)
@@ -59,11 +68,14 @@ class Target(NamedTuple):
     """A reference mesh prepared once: the frame predictions are placed in ((3,) centre, ()
     scale), its (N, D) descriptors and, for a config with a solid change, its (K * T, S, S)
     views (else None); or a batch of B references, one per prediction: (B, 3) and (B,) frames,
-    (B, N, D) descriptors, (B, K * T, S, S) views."""
+    (B, N, D) descriptors, (B, K * T, S, S) views. surface: for a config that turns a
+    prediction onto its reference first, the samples of each reference's surface (one, or B)
+    the turn is fitted to (``contract.alignment``; numpy, found without gradients), else None."""
 
     frame: tuple[torch.Tensor, torch.Tensor] | None
     features: torch.Tensor
     views: torch.Tensor | None = None
+    surface: tuple[SurfaceSamples, ...] | None = None
 
     @property
     def batch(self) -> int | None:
@@ -73,7 +85,7 @@ class Target(NamedTuple):
     def to(self, device: torch.device | str) -> Target:
         frame = None if self.frame is None else tuple(t.to(device) for t in self.frame)
         views = None if self.views is None else self.views.to(device)
-        return Target(frame, self.features.to(device), views)
+        return Target(frame, self.features.to(device), views, self.surface)
 
     def of_views(self, views: list[int], config: PipelineConfig) -> Target:
         """The reference as the cameras at ``views`` (of a one-ring ``config``'s K) see it:
@@ -82,7 +94,7 @@ class Target(NamedTuple):
         rows = torch.cat([torch.arange(k * per_view, (k + 1) * per_view) for k in views])
         features = self.features.index_select(-2, rows.to(self.features.device))
         seen = None if self.views is None else self.views[..., list(views), :, :]
-        return Target(self.frame, features, seen)
+        return Target(self.frame, features, seen, self.surface)
 
     @staticmethod
     def stack(targets: list[Target]) -> Target:
@@ -90,7 +102,8 @@ class Target(NamedTuple):
         frames = [t.frame for t in targets]
         frame = None if frames[0] is None else tuple(map(torch.stack, zip(*frames, strict=True)))
         views = None if targets[0].views is None else torch.stack([t.views for t in targets])
-        return Target(frame, torch.stack([t.features for t in targets]), views)
+        surface = None if targets[0].surface is None else sum((t.surface for t in targets), ())
+        return Target(frame, torch.stack([t.features for t in targets]), views, surface)
 
 
 class DRKFS(nn.Module):
@@ -283,12 +296,16 @@ class DRKFS(nn.Module):
         meshes = self._meshes(verts, faces)
         mode = self.normalization
         frame = reference_frame(meshes.verts, mode, TORCH_OPS)
-        features, views = self._described(
-            meshes.moved(place_by(meshes.verts, mode, frame, TORCH_OPS))
-        )
+        placed = meshes.moved(place_by(meshes.verts, mode, frame, TORCH_OPS))
+        features, views = self._described(placed)
         if frame is not None:
             frame = tuple(meshes.unbatch(t) for t in frame)
-        return Target(frame, meshes.unbatch(features), _unbatched(meshes, views))
+        surface = None
+        if self.config.align_degrees:
+            surface = tuple(
+                reference_surface(*_as_numpy(placed, i), self.config) for i in range(len(placed))
+            )
+        return Target(frame, meshes.unbatch(features), _unbatched(meshes, views), surface)
 
     @_without_autocast
     def score_to(
@@ -399,10 +416,26 @@ class DRKFS(nn.Module):
                 f"target: a batch of {target.batch} references needs as many predictions; got "
                 f"{len(meshes)} (prepare one reference to share it with a whole batch)"
             )
-        return self._described(
-            meshes.moved(place_by(meshes.verts, self.normalization, target.frame, TORCH_OPS)),
-            renderer,
-        )
+        placed = meshes.moved(place_by(meshes.verts, self.normalization, target.frame, TORCH_OPS))
+        return self._described(self._turned(placed, target), renderer)
+
+    def _turned(self, placed: MeshBatch, target: Target) -> MeshBatch:
+        """Each placed mesh turned onto its reference's surface (``contract.alignment``): the
+        turn is found without gradients, its rotation applied to the vertices."""
+        if not self.config.align_degrees:
+            return placed
+        surfaces = target.surface * len(placed) if target.batch is None else target.surface
+        turns = [
+            aligning_turn(*_as_numpy(placed, i), surface, self.config)
+            for i, surface in enumerate(surfaces)
+        ]
+        unturned = [turns_nothing(turn) for turn in turns]
+        if all(unturned):
+            return placed
+        verts = placed.verts
+        rotations = torch.as_tensor(np.stack(turns), dtype=verts.dtype, device=verts.device)
+        kept = torch.tensor(unturned, device=verts.device)[:, None, None]  # exactly as placed
+        return placed.moved(torch.where(kept, verts, verts @ rotations.transpose(1, 2)))
 
     def _check_target(self, target: Target) -> None:
         """A reference prepared by a metric of this config, on this metric's device."""
@@ -417,6 +450,12 @@ class DRKFS(nn.Module):
             raise ValueError(
                 f"target: no views, which this metric's solid change (solid_weight "
                 f"{config.solid_weight:g}) compares: prepare it with this metric's target()"
+            )
+        if config.align_degrees and len(target.surface or ()) != (target.batch or 1):
+            raise ValueError(
+                "target: no surface samples of each reference to turn a prediction onto, which "
+                f"this metric's turn (align_degrees {config.align_degrees:g}) needs: prepare it "
+                "with this metric's target()"
             )
         if features.device != self.window_table.device:
             raise ValueError(

@@ -76,7 +76,7 @@ def explain(scorer: Scorer, mesh_a: Mesh | str | Path, mesh_b: Mesh | str | Path
     reference = scorer.features(b)
     check_features(reference, scorer.config, scorer.features_graph.sha256, scorer.normalization)
     features = {
-        "a": scorer.features(a, reference.frame if scorer.normalization == "joint" else None),
+        "a": scorer.compared(a, reference),
         "b": reference,
     }
     config, one = scorer.config, scorer.config.one_ring()

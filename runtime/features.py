@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from drkfs_onnx.contract import match_rules
+from drkfs_onnx.contract.alignment import SurfaceSamples
 from drkfs_onnx.contract.array_ops import NUMPY_OPS
 from drkfs_onnx.contract.config import PipelineConfig
 from drkfs_onnx.contract.nearest import lift
@@ -19,6 +20,7 @@ from drkfs_onnx.contract.versions import CUSTOM, served_versions
 from .nearest import row_hashes
 
 FORMAT = "drkfs-features-4"  # 4: records the normalisation
+SURFACE_KEYS = ("surface_points", "surface_normals")
 
 
 @dataclass(frozen=True)
@@ -33,9 +35,11 @@ class MeshFeatures:
     sha256 of the feature graph that computed them; config: the pipeline config they were
     computed for (its match settings do not matter); views: (K * T, S, S) float32 grey views
     they were made from, which a solid change of the views compares (``contract.solid_change``;
-    None in a file written before they were kept); source: where they were read from, for
-    error messages (not saved). The match's forms of the rows, and of the views, are computed once
-    per mesh."""
+    None in a file written before they were kept); surface: points sampled on the mesh as
+    placed, with their faces' normals, that a mesh compared with it is turned onto
+    (``contract.alignment``; None where the config turns no mesh); source: where they were
+    read from, for error messages (not saved). The match's forms of the rows, and of the views,
+    are computed once per mesh."""
 
     descriptors: np.ndarray
     patch_index: np.ndarray
@@ -46,6 +50,7 @@ class MeshFeatures:
     model: str
     config: PipelineConfig
     views: np.ndarray | None = None
+    surface: SurfaceSamples | None = None
     source: str = "<features>"
 
     @property
@@ -159,6 +164,7 @@ class MeshFeatures:
             # for a reader: the versions it serves (loading derives them from the config)
             serves=np.array(served_versions(self.config) or [CUSTOM]),
             **({} if self.views is None else {"views": self.views}),
+            **({} if self.surface is None else dict(zip(SURFACE_KEYS, self.surface, strict=True))),
         )
 
     @classmethod
@@ -191,7 +197,19 @@ class MeshFeatures:
                 model=str(arrays["model"]),
                 config=PipelineConfig.from_json(str(arrays["config"])),
                 views=arrays.get("views"),
+                surface=_surface(arrays),
                 source=str(path),
             )
         except (KeyError, ValueError) as exc:
             raise ValueError(f"{path}: incomplete features file ({exc})") from exc
+
+
+def _surface(arrays: dict[str, np.ndarray]) -> SurfaceSamples | None:
+    """A file's surface samples; None in a file without them; ValueError where they are not
+    (N, 3) points and (N, 3) normals."""
+    if not all(key in arrays for key in SURFACE_KEYS):
+        return None
+    points, normals = (np.asarray(arrays[key], dtype=np.float64) for key in SURFACE_KEYS)
+    if points.ndim != 2 or points.shape[1:] != (3,) or normals.shape != points.shape:
+        raise ValueError(f"surface samples of shapes {points.shape} and {normals.shape}")
+    return SurfaceSamples(points, normals)

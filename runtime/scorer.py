@@ -12,10 +12,12 @@ import time
 import warnings
 from collections import OrderedDict
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
+from drkfs_onnx.contract.alignment import SurfaceSamples, reference_surface, turned
 from drkfs_onnx.contract.config import PipelineConfig
 from drkfs_onnx.contract.mesh import (
     Mesh,
@@ -137,14 +139,22 @@ class Scorer:
         }
         return hashlib.sha256(json.dumps(shaping, sort_keys=True).encode()).hexdigest()[:16]
 
-    def features(self, mesh: MeshLike, frame: tuple[np.ndarray, float] | None = None):
-        """Descriptors of a mesh placed in ``frame`` (default: its own normalisation frame)."""
+    def features(
+        self,
+        mesh: MeshLike,
+        frame: tuple[np.ndarray, float] | None = None,
+        onto: SurfaceSamples | None = None,
+    ) -> MeshFeatures:
+        """Descriptors of a mesh placed in ``frame`` (default: its own normalisation frame) and
+        turned onto the reference surface ``onto`` where the config turns meshes
+        (``contract.alignment``; None: not turned)."""
         mesh = self.load(mesh)
         placement = "its own frame" if frame is None else "the reference's frame"
         hint = JOINT_HINT if frame is not None else ""
         if frame is None:
             frame = self._own_frame(mesh.vertices)
-        key = self._key(place(mesh.vertices, frame), mesh.faces)
+        placed = turned(place(mesh.vertices, frame), mesh.faces, onto, self.config)
+        key = self._key(placed, mesh.faces)
         if key in self.cache:
             self.cache.move_to_end(key)
             return self.cache[key]
@@ -154,7 +164,8 @@ class Scorer:
                 f"{mesh.source}: {len(mesh.faces):,} faces; rendering and describing "
                 f"{self.config.views_per_mesh} views"
             )
-        result = self.describe(self.views(mesh, frame), frame)
+        result = self.describe(self.renderer.render(placed, mesh.faces), frame)
+        result = replace(result, surface=reference_surface(placed, mesh.faces, self.config))
         if long:
             self.progress(f"{mesh.source}: done in {time.perf_counter() - start:.0f} s")
         if len(result.patch_index) == 0:
@@ -205,7 +216,8 @@ class Scorer:
             )
 
     def views(self, mesh: Mesh, frame: tuple[np.ndarray, float]) -> np.ndarray:
-        """(K, S, S) grey views of ``mesh`` placed in ``frame`` (as ``features`` sees it)."""
+        """(K, S, S) grey views of ``mesh`` placed in ``frame`` (as ``features`` sees it,
+        turned onto no reference)."""
         return self.renderer.render(place(mesh.vertices, frame), mesh.faces)
 
     def describe(
@@ -235,8 +247,20 @@ class Scorer:
         reference = b if isinstance(b, MeshFeatures) else self.features(b)
         # before A's work
         check_features(reference, self.config, self.features_graph.sha256, self.normalization)
+        return self.match(self.compared(a, reference), reference)
+
+    def compared(self, a: Mesh, reference: MeshFeatures) -> MeshFeatures:
+        """A's descriptors as they are matched against the checked ``reference``: placed in
+        its frame (joint normalisation) or A's own, and turned onto its surface."""
+
+        if self.config.align_degrees and reference.surface is None:
+            raise ValueError(
+                f"{reference.source}: features of views alone, without the surface samples a "
+                "mesh is turned onto before it is compared (align_degrees "
+                f"{self.config.align_degrees:g}): describe the reference from its mesh"
+            )
         frame = reference.frame if self.normalization == "joint" else None
-        return self.match(self.features(a, frame), reference)
+        return self.features(a, frame, reference.surface)
 
     def match(self, a: MeshFeatures, b: MeshFeatures) -> float:
         """The score of described A against described B under the scorer's config."""

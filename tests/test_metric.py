@@ -4,6 +4,7 @@ import hashlib
 import json
 import warnings
 
+import numpy as np
 import pytest
 import torch
 from conftest import ROOT, icosphere
@@ -11,8 +12,10 @@ from conftest import ROOT, icosphere
 import drkfs_onnx
 from drkfs_onnx import DRKFS, PipelineConfig
 from drkfs_onnx.contract import model_files
+from drkfs_onnx.contract.alignment import turn_of
 from drkfs_onnx.contract.config import NETS
-from drkfs_onnx.metric import MissingWeights
+from drkfs_onnx.contract.versions import metric_config
+from drkfs_onnx.metric import MissingWeights, Target
 from drkfs_onnx.synthetic.shapes import assemble, chair
 from drkfs_onnx.synthetic.variants import without
 
@@ -176,3 +179,28 @@ def test_drkfs_score_refuses_an_unknown_frame_in_one_line_before_loading_the_net
     result = CliRunner().invoke(app, ["score", chair, chair, "--normalize", "both"])
     assert result.exit_code == 2
     assert result.output == "error: unknown normalisation 'both'; use one of joint, each, none\n"
+
+
+def test_a_turning_metric_turns_each_prediction_onto_its_own_reference_without_gradients():
+    turning, plain = (DRKFS.pretrained(metric_config(v)) for v in ("drkfs-1.2", "drkfs-1.1"))
+    verts, faces = _mesh()
+    turn = torch.as_tensor(turn_of(np.radians([2.0, 0.0, 0.0])), dtype=verts.dtype)
+    centre = (verts.amax(0) + verts.amin(0)) / 2  # the frame's origin, which the turn is about
+    tilted = (verts - centre) @ turn.T + centre
+    with torch.no_grad():
+        target = turning.target(verts, faces)
+        both = turning.target(torch.stack([verts, tilted]), faces)
+    assert len(target.surface) == 1 and len(both.surface) == 2
+    assert len(Target.stack([target, target]).surface) == 2
+    leaf = torch.stack([tilted, verts]).requires_grad_(True)
+    scores = turning.score_to(leaf, faces, target, batch_reduction="none")
+    with torch.no_grad():
+        untilted = plain.score_to(tilted, faces, plain.target(verts, faces))
+    assert float(scores[0]) < 0.2 * float(untilted) and float(scores[1]) < 1e-9
+    scores.sum().backward()  # the rotation is found without gradients; the vertices' flow
+    assert torch.isfinite(leaf.grad).all() and leaf.grad[0].abs().sum() > 0
+    with pytest.raises(ValueError, match="no surface samples of each reference"):
+        turning.score_to(tilted, faces, plain.target(verts, faces))  # described for no turn
+    # each prediction is turned onto its own reference: the tilted one onto itself, not at all
+    own = turning.score_to(torch.stack([verts, tilted]), faces, both, batch_reduction="none")
+    assert float(own.max()) < 1e-9

@@ -7,6 +7,7 @@ method made them first (``Placed.shared`` keeps each and remembers what it cost)
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -14,7 +15,13 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from drkfs_onnx.contract.config import MATCH_FIELDS, VIEW_FIELDS, PipelineConfig
+from drkfs_onnx.contract.alignment import reference_surface, turned
+from drkfs_onnx.contract.config import (
+    MATCH_FIELDS,
+    VIEW_FIELDS,
+    AlignmentSettings,
+    PipelineConfig,
+)
 from drkfs_onnx.contract.model_files import features_file, models_dir
 from drkfs_onnx.match import match_score
 from drkfs_onnx.metric import DRKFS
@@ -82,27 +89,59 @@ def timed_call(fn, *args):
     return value, time.perf_counter() - start
 
 
+def sampled_surface(placed: Placed, config: PipelineConfig) -> tuple[object, float]:
+    """The surface samples a mesh compared with ``placed`` is turned onto, and the seconds they
+    took; (None, 0) where the config turns no mesh."""
+    if not config.align_degrees:
+        return None, 0.0
+    return timed_call(reference_surface, placed.verts, placed.faces, config)
+
+
+def turned_onto(a, b, config: PipelineConfig, describe):
+    """A's prepared (placed, described) turned onto B's (placed, described, surface) as the
+    config turns a compared mesh (``contract.alignment``): A's description, made again by
+    ``describe`` (a ``Placed`` -> its description) where a turn is applied."""
+    (placed, described, _), surface = a, b[2]
+    verts = turned(placed.verts, placed.faces, surface, config)
+    if verts is placed.verts:
+        return described
+    return describe(Placed(f"{placed.key}@turned", verts, placed.faces))
+
+
 class DrkfsOnnx(Method):
-    """The runtime scorer (numpy renderer + onnxruntime), for one config and feature graph."""
+    """The runtime scorer (numpy renderer + onnxruntime), for one config and feature graph; a
+    config that turns a compared mesh onto its reference turns A onto B (as ``Scorer.score``)."""
 
     def __init__(self, name: str, config: PipelineConfig, model: Path | None, threads: int):
         self.outputs = (name,)
         self.scorer = Scorer(config, model, threads=threads)
-        self.symmetric = config.direction == "both"  # match(a, b) == match(b, a)
-        # configs that differ only in their match describe a mesh alike
-        self.features_key = ("features", config.shaping("features"), model)
+        # match(a, b) == match(b, a), unless A is turned onto B
+        self.symmetric = config.direction == "both" and not config.align_degrees
+        # configs that differ only in their match or their turn describe a mesh alike
+        unturned = config.replace(**dataclasses.asdict(AlignmentSettings()))
+        self.features_key = ("features", unturned.shaping("features"), model)
 
-    def prepare(self, placed):
+    def _describe(self, placed: Placed):
         images, render_s = placed.views(self.scorer.renderer)
         features, seconds = placed.shared(self.features_key, lambda: self.scorer.describe(images))
+        own = self.scorer.config.shaping("features")
+        if features.config != own:  # described alike for another turn: this config's, relabelled
+            features = dataclasses.replace(features, config=own)
         return features, render_s + seconds
 
+    def prepare(self, placed):
+        features, seconds = self._describe(placed)
+        surface, sampling = sampled_surface(placed, self.scorer.config)
+        return (placed, features, surface), seconds + sampling
+
     def compare(self, a, b):
-        return (self.scorer.match(a, b),)
+        features = turned_onto(a, b, self.scorer.config, lambda p: self._describe(p)[0])
+        return (self.scorer.match(features, b[1]),)
 
 
 class DrkfsTorch(Method):
-    """``DRKFS`` in evaluation mode, torch eager, its own torch renderer."""
+    """``DRKFS`` in evaluation mode, torch eager, its own torch renderer; A turned onto B as
+    ``DrkfsOnnx`` turns it."""
 
     def __init__(self, name: str, metric: DRKFS):
         self.outputs = (name,)
@@ -114,10 +153,13 @@ class DrkfsTorch(Method):
             return self.metric.described(verts, torch.as_tensor(placed.faces))
 
     def prepare(self, placed):
-        return timed_call(self._described, placed)
+        described, seconds = timed_call(self._described, placed)
+        surface, sampling = sampled_surface(placed, self.metric.config)
+        return (placed, described, surface), seconds + sampling
 
     def compare(self, a, b):
-        (desc_a, views_a), (desc_b, views_b) = a, b
+        desc_a, views_a = turned_onto(a, b, self.metric.config, self._described)
+        desc_b, views_b = b[1]
         config = self.metric.config
         return (float(match_score(desc_a, desc_b, config, None, None, views_a, views_b)),)
 

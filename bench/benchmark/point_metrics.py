@@ -7,39 +7,15 @@ are exact (scipy's KD-tree).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 from scipy.spatial import cKDTree
+
+from drkfs_onnx.contract.alignment import SurfaceSamples, sample_surface  # noqa: F401 (the lab's)
 
 # 1% of the bounding-box diagonal; the reference's diagonal is 2 in its normalised frame
 FSCORE_THRESHOLD = 0.02
 VOXELS = 64
 VOXEL_EXTENT = 1.25  # the grid spans [-1.25, 1.25]^3: room for parts added outside the sphere
-
-
-@dataclass(frozen=True)
-class SurfaceSamples:
-    points: np.ndarray  # (N, 3)
-    normals: np.ndarray  # (N, 3) unit face normals
-
-
-def sample_surface(verts: np.ndarray, faces: np.ndarray, count: int, seed: int = 0):
-    """``count`` points drawn uniformly by area, with their faces' unit normals; none on a
-    surface without area."""
-    corners = verts[faces]
-    cross = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
-    area = np.linalg.norm(cross, axis=1)
-    if not area.sum() > 0:
-        return SurfaceSamples(np.zeros((0, 3)), np.zeros((0, 3)))
-    rng = np.random.default_rng(seed)
-    face = rng.choice(len(faces), size=count, p=area / area.sum())
-    u, v = rng.random((2, count))
-    flip = u + v > 1  # fold the square onto the triangle
-    u, v = np.where(flip, 1 - u, u), np.where(flip, 1 - v, v)
-    c = corners[face]
-    points = c[:, 0] + u[:, None] * (c[:, 1] - c[:, 0]) + v[:, None] * (c[:, 2] - c[:, 0])
-    return SurfaceSamples(points, cross[face] / area[face, None])
 
 
 def _nearest(queries: np.ndarray, targets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

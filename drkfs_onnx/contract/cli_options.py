@@ -119,8 +119,9 @@ Symmetric = Annotated[
         "--symmetric",
         help="Search both directions (same as --direction both; the default and structure "
         "presets already do, the paper preset searches forward). The score is then order-free "
-        "under --normalize each or none; under joint both meshes are placed in the second "
-        "mesh's frame, so swapping them can change it.",
+        "under --normalize each or none, but where the first mesh is turned onto the second "
+        "(drkfs-1.2); under joint both meshes are placed in the second mesh's frame, so "
+        "swapping them can change it.",
     ),
 ]
 

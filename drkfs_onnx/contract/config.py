@@ -51,11 +51,18 @@ ADDED_BY_VERSION = {
     "drkfs-1.0": {"turn_degrees": 0.0, "solid_weight": 0.0, **ONE_REACH, **OWN_RING_ONLY,
                   **FULL_PARTS, "back_light": 1.0, "back_push": 0.0},
     "drkfs-1.1": {"winding": "file"},
+    "drkfs-1.2": {"align_degrees": 0.0, "align_from_degrees": 0.1, "align_reference_points": 4096,
+                  "align_points": 1024, "align_steps": 3, "align_fitted": 0.6, "align_reach": 0.1,
+                  "align_facing": 0.5},
 }  # fmt: skip
 # Every setting by the stage of the data flow it shapes (settings per stage, as PyTorch3D's
 # RasterizationSettings and BlendParams, here as field names of the one frozen config, which
 # every graph and features file carries whole). A test holds that each field is in one stage.
 STAGES = {
+    "alignment": (
+        "align_degrees", "align_from_degrees", "align_reference_points", "align_points",
+        "align_steps", "align_fitted", "align_reach", "align_facing",
+    ),
     "cameras": ("num_views", "turn_degrees", "image_size", "fov_degrees", "camera_distance"),
     "raster": ("sigma", "gamma", "coverage_eps", "background_eps", "background"),
     "shading": ("light_direction", "ambient", "diffuse", "back_light", "back_push", "winding"),
@@ -84,11 +91,12 @@ MATCH_FIELDS = STAGES["match"] + STAGES["solid_change"]
 # seen from behind reuses the weights;
 RENDER_FIELDS = (
     "num_views", "turn_degrees", "image_size", "sigma", "gamma", "back_light", "back_push",
-    "winding",
+    "winding", *STAGES["alignment"],
 )  # fmt: skip
 # and what a feature graph never sees: it describes views from any number of cameras, however
-# lit.
+# lit, of a mesh however turned.
 GRAPH_FREE_FIELDS = ("num_views", "turn_degrees", "back_light", "back_push", "winding")
+GRAPH_FREE_FIELDS += STAGES["alignment"]
 # The fields that do not shape each artefact (``PipelineConfig.shaping``): a features file's
 # descriptors and views, a feature graph, the nets' weights.
 FREE_FIELDS = {
@@ -248,6 +256,27 @@ class PipelineConfig:
     moderate_slope: float = 0.6
     moderate_from: float = 0.04
     moderate_to: float = 0.18
+    # Each compared mesh turned onto its reference before it is described
+    # (``contract.alignment``): the rotation about the frame's origin that lays
+    # ``align_points`` points sampled on it on the planes through their nearest of
+    # ``align_reference_points`` sampled on the reference (point-to-plane ICP, a rotation alone),
+    # in ``align_steps`` Gauss-Newton steps, each after the first fitting the share
+    # ``align_fitted`` of the points nearest their planes (so a part moved, added or thickened
+    # does not pull the turn). A point farther than ``align_reach`` from its nearest, or whose
+    # face meets its nearest's at a cosine below ``align_facing``, is not fitted. A found turn
+    # up to ``align_from_degrees`` is not applied (what two samplings of one surface find: a
+    # simplification's), one from twice that whole, at most ``align_degrees`` of it; 0 turns
+    # nothing. At 4 degrees it ranks a turn of 1-3 degrees about any axis below every surface
+    # variant of the real tiers' held-out side (bench/records/real_levers.md, "Each mesh turned
+    # onto its reference first"); it costs a search of the nearest points per comparison.
+    align_degrees: float = 0.0
+    align_from_degrees: float = 0.1
+    align_reference_points: int = 4096
+    align_points: int = 1024
+    align_steps: int = 3
+    align_fitted: float = 0.6
+    align_reach: float = 0.1
+    align_facing: float = 0.5
 
     def __post_init__(self) -> None:
         if self.num_views < 1:
@@ -304,6 +333,16 @@ class PipelineConfig:
             raise ValueError("moderate_slope must be in (0, 1]")
         if not 0 <= self.moderate_from <= self.moderate_to:
             raise ValueError("moderate_from and moderate_to must satisfy 0 <= from <= to")
+        if not (0 <= self.align_degrees < 90 and self.align_from_degrees >= 0):
+            raise ValueError("align_degrees must be in [0, 90) and align_from_degrees at least 0")
+        if min(self.align_reference_points, self.align_points) < 3 or self.align_steps < 1:
+            raise ValueError(
+                "align_reference_points and align_points must be at least 3, align_steps at least 1"
+            )
+        if not (0 < self.align_fitted <= 1 and self.align_reach > 0 and 0 <= self.align_facing < 1):
+            raise ValueError(
+                "align_fitted must be in (0, 1], align_reach positive and align_facing in [0, 1)"
+            )
         object.__setattr__(self, "light_direction", tuple(float(v) for v in self.light_direction))
 
     @classmethod
@@ -319,6 +358,7 @@ class PipelineConfig:
             matching="global",
             turn_degrees=0.0,
             solid_weight=0.0,
+            align_degrees=0.0,
             **FULL_PARTS,
             **TWO_SIDED,
         )
@@ -346,7 +386,10 @@ class PipelineConfig:
         faces jumps the loss. ``loss()`` is what the loss study chose over it
         (bench/records/fitting.md). Its cameras are ``NETS_TRAINED_AT``'s, those the loss was chosen
         and timed with."""
-        first = dict(nets="correspondence", sigma=1e-4, gamma=0.1, **NETS_TRAINED_AT)
+        # no turn onto the target: a prediction's turn is an error the loss should see
+        first = dict(
+            nets="correspondence", sigma=1e-4, gamma=0.1, align_degrees=0.0, **NETS_TRAINED_AT
+        )
         return cls.structure(**{**first, **changes})
 
     @classmethod
@@ -478,6 +521,7 @@ def _stage_settings(stage: str, name: str) -> type:
 # Each stage's settings as plain data (PyTorch3D's RasterizationSettings, BlendParams): what a
 # config says about one stage (``PipelineConfig.stage``), and what builds one
 # (``PipelineConfig.from_stages``).
+AlignmentSettings = _stage_settings("alignment", "AlignmentSettings")
 CameraSettings = _stage_settings("cameras", "CameraSettings")
 RasterSettings = _stage_settings("raster", "RasterSettings")
 ShadingSettings = _stage_settings("shading", "ShadingSettings")
@@ -485,8 +529,9 @@ NetSettings = _stage_settings("nets", "NetSettings")
 MatchSettings = _stage_settings("match", "MatchSettings")
 SolidChangeSettings = _stage_settings("solid_change", "SolidChangeSettings")
 STAGE_SETTINGS = {
-    "cameras": CameraSettings, "raster": RasterSettings, "shading": ShadingSettings,
-    "nets": NetSettings, "match": MatchSettings, "solid_change": SolidChangeSettings,
+    "alignment": AlignmentSettings, "cameras": CameraSettings, "raster": RasterSettings,
+    "shading": ShadingSettings, "nets": NetSettings, "match": MatchSettings,
+    "solid_change": SolidChangeSettings,
 }  # fmt: skip
 
 

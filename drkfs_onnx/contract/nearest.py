@@ -1,5 +1,5 @@
 """Each query row's nearest target row, with numpy's BLAS: the runtime's descriptor match
-(``runtime.match``), and any search of nearest points that must run without scipy.
+(``runtime.match``) and the turn of a mesh onto its reference (``contract.alignment``).
 
 The same float32 ranking as the exported match graph (``models/match.onnx``), which other runtimes
 can use; in onnxruntime the graph is slower (bench/score.py, ``nearest_search_s``). BLAS threads

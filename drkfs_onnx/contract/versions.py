@@ -2,8 +2,9 @@
 year, whatever ``PipelineConfig()`` has become by then (LPIPS names its versions the same way).
 
 Each version is every setting written out, never derived from the class's defaults, so moving a
-default cannot move a version. ``PipelineConfig()`` is the newest version (``LATEST``: a test
-holds the two equal); a change of the default adds a version here and an entry to CHANGELOG.md.
+default cannot move a version. ``PipelineConfig()`` is the default version (``LATEST``: a test
+holds the two equal); a change of the default adds a version here and an entry to CHANGELOG.md. A
+version may be named before it becomes the default (drkfs-1.2).
 """
 
 from __future__ import annotations
@@ -22,6 +23,9 @@ _DRKFS_1_0 = {
     "solid_shift": 3, "solid_block": 3, "solid_ramp": 1, "solid_inner_drop": 1,
     "solid_inner_power": 1.5, "turned_part_share": 0.2, "solid_both_rings": True,
     "moderate_slope": 0.6, "moderate_from": 0.04, "moderate_to": 0.18, "winding": "file",
+    "align_degrees": 0.0, "align_from_degrees": 0.1, "align_reference_points": 4096,
+    "align_points": 1024, "align_steps": 3, "align_fitted": 0.6, "align_reach": 0.1,
+    "align_facing": 0.5,
 }  # fmt: skip
 _PARTS_IN_FULL = {"moderate_slope": 1.0, "moderate_from": 0.0, "moderate_to": 0.0}
 
@@ -33,6 +37,9 @@ VERSIONS: dict[str, dict] = {
     # drkfs-1.0 with each face's outside read from the surface: a file's face winding moves
     # no score
     "drkfs-1.1": {**_DRKFS_1_0, "winding": "geometry"},
+    # drkfs-1.1 with each compared mesh turned onto its reference first, by up to 4 degrees: a
+    # turn a viewer does not see about any axis moves no score
+    "drkfs-1.2": {**_DRKFS_1_0, "winding": "geometry", "align_degrees": 4.0},
     # drkfs-1.0's nets, cameras, light and solid change with a global match reduced by the
     # power mean of order 8, parts in full: listens to the few patches a missing part changes
     "drkfs-structure-1.0": {

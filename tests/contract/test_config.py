@@ -70,9 +70,10 @@ def test_every_setting_belongs_to_one_stage_and_the_artefacts_keys_come_from_the
     assert len(set(stages)) == len(stages)
     assert set(VIEW_FIELDS) == {*STAGES["cameras"], *STAGES["raster"], *STAGES["shading"]}
     assert set(MATCH_FIELDS) == {*STAGES["match"], *STAGES["solid_change"]}
-    # the nets' weights and a feature graph serve other views: never another net or match
+    # the nets' weights and a feature graph serve other views of a mesh however turned: never
+    # another net or match
     for reused in (RENDER_FIELDS, GRAPH_FREE_FIELDS):
-        assert set(reused) <= set(VIEW_FIELDS)
+        assert set(reused) <= {*VIEW_FIELDS, *STAGES["alignment"]}
 
 
 # a value other than the default's for every field some artefact is free of
@@ -83,6 +84,9 @@ OTHER_VALUES = {
     "solid_both_rings": False, "solid_inner_drop": 0, "solid_inner_power": 1.0, "solid_ramp": 0,
     "solid_shift": 2, "solid_weight": 0.0, "tail_fraction": 0.1, "temperature": 0.1,
     "turn_degrees": 0.0, "turned_part_share": 0.0, "winding": "file", "window": 1,
+    "align_degrees": 4.0, "align_from_degrees": 0.2, "align_reference_points": 2048,
+    "align_points": 512, "align_steps": 2, "align_fitted": 1.0, "align_reach": 0.2,
+    "align_facing": 0.3,
 }  # fmt: skip
 
 
@@ -92,6 +96,8 @@ def test_an_artefact_serves_every_config_that_differs_from_its_own_in_free_field
         for name in free:
             other = dataclasses.replace(config, **{name: OTHER_VALUES[name]})
             assert other.shaping(artefact) == config.shaping(artefact), (artefact, name)
+    # a features file carries the surface a turn is fitted to: a turn shapes it
+    assert config.replace(align_degrees=4.0).shaping("features") != config.shaping("features")
     # what shapes the descriptors is never free for a graph or the weights
     for artefact in ("graph", "weights"):
         other = config.replace(descriptor_width=1.0)

@@ -569,7 +569,10 @@ def test_help_shows_flags_without_a_value_and_the_values_a_choice_takes(command)
     said = _run(command, "--help").output
     assert "<bool>" not in said and "<str>" not in said.split("Options:")[1]
     assert "--normalize [joint|each|none]" in said
-    assert "[drkfs-1.0|drkfs-1.1|drkfs-structure-1.0|drkfs-structure-1.1|drkfs-paper]" in said
+    assert (
+        "[drkfs-1.0|drkfs-1.1|drkfs-1.2|drkfs-structure-1.0|drkfs-structure-1.1|drkfs-paper]"
+        in said
+    )
 
 
 def test_every_scoring_command_takes_the_config_options_of_one_definition():
@@ -601,3 +604,24 @@ def test_a_file_wound_against_itself_scores_as_itself_and_gets_a_warning_where_r
     warned = [line for line in read.stderr.splitlines() if line.startswith("warning:")]
     assert read.exit_code == 0 and float(read.stdout) > 0.5  # it reads as a missing part
     assert len(warned) == 1 and str(rewound) in warned[0] and "--winding geometry" in warned[0]
+
+
+def test_drkfs_1_2_scores_a_tilted_mesh_alike_through_a_features_file_and_a_batch(tmp_path):
+    chair = load_mesh(CHAIR)
+    centre = (chair.vertices.max(0) + chair.vertices.min(0)) / 2
+    turn = trimesh.transformations.rotation_matrix(np.radians(2.0), [1, 0, 0], centre)
+    tilted = tmp_path / "tilted.obj"
+    trimesh.Trimesh(chair.vertices, chair.faces, process=False).apply_transform(turn).export(tilted)
+    turning = ["--metric", "drkfs-1.2"]
+    assert _run("features", CHAIR, "--out", tmp_path / "chair.npz", *turning).exit_code == 0
+    direct = float(_run("pair", tilted, CHAIR, *turning).stdout)
+    cached = float(_run("pair", tilted, tmp_path / "chair.npz", *turning).stdout)
+    unturned = float(_run("pair", tilted, CHAIR).stdout)
+    assert direct == cached < 0.2 * unturned
+    pairs, out = tmp_path / "pairs.csv", tmp_path / "scores.csv"
+    pairs.write_text(f"mesh_a,mesh_b\n{tilted},{tmp_path / 'chair.npz'}\n")
+    assert _run("batch", pairs, "--out", out, *turning).exit_code == 0
+    (record,) = _record_list(out)
+    assert record["metric"] == "drkfs-1.2" and float(record["score"]) == pytest.approx(
+        direct, rel=1e-5
+    )

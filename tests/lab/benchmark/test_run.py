@@ -347,9 +347,12 @@ def test_configs_that_differ_only_in_their_match_describe_a_mesh_once(monkeypatc
             "describe",
             lambda images, f=describe, m=method: described.append(m) or f(images),
         )
-    (features, seconds), (shared, charged) = default.prepare(placed), structure.prepare(placed)
+    ((_, features, _), seconds), ((_, shared, _), charged) = (
+        default.prepare(placed),
+        structure.prepare(placed),
+    )
     assert shared is features and charged == seconds
-    own, _ = previous.prepare(placed)
+    (_, own, _), _ = previous.prepare(placed)
     assert described == [default, previous] and own.config != features.config
 
 
