@@ -22,11 +22,13 @@ def lift(targets: np.ndarray) -> np.ndarray:
     return np.concatenate([-2.0 * targets, (targets * targets).sum(1, keepdims=True)], axis=1)
 
 
-def nearest_lifted(queries: np.ndarray, lifted_targets: np.ndarray) -> np.ndarray:
+def nearest_lifted(
+    queries: np.ndarray, lifted_targets: np.ndarray, block_bytes: int = BLOCK_BYTES
+) -> np.ndarray:
     """(N, D) float32 queries, (M, D + 1) ``lift``-ed targets -> (N,) int64 index of each
     query's nearest target.
 
-    One float32 product of lifted rows per block of BLOCK_BYTES. A float32 near-tie can pick a
+    One float32 product of lifted rows per block of ``block_bytes``. A float32 near-tie can pick a
     target whose distance exceeds the minimum by float32 rounding (~1e-7); callers that need
     exact zeros match exact copies themselves.
     """
@@ -36,7 +38,7 @@ def nearest_lifted(queries: np.ndarray, lifted_targets: np.ndarray) -> np.ndarra
         [np.asarray(queries, dtype=np.float32), np.ones((len(queries), 1), np.float32)], axis=1
     )
     nearest = np.zeros(len(queries), np.int64)
-    rows = max(1, BLOCK_BYTES // (lifted_targets.itemsize * len(lifted_targets)))
+    rows = max(1, block_bytes // (lifted_targets.itemsize * len(lifted_targets)))
     for start in range(0, len(queries), rows):
         # BLAS reads the transpose in place
         block = lifted_queries[start : start + rows] @ lifted_targets.T

@@ -3,7 +3,6 @@
 import numpy as np
 import pytest
 
-from drkfs_onnx.contract import nearest
 from drkfs_onnx.contract.nearest import lift, nearest_lifted
 
 
@@ -12,17 +11,18 @@ def _unit_rows(rng, n, dim=128):
     return (rows / np.linalg.norm(rows, axis=1, keepdims=True)).astype(np.float32)
 
 
-def test_nearest_equals_brute_force_over_several_blocks(monkeypatch):
+def test_nearest_equals_brute_force_over_several_blocks():
     rng = np.random.default_rng(0)
     targets = _unit_rows(rng, 300)
-    monkeypatch.setattr(nearest, "BLOCK_BYTES", 4 * 300 * 64)  # blocks of 64 query rows
     # near-duplicates of targets and unrelated rows: 600 queries, 10 blocks, the last one partial
     near = targets[rng.integers(0, 300, 400)] + 1e-2 * _unit_rows(rng, 400)
     queries = np.concatenate([near, _unit_rows(rng, 200)]).astype(np.float32)
     q, t = queries.astype(np.float64), targets.astype(np.float64)
-    got = nearest_lifted(queries, lift(targets))
+    whole = nearest_lifted(queries, lift(targets))
+    got = nearest_lifted(queries, lift(targets), block_bytes=4 * 301 * 64)  # 64 query rows
     assert got.shape == (len(queries),)
     assert np.array_equal(got, ((q[:, None] - t[None]) ** 2).sum(-1).argmin(1))
+    assert np.array_equal(whole, got)
 
 
 def test_no_targets_is_an_error():
