@@ -147,7 +147,8 @@ class Scorer:
     ) -> MeshFeatures:
         """Descriptors of a mesh placed in ``frame`` (default: its own normalisation frame) and
         turned onto the reference surface ``onto`` where the config turns meshes
-        (``contract.alignment``; None: not turned)."""
+        (``contract.alignment``); without ``onto``, not turned and with its own surface samples,
+        as a reference."""
         mesh = self.load(mesh)
         placement = "its own frame" if frame is None else "the reference's frame"
         hint = JOINT_HINT if frame is not None else ""
@@ -157,6 +158,9 @@ class Scorer:
         key = self._key(placed, mesh.faces)
         if key in self.cache:
             self.cache.move_to_end(key)
+            if onto is None and self.config.align_degrees and self.cache[key].surface is None:
+                # described before as a compared mesh, now wanted as a reference
+                self.cache[key] = self._as_reference(self.cache[key], placed, mesh.faces)
             return self.cache[key]
         start, long = time.perf_counter(), len(mesh.faces) > PROGRESS_FACES and self.progress
         if long:
@@ -165,7 +169,8 @@ class Scorer:
                 f"{self.config.views_per_mesh} views"
             )
         result = self.describe(self.renderer.render(placed, mesh.faces), frame)
-        result = replace(result, surface=reference_surface(placed, mesh.faces, self.config))
+        if onto is None:
+            result = self._as_reference(result, placed, mesh.faces)
         if long:
             self.progress(f"{mesh.source}: done in {time.perf_counter() - start:.0f} s")
         if len(result.patch_index) == 0:
@@ -179,6 +184,11 @@ class Scorer:
         if len(self.cache) > self.cache_size:
             self.cache.popitem(last=False)
         return result
+
+    def _as_reference(self, features: MeshFeatures, placed, faces) -> MeshFeatures:
+        """``features`` with the surface samples a mesh compared with them is turned onto (none
+        where the config turns no mesh)."""
+        return replace(features, surface=reference_surface(placed, faces, self.config))
 
     def load(self, mesh: MeshLike) -> Mesh:
         """A checked mesh within ``max_faces``; a MeshError naming the file otherwise. A PLY or

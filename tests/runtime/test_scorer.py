@@ -310,3 +310,12 @@ def test_a_turning_scorers_features_file_carries_the_surface_a_mesh_is_turned_on
     views_alone = turning.describe(turning.views(chair, loaded.frame), loaded.frame)
     with pytest.raises(ValueError, match="features of views alone"):
         turning.score(tilted, views_alone)
+
+
+def test_a_mesh_described_as_compared_is_sampled_when_it_is_later_a_reference():
+    turning = Scorer(metric="drkfs-1.2", threads=2)  # an empty cache
+    chair, no_leg = load_mesh(EXAMPLES / "chair.obj"), load_mesh(EXAMPLES / "chair_no_leg.obj")
+    compared = turning.compared(chair, turning.features(no_leg))  # not turned: the cache's
+    assert compared.surface is None  # a compared mesh is not sampled as a reference
+    as_reference = turning.features(chair, turning.features(no_leg).frame)
+    assert as_reference.descriptors is compared.descriptors and as_reference.surface is not None
