@@ -11,7 +11,8 @@ as ratios, its forward+backward for the jittered copy against a prepared target 
 step costs), the two paths' score difference, the default's new mesh and forward+backward
 against the same under two-sided light (its openings' shadow is a second blend) and under
 drkfs-1.0 (each face's outside read from the file, not the surface; in turns, in one
-process), and the peak memory (max RSS) of the torch-free
+process), a new mesh compared with the mesh under drkfs-1.2 (turned onto it first) against
+drkfs-1.1 ("turn", in turns), and the peak memory (max RSS) of the torch-free
 part, measured before torch is imported. Chamfer-L1 (the benchmark's 20k samples) is timed on the
 same pair. The paper preset's global search is also timed alone, by numpy's BLAS against the
 exported match graph in onnxruntime and against the bare float32 product of the two sets. Each
@@ -168,6 +169,24 @@ def _beside(scorer, mesh, name: str, other, repeats: int) -> dict:
     }
 
 
+def _turned_beside(mesh, other, repeats: int) -> dict:
+    """A new mesh as a comparison makes it (the jittered copy placed in the mesh's frame,
+    turned onto it where the version turns, described: ``Scorer.compared``) under drkfs-1.2
+    against drkfs-1.1, which turns nothing, in turns: what the turn's search costs."""
+    from drkfs_onnx.runtime import Scorer
+
+    scorers = {v: Scorer(metric=v, threads=2, cache_size=0) for v in ("drkfs-1.1", "drkfs-1.2")}
+    references = {v: s.features(mesh) for v, s in scorers.items()}
+    best = _alternating(
+        {v: lambda v=v: scorers[v].compared(other, references[v]) for v in scorers}, 3 * repeats
+    )
+    return {
+        "unturned_new_mesh_s": best["drkfs-1.1"],
+        "turned_new_mesh_s": best["drkfs-1.2"],
+        "over_unturned": best["drkfs-1.2"] / best["drkfs-1.1"],
+    }
+
+
 def run_spinning(spinning: bool, repeats: int) -> dict:
     """Median seconds of a new mesh (the example chair, default config) and of the
     nearest-point search that follows it: 1,024 points among 4,096, the BLAS product a turn's
@@ -240,6 +259,7 @@ def run_case(path: Path, preset: str, repeats: int) -> dict:
         runtime["light"] = _beside(scorer, mesh, "two_sided", two_sided, repeats)
         from_file = metric_config("drkfs-1.0")
         runtime["winding"] = _beside(scorer, mesh, "winding_file", from_file, repeats)
+        runtime["turn"] = _turned_beside(mesh, other, repeats)
     if config.matching == "global":
         runtime["nearest_search_s"] = _nearest_search(
             prediction.descriptors, reference.descriptors, 5 * repeats

@@ -18,11 +18,11 @@ from .config import PipelineConfig
 from .nearest import lift, nearest_lifted
 
 REFERENCE_SEED, MESH_SEED = 0, 1  # each side's samples are fixed: a score is reproducible
-# Bytes of one block of the nearest-point search: 8 points against 4,096, a product OpenBLAS
+# Bytes of one block of the nearest-point search: 16 points against 2,048, a product OpenBLAS
 # runs on the calling thread (m n k <= 262,144). Its helper threads, woken by a larger product,
 # busy-wait for about 0.1 s after it on the cores the next description needs: in a one-off
 # look, a new chair compared with a described one cost 1.48x drkfs-1.1's in one block of the
-# whole search, 1.12-1.14x in these.
+# whole search, 1.12-1.14x in blocks of 8 points against 4,096.
 SEARCH_BLOCK_BYTES = 1 << 17
 
 

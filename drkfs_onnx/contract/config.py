@@ -51,7 +51,7 @@ ADDED_BY_VERSION = {
     "drkfs-1.0": {"turn_degrees": 0.0, "solid_weight": 0.0, **ONE_REACH, **OWN_RING_ONLY,
                   **FULL_PARTS, "back_light": 1.0, "back_push": 0.0},
     "drkfs-1.1": {"winding": "file"},
-    "drkfs-1.2": {"align_degrees": 0.0, "align_from_degrees": 0.1, "align_reference_points": 4096,
+    "drkfs-1.2": {"align_degrees": 0.0, "align_from_degrees": 0.1, "align_reference_points": 2048,
                   "align_points": 1024, "align_steps": 3, "align_fitted": 0.6, "align_reach": 0.1,
                   "align_facing": 0.5},
 }  # fmt: skip
@@ -271,7 +271,7 @@ class PipelineConfig:
     # onto its reference first"); it costs a search of the nearest points per comparison.
     align_degrees: float = 0.0
     align_from_degrees: float = 0.1
-    align_reference_points: int = 4096
+    align_reference_points: int = 2048
     align_points: int = 1024
     align_steps: int = 3
     align_fitted: float = 0.6

@@ -23,7 +23,7 @@ _DRKFS_1_0 = {
     "solid_shift": 3, "solid_block": 3, "solid_ramp": 1, "solid_inner_drop": 1,
     "solid_inner_power": 1.5, "turned_part_share": 0.2, "solid_both_rings": True,
     "moderate_slope": 0.6, "moderate_from": 0.04, "moderate_to": 0.18, "winding": "file",
-    "align_degrees": 0.0, "align_from_degrees": 0.1, "align_reference_points": 4096,
+    "align_degrees": 0.0, "align_from_degrees": 0.1, "align_reference_points": 2048,
     "align_points": 1024, "align_steps": 3, "align_fitted": 0.6, "align_reach": 0.1,
     "align_facing": 0.5,
 }  # fmt: skip

@@ -84,7 +84,7 @@ OTHER_VALUES = {
     "solid_both_rings": False, "solid_inner_drop": 0, "solid_inner_power": 1.0, "solid_ramp": 0,
     "solid_shift": 2, "solid_weight": 0.0, "tail_fraction": 0.1, "temperature": 0.1,
     "turn_degrees": 0.0, "turned_part_share": 0.0, "winding": "file", "window": 1,
-    "align_degrees": 4.0, "align_from_degrees": 0.2, "align_reference_points": 2048,
+    "align_degrees": 4.0, "align_from_degrees": 0.2, "align_reference_points": 4096,
     "align_points": 512, "align_steps": 2, "align_fitted": 1.0, "align_reach": 0.2,
     "align_facing": 0.3,
 }  # fmt: skip
