@@ -10,6 +10,8 @@ from conftest import ROOT
 
 from drkfs_onnx import PipelineConfig, load_mesh
 from drkfs_onnx.contract import match_rules
+from drkfs_onnx.contract.cameras import rotation
+from drkfs_onnx.contract.mesh import Mesh
 from drkfs_onnx.metric import DRKFS
 from drkfs_onnx.render.torch_ops import TORCH_OPS
 from drkfs_onnx.runtime.explain import explain
@@ -169,3 +171,13 @@ def test_the_picture_shows_each_meshs_plain_views_above_where_it_differs(no_leg)
             assert len(overlaid.images) == 2  # the render, and the distances over it
     outlines = sum(len(a.patches) for a in axes)
     assert outlines == sum(len(p["sides"]) for p in no_leg.top_patches(3))
+
+
+def test_explain_under_a_turning_version_explains_the_mesh_as_the_score_turns_it():
+    turning = Scorer(metric="drkfs-1.2", threads=2)
+    chair = load_mesh(EXAMPLES / "chair.obj")
+    centre = (chair.vertices.max(0) + chair.vertices.min(0)) / 2
+    tilted = Mesh((chair.vertices - centre) @ rotation(0, 2.0).T + centre, chair.faces, "tilted")
+    explained = explain(turning, tilted, chair)
+    assert explained.score == pytest.approx(turning.score(tilted, chair), rel=1e-12)
+    assert explained.score < 0.2 * Scorer(metric="drkfs-1.1", threads=2).score(tilted, chair)
