@@ -43,6 +43,12 @@ def real_meshes() -> Path:
         pytest.fail(str(exc))
 
 
+def unit_rows(rng, n: int, dim: int = 128) -> np.ndarray:
+    """(n, dim) float32 rows of unit length, drawn by ``rng``: descriptor-like search rows."""
+    rows = rng.normal(size=(n, dim))
+    return (rows / np.linalg.norm(rows, axis=1, keepdims=True)).astype(np.float32)
+
+
 def icosphere(subdivisions: int = 1, radius: float = 0.8) -> tuple[np.ndarray, np.ndarray]:
     sphere = trimesh.creation.icosphere(subdivisions=subdivisions, radius=radius)
     return np.asarray(sphere.vertices), np.asarray(sphere.faces)

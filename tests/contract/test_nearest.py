@@ -2,21 +2,17 @@
 
 import numpy as np
 import pytest
+from conftest import unit_rows
 
 from drkfs_onnx.contract.nearest import lift, nearest_lifted
 
 
-def _unit_rows(rng, n, dim=128):
-    rows = rng.normal(size=(n, dim))
-    return (rows / np.linalg.norm(rows, axis=1, keepdims=True)).astype(np.float32)
-
-
 def test_nearest_equals_brute_force_over_several_blocks():
     rng = np.random.default_rng(0)
-    targets = _unit_rows(rng, 300)
+    targets = unit_rows(rng, 300)
     # near-duplicates of targets and unrelated rows: 600 queries, 10 blocks, the last one partial
-    near = targets[rng.integers(0, 300, 400)] + 1e-2 * _unit_rows(rng, 400)
-    queries = np.concatenate([near, _unit_rows(rng, 200)]).astype(np.float32)
+    near = targets[rng.integers(0, 300, 400)] + 1e-2 * unit_rows(rng, 400)
+    queries = np.concatenate([near, unit_rows(rng, 200)]).astype(np.float32)
     q, t = queries.astype(np.float64), targets.astype(np.float64)
     whole = nearest_lifted(queries, lift(targets))
     got = nearest_lifted(queries, lift(targets), block_bytes=4 * 301 * 64)  # 64 query rows
