@@ -10,8 +10,8 @@ size, so no descriptor has an exact copy), the torch path's (``DRKFS`` eager) ne
 as ratios, its forward+backward for the jittered copy against a prepared target (what a training
 step costs), the two paths' score difference, the default's new mesh and forward+backward
 against the same under two-sided light (its openings' shadow is a second blend) and under
-drkfs-1.0 (each face's outside read from the file, not the surface; in turns, in one
-process), a new mesh compared with the mesh under drkfs-1.2 (turned onto it first) against
+drkfs-1.0's winding (each face's outside read from the file, not the surface; in turns, in
+one process), a new mesh compared with the mesh under drkfs-1.2 (turned onto it first) against
 drkfs-1.1 ("turn", in turns), and the peak memory (max RSS) of the torch-free
 part, measured before torch is imported. Chamfer-L1 (the benchmark's 20k samples) is timed on the
 same pair. The paper preset's global search is also timed alone, by numpy's BLAS against the
@@ -251,13 +251,12 @@ def run_case(path: Path, preset: str, repeats: int) -> dict:
     runtime.update(described_mb=described_mb, held_after_match_mb=_held_mb(reference))
     if preset == "default":
         from drkfs_onnx.contract.config import TWO_SIDED
-        from drkfs_onnx.contract.versions import metric_config
 
         # the openings' shadow is a second blend; a face's outside read from the surface
-        # (drkfs-1.1) costs its orientation against the file's winding (drkfs-1.0)
+        # (drkfs-1.1 on) costs its orientation against the file's winding (drkfs-1.0's)
         two_sided = config.replace(**TWO_SIDED)
         runtime["light"] = _beside(scorer, mesh, "two_sided", two_sided, repeats)
-        from_file = metric_config("drkfs-1.0")
+        from_file = config.replace(winding="file")
         runtime["winding"] = _beside(scorer, mesh, "winding_file", from_file, repeats)
         runtime["turn"] = _turned_beside(mesh, other, repeats)
     if config.matching == "global":
@@ -268,22 +267,28 @@ def run_case(path: Path, preset: str, repeats: int) -> dict:
     import torch
 
     from drkfs_onnx import DRKFS
+    from drkfs_onnx.contract.alignment import turned
     from drkfs_onnx.match import match_score
 
     torch.set_num_threads(2)
     metric = DRKFS.pretrained(config)
     verts = torch.tensor(placed, dtype=torch.float32)
-    verts_other = torch.tensor(place(other.vertices, reference.frame), dtype=torch.float32)
+    placed_other = place(other.vertices, reference.frame)
+    verts_other = torch.tensor(placed_other, dtype=torch.float32)
     faces = torch.tensor(mesh.faces)
     with torch.no_grad():
         torch_new_s, target = best_time(lambda: metric.target(verts, faces), repeats)
-        torch_pred, pred_views = metric.described(verts_other, faces)
-        torch_match_s, torch_score = best_time(
+        # A as score_to describes it: turned onto the reference where the config turns
+        surface = target.surface[0] if target.surface else None
+        seen = turned(placed_other, other.faces, surface, config)
+        torch_pred, pred_views = metric.described(torch.tensor(seen, dtype=torch.float32), faces)
+        torch_match_s, _ = best_time(
             lambda: match_score(
                 torch_pred, target.features, config, None, None, pred_views, target.views
             ),
             5 * repeats,
         )
+        torch_score = float(metric.score_to(verts_other, faces, target))
 
     def training_step():
         leaf = verts_other.clone().requires_grad_(True)
@@ -291,7 +296,6 @@ def run_case(path: Path, preset: str, repeats: int) -> dict:
         return leaf.grad
 
     step_s, grad = best_time(training_step, repeats)
-    torch_score = float(torch_score)
     torch_row = {
         "new_mesh_s": torch_new_s,
         "match_s": torch_match_s,
