@@ -19,6 +19,7 @@ from drkfs_lab.benchmark import as_they_come, sets
 from drkfs_lab.benchmark.methods import DrkfsOnnx, build_methods
 from drkfs_lab.benchmark.run import (
     as_they_come_checks,
+    kept_rows,
     score_with_peers,
     tier_accuracy,
 )
@@ -38,6 +39,9 @@ def main() -> None:
     parser.add_argument("--out", type=Path, help="the results' JSON")
     parser.add_argument("--renders", type=Path, help="a PNG of the variants each label rests on")
     parser.add_argument("--methods", default=DEFAULT_METHODS, help="outputs, comma-separated")
+    parser.add_argument(
+        "--keep", type=Path, help="an earlier run's JSON whose other methods' rows are kept"
+    )
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--work", type=Path, default=Path("runs/as_they_come"))
     args = parser.parse_args()
@@ -51,30 +55,40 @@ def main() -> None:
                       f"python bench/as_they_come.py --renders {args.renders}")  # fmt: skip
     if args.out is None:
         return
+    # an earlier run's rows kept are checked before any scoring
+    labels = {f"{c.base}/{c.label}": c.kind for c in bench.comparisons}
+    kept, kept_summaries, kept_values = {"methods": [], "peers": {}}, {}, {}
+    if args.keep is not None:
+        kept, kept_summaries, kept_values = kept_rows(
+            json.loads(args.keep.read_text()), labels, wanted
+        )
     methods = [m for m in build_methods(args.work / "models", args.threads)
                if set(m.outputs) & set(wanted)]  # fmt: skip
     if FILE_WINDING in wanted:
         methods.append(DrkfsOnnx(FILE_WINDING, metric_config("drkfs-1.0"), None, args.threads))
     scores, costs, notes = score_with_peers(bench, methods, print, wanted)
-    kept = {name: values for name, values in scores.comparisons.items() if name in wanted}
+    scored = {name: values for name, values in scores.comparisons.items() if name in wanted}
+    rows, values_by_name = {}, {}
+    for name, values in scored.items():
+        rows[name] = {
+            **tier_accuracy(bench, values, as_they_come.GROUP),
+            "checks": as_they_come_checks(bench, values),
+            "seconds_per_pair": costs[name]["seconds_per_pair"],
+        }
+        values_by_name[name] = {
+            f"{c.base}/{c.label}": values.get(i) for i, c in enumerate(bench.comparisons)
+        }
+    keep = f" --keep {args.keep}" if args.keep is not None else ""
     results = {
-        "command": f"python bench/as_they_come.py --out {args.out} --methods '{args.methods}'",
+        "command": f"python bench/as_they_come.py --out {args.out} --methods '{args.methods}'"
+        + keep,
         "threads": args.threads,
-        "peers": notes,
+        "peers": {**kept["peers"], **notes},
         "sides": as_they_come.sides(),
-        "labels": {f"{c.base}/{c.label}": c.kind for c in bench.comparisons},
-        "methods": {
-            name: {
-                **tier_accuracy(bench, values, as_they_come.GROUP),
-                "checks": as_they_come_checks(bench, values),
-                "seconds_per_pair": costs[name]["seconds_per_pair"],
-            }
-            for name, values in kept.items()
-        },
-        "values": {
-            name: {f"{c.base}/{c.label}": values.get(i) for i, c in enumerate(bench.comparisons)}
-            for name, values in kept.items()
-        },
+        "labels": labels,
+        "kept": kept,
+        "methods": {**rows, **kept_summaries},
+        "values": {**values_by_name, **kept_values},
         "seconds": time.perf_counter() - start,
     }
     args.out.parent.mkdir(parents=True, exist_ok=True)

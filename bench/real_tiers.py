@@ -30,6 +30,7 @@ from drkfs_lab.benchmark.methods import build_methods
 from drkfs_lab.benchmark.real_tiers import HELDOUT_MESHES, TRAINING_MESHES, parse_relabels
 from drkfs_lab.benchmark.run import (
     OTHER_SIDE,
+    kept_rows,
     real_sides,
     real_summary,
     score_with_peers,
@@ -165,6 +166,9 @@ def main() -> None:
     parser.add_argument(
         "--relabel", default="", help="with --other: mesh/variant=tier,... as the renders show"
     )
+    parser.add_argument(
+        "--keep", type=Path, help="an earlier run's JSON whose other methods' rows are kept"
+    )
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--work", type=Path, default=Path("runs/real_tiers"))
     args = parser.parse_args()
@@ -208,29 +212,37 @@ def main() -> None:
         return
     if args.out is None:
         return
+    # an earlier run's rows kept are checked before any scoring
+    labels = {f"{c.base}/{c.label}": c.kind for c in bench.comparisons}
+    kept, kept_summaries, kept_values = {"methods": [], "peers": {}}, {}, {}
+    if args.keep is not None:
+        kept, kept_summaries, kept_values = kept_rows(
+            json.loads(args.keep.read_text()), labels, wanted
+        )
     methods = [m for m in build_methods(args.work / "models", args.threads)
                if set(m.outputs) & set(wanted)]  # fmt: skip
     scores, costs, notes = score_with_peers(bench, methods, print, wanted)
-    results = {
-        "command": f"python bench/real_tiers.py{chosen} --out {args.out} --methods "
-        f"'{args.methods}'",
-        "threads": args.threads,
-        "peers": notes,
-        "sides": sides,
-        "labels": {f"{c.base}/{c.label}": c.kind for c in bench.comparisons},
-        "methods": {
-            name: {
+    rows, values_by_name = {}, {}
+    for name, values in scores.comparisons.items():
+        if name in wanted:
+            rows[name] = {
                 **real_summary(bench, values),
                 "seconds_per_pair": costs[name]["seconds_per_pair"],
             }
-            for name, values in scores.comparisons.items()
-            if name in wanted
-        },
-        "values": {
-            name: {f"{c.base}/{c.label}": values.get(i) for i, c in enumerate(bench.comparisons)}
-            for name, values in scores.comparisons.items()
-            if name in wanted
-        },
+            values_by_name[name] = {
+                f"{c.base}/{c.label}": values.get(i) for i, c in enumerate(bench.comparisons)
+            }
+    keep = f" --keep {args.keep}" if args.keep is not None else ""
+    results = {
+        "command": f"python bench/real_tiers.py{chosen} --out {args.out} --methods "
+        f"'{args.methods}'{keep}",
+        "threads": args.threads,
+        "peers": {**kept["peers"], **notes},
+        "sides": sides,
+        "labels": labels,
+        "kept": kept,
+        "methods": {**rows, **kept_summaries},
+        "values": {**values_by_name, **kept_values},
         "seconds": time.perf_counter() - start,
     }
     args.out.parent.mkdir(parents=True, exist_ok=True)

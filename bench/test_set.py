@@ -6,8 +6,11 @@ The set is drkfs_lab.benchmark.test_set.
 
 The release named must be the newest version (``PipelineConfig()``'s), and the results file must
 not hold it yet: a version's test figures are written once, at its release, and kept. Every
-named version is scored in the same run beside it (their rows say what the release changed on
-pairs nobody chose on), with pixel MSE, Chamfer-L1 and LFD where it is installed.
+named version stands beside it (their rows say what the release changed on pairs nobody chose
+on), with pixel MSE, Chamfer-L1 and LFD where it is installed. A version or peer an earlier
+release scored is kept from that release (``"kept"``: the set is frozen, and so are a version's
+config and a peer's): the rest are scored, and the previous release's version again, so the
+seconds a pair compare within one run.
 """
 
 from __future__ import annotations
@@ -47,6 +50,17 @@ def release_error(release: str, out: Path, bench) -> str | None:
     return None
 
 
+def kept_from(releases: dict) -> dict[str, str]:
+    """Each version and peer an earlier release scored -> the latest release that scored it,
+    but the latest release's own version (scored again beside the new one, for the seconds)."""
+    kept = {}
+    for release, entry in releases.items():
+        kept.update({name: release for name in entry["methods"] if name in (*VERSIONS, *PEERS)})
+    if releases:
+        kept.pop(list(releases)[-1], None)
+    return kept
+
+
 def summary(bench, values: dict[int, float | None]) -> dict:
     """A method's figures on the test set: the tier shares of both groups, with their pair
     counts, and the assets' checks."""
@@ -72,11 +86,24 @@ def main() -> None:
     error = release_error(args.release, args.out, bench)
     if error:
         sys.exit(f"error: {error}")
-    methods = [DrkfsOnnx(name, metric_config(name), None, args.threads) for name in VERSIONS]
+    results = json.loads(args.out.read_text()) if args.out.is_file() else {}
+    earlier = results.get("releases", {})
+    kept = kept_from(earlier)
+    wanted = [name for name in [*VERSIONS, *PEERS] if name not in kept]
+    methods = [DrkfsOnnx(name, metric_config(name), None, args.threads)
+               for name in VERSIONS if name in wanted]  # fmt: skip
     methods += [m for m in build_methods(args.work / "models", args.threads)
-                if set(m.outputs) & set(PEERS)]  # fmt: skip
-    scores, costs, notes = score_with_peers(bench, methods, print, [*VERSIONS, *PEERS])
-    kept = {n: v for n, v in scores.comparisons.items() if n in VERSIONS or n in PEERS}
+                if set(m.outputs) & set(wanted)]  # fmt: skip
+    scores, costs, notes = score_with_peers(bench, methods, print, wanted)
+    scored = {n: v for n, v in scores.comparisons.items() if n in wanted}
+    rows = {name: earlier[release]["methods"][name] for name, release in kept.items()}
+    values = {name: earlier[release]["values"][name] for name, release in kept.items()}
+    for name, found in scored.items():
+        rows[name] = {**summary(bench, found), "seconds_per_pair": costs[name]["seconds_per_pair"]}
+        values[name] = {
+            f"{c.base}/{c.label}": found.get(i) for i, c in enumerate(bench.comparisons)
+        }
+    kept_notes = {n: earlier[r]["peers"][n] for n, r in kept.items() if n in earlier[r]["peers"]}
     release = {
         "command": f"python bench/test_set.py --release {args.release} --out {args.out} "
         f"--threads {args.threads} --work {args.work}",
@@ -85,18 +112,12 @@ def main() -> None:
         "date": date.today().isoformat(),
         "platform": platform.platform(),
         "threads": args.threads,
-        "peers": notes,
-        "methods": {
-            name: {**summary(bench, values), "seconds_per_pair": costs[name]["seconds_per_pair"]}
-            for name, values in kept.items()
-        },
-        "values": {
-            name: {f"{c.base}/{c.label}": values.get(i) for i, c in enumerate(bench.comparisons)}
-            for name, values in kept.items()
-        },
+        "peers": {**kept_notes, **notes},
+        "kept": kept,
+        "methods": {name: rows[name] for name in [*VERSIONS, *PEERS] if name in rows},
+        "values": {name: values[name] for name in [*VERSIONS, *PEERS] if name in values},
         "seconds": time.perf_counter() - start,
     }
-    results = json.loads(args.out.read_text()) if args.out.is_file() else {}
     results["set"] = {
         "digest": test_set.DIGEST,
         "tier_seeds": list(test_set.TIER_SEEDS),

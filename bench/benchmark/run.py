@@ -22,6 +22,7 @@ from .human import add_human, agreement_ceiling, dataset_agreement, human_agreem
 from .methods import (
     DEFAULT_NAME,
     PAPER_NAME,
+    PREVIOUS_NAME,
     RETRIEVAL_SAMPLES,
     STRUCTURE_NAME,
     SURFACE_SAMPLES,
@@ -416,6 +417,32 @@ def score_with_peers(
         if peer.failed:
             notes[peer.outputs[0]] += f"; could not describe (pairs unscored): {peer.failed}"
     return scores, costs, notes
+
+
+# the rows whose config follows PipelineConfig(): never kept from an earlier run
+FOLLOW_THE_DEFAULT = (DEFAULT_NAME, STRUCTURE_NAME, PREVIOUS_NAME, "DR-KFS torch")
+
+
+def kept_rows(earlier: dict, labels: dict, scored: list[str]) -> tuple[dict, dict, dict]:
+    """An earlier run's rows of every method it scored that this run does not (``scored``), for
+    a run of the same pairs (``labels``): a peer's or a frozen version's scores depend on the
+    meshes and its own config alone, so they are kept, not scored again. Returns what the run
+    records of them (the earlier run's command, the names and its notes on them), their
+    summaries and their values; ValueError where the earlier run scored other pairs or a row
+    follows the default."""
+    if earlier.get("labels") != labels:
+        raise ValueError("--keep: that run scored other pairs than this one")
+    names = [name for name in earlier["methods"] if name not in scored]
+    moving = [name for name in names if name in FOLLOW_THE_DEFAULT]
+    if moving:
+        raise ValueError(f"--keep: the rows of {', '.join(moving)} follow the default: score them")
+    notes = {name: note for name, note in earlier.get("peers", {}).items() if name in names}
+    kept = {"command": earlier["command"], "methods": names, "peers": notes}
+    return (
+        kept,
+        {name: earlier["methods"][name] for name in names},
+        {name: earlier["values"][name] for name in names},
+    )
 
 
 def run_bench(

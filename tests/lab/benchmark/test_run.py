@@ -14,7 +14,7 @@ from drkfs_lab.benchmark import human, peers, sets
 from drkfs_lab.benchmark import point_metrics as pm
 from drkfs_lab.benchmark.chart import pareto_front, write_chart
 from drkfs_lab.benchmark.methods import DEFAULT_NAME, DrkfsOnnx, Placed, drkfs_configs
-from drkfs_lab.benchmark.run import TIER_PAIRS, run_bench
+from drkfs_lab.benchmark.run import TIER_PAIRS, kept_rows, run_bench
 from drkfs_lab.benchmark.sets import STABILITY, _box_with_cavity
 from drkfs_lab.benchmark.tiers import (
     INVISIBLE,
@@ -492,3 +492,24 @@ def test_the_image_methods_render_a_mesh_alone_when_no_other_method_shares_their
         prepared, seconds = method.prepare(placed)
         assert method.renderer.threads == 2 and seconds > 0
         assert method.compare(prepared, prepared) == (0.0,)
+
+
+def test_an_earlier_runs_rows_are_kept_for_the_same_pairs_but_never_the_defaults():
+    earlier = {
+        "command": "python bench/as_they_come.py --out x.json",
+        "labels": {"cow/noise": "surface"},
+        "peers": {"LFD": "light-field-distance 0.0.9"},
+        "methods": {DEFAULT_NAME: {"held_out": 1.0}, "LFD": {"held_out": 0.5}},
+        "values": {DEFAULT_NAME: {"cow/noise": 0.1}, "LFD": {"cow/noise": 300.0}},
+    }
+    kept, rows, values = kept_rows(earlier, {"cow/noise": "surface"}, [DEFAULT_NAME])
+    assert kept == {
+        "command": "python bench/as_they_come.py --out x.json",
+        "methods": ["LFD"],
+        "peers": {"LFD": "light-field-distance 0.0.9"},
+    }
+    assert rows == {"LFD": {"held_out": 0.5}} and values == {"LFD": {"cow/noise": 300.0}}
+    with pytest.raises(ValueError, match="scored other pairs"):
+        kept_rows(earlier, {"cow/hole": "surface"}, [DEFAULT_NAME])
+    with pytest.raises(ValueError, match=f"rows of {DEFAULT_NAME} follow the default"):
+        kept_rows(earlier, {"cow/noise": "surface"}, ["LFD"])

@@ -13,6 +13,7 @@ from test_layout import every_module
 
 from drkfs_lab.benchmark import as_they_come, sets, test_set
 from drkfs_lab.studies import network, single_view
+from drkfs_lab.test_set import kept_from
 from drkfs_lab.training import graded, tolerance
 from drkfs_lab.training.run import TrainPlan
 from drkfs_onnx.contract.versions import LATEST, VERSIONS
@@ -83,3 +84,18 @@ def test_a_version_is_scored_once(tmp_path):
     assert result.returncode != 0
     assert f"{LATEST} was scored at its release; its test figures are kept" in result.stderr
     assert json.loads(out.read_text()) == {"releases": {LATEST: {}}}
+
+
+def test_a_release_keeps_what_earlier_releases_scored_but_the_last_ones_own_version():
+    # frozen set, frozen configs: an earlier release's rows stand; the last release's version
+    # is scored again beside the new one, so that the seconds compare within one run
+    releases = {
+        "drkfs-1.1": {"methods": {"drkfs-1.0": {}, "drkfs-1.1": {}, "LFD": {}}},
+        "drkfs-1.2": {"methods": {"drkfs-1.1": {}, "drkfs-1.2": {}}},
+    }
+    assert kept_from(releases) == {
+        "drkfs-1.0": "drkfs-1.1",
+        "LFD": "drkfs-1.1",
+        "drkfs-1.1": "drkfs-1.2",
+    }
+    assert kept_from({}) == {}
