@@ -84,6 +84,9 @@ def match_variants(base: PipelineConfig) -> dict[str, PipelineConfig]:
     return variants
 
 
+AS_PLACED = {"align_degrees": 0.0}  # a sweep's descriptions are of each mesh as placed
+
+
 class Sweep(Method):
     """One feature config; ``compare`` returns every match variant's score, computing each
     matching's best-match distances once per direction and reducing them every way."""
@@ -123,14 +126,15 @@ class Sweep(Method):
 
 
 def feature_configs(quick: bool) -> list[PipelineConfig]:
+    """The descriptions swept, each as placed (``AS_PLACED``: the sweep turns no mesh onto B)."""
     if quick:
-        return [PipelineConfig()]
+        return [PipelineConfig(**AS_PLACED)]
     return [
-        PipelineConfig(),
-        PipelineConfig.structure(),
-        PipelineConfig(num_views=12),
-        PipelineConfig(image_size=256),
-        PipelineConfig(num_views=12, image_size=256),
+        PipelineConfig(**AS_PLACED),
+        PipelineConfig.structure(**AS_PLACED),
+        PipelineConfig(num_views=12, **AS_PLACED),
+        PipelineConfig(image_size=256, **AS_PLACED),
+        PipelineConfig(num_views=12, image_size=256, **AS_PLACED),
         PipelineConfig.paper().shaping("features"),
     ]
 
@@ -207,7 +211,7 @@ def choose(feature_configs: dict, chamfer: dict) -> dict:
     """The default. Hard limits: every REQUIRED_STABILITY case passed, at most SLOWER times the
     current default's seconds per new mesh and per match. Among those: the most of the second
     choice's goals met (``targets``), then the best ``merit``, then the cheaper feature config."""
-    current = feature_configs[feature_name(PipelineConfig())]
+    current = feature_configs[feature_name(PipelineConfig(**AS_PLACED))]
     rows = []
     for name, entry in feature_configs.items():
         variants = match_variants(PipelineConfig.from_dict(entry["config"]))

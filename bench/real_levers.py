@@ -719,8 +719,11 @@ def feature_graph(config: PipelineConfig, folder: Path) -> Path | None:
 
 def trained_at(nets: str) -> PipelineConfig:
     """The config every lever moves: the nets' at the config they were trained at, its solid
-    change at one reach and its own-ring pairing from its own ring alone."""
-    return PipelineConfig(nets=nets, **NETS_TRAINED_AT, **ONE_REACH, **OWN_RING_ONLY)
+    change at one reach and its own-ring pairing from its own ring alone, no mesh turned onto
+    another (the levers move what a mesh's views are; bench/turn_alignment.py studies the turn)."""
+    return PipelineConfig(
+        nets=nets, align_degrees=0.0, **NETS_TRAINED_AT, **ONE_REACH, **OWN_RING_ONLY
+    )
 
 
 def add_bench_options(parser: argparse.ArgumentParser) -> None:

@@ -23,9 +23,9 @@ import numpy as np
 
 from drkfs_lab.benchmark import as_they_come, sets
 from drkfs_lab.benchmark.run import as_they_come_checks, as_they_come_line, tier_accuracy
-from drkfs_onnx import PipelineConfig, check_mesh, load_mesh
+from drkfs_onnx import check_mesh, load_mesh
 from drkfs_onnx.contract.cameras import rotation
-from drkfs_onnx.contract.versions import LATEST
+from drkfs_onnx.contract.versions import metric_config
 from drkfs_onnx.runtime import Scorer
 from drkfs_onnx.runtime.match import best_pairing
 
@@ -63,8 +63,14 @@ def new_mesh_seconds(repeats: int, threads: int) -> dict[str, float]:
     (its 5 cameras as 10, in the same two rings: what two more rings of 5 would render)."""
     chair = load_mesh(EXAMPLES / "chair.obj")
     scorers = {
-        "10 views (the default)": Scorer(threads=threads, cache_size=0),
-        "20 views": Scorer(PipelineConfig().replace(num_views=10), threads=threads, cache_size=0),
+        "10 views (the default)": Scorer(
+            metric=as_they_come.UNTURNED, threads=threads, cache_size=0
+        ),
+        "20 views": Scorer(
+            metric_config(as_they_come.UNTURNED).replace(num_views=10),
+            threads=threads,
+            cache_size=0,
+        ),
     }
     for scorer in scorers.values():
         scorer.features(chair)  # opens the graph's session
@@ -87,13 +93,13 @@ def main() -> None:
     start = time.perf_counter()
     bench = sets.BenchSet()
     as_they_come.add_section(bench)
-    scorer = Scorer(threads=args.threads)
+    scorer = Scorer(metric=as_they_come.UNTURNED, threads=args.threads)
     values = scores(bench, scorer, args.degrees, print)
     results = {
         "command": "python bench/tilted_rings.py"
         + (f" --degrees {args.degrees:g}" if args.degrees != 2.5 else "")
         + (f" --out {args.out}" if args.out else ""),
-        "metric": LATEST,
+        "metric": as_they_come.UNTURNED,
         "degrees": args.degrees,
         "methods": {
             name: {

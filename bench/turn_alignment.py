@@ -49,13 +49,12 @@ from drkfs_onnx.contract.versions import metric_config
 from drkfs_onnx.runtime import Scorer
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
-PLAIN = "drkfs-1.1"  # the metric without a turn
 TURNING = metric_config("drkfs-1.2")  # the turn's settings the options start from
 
 
 def turning_config(least: float, args: argparse.Namespace) -> PipelineConfig:
     """drkfs-1.1 with the turn the options ask for."""
-    return metric_config(PLAIN).replace(
+    return metric_config(as_they_come.UNTURNED).replace(
         align_degrees=args.most_degrees,
         align_from_degrees=least,
         align_reference_points=args.reference_samples,
@@ -98,7 +97,7 @@ def new_mesh_seconds(repeats: int, threads: int, config: PipelineConfig) -> dict
     """Seconds to describe a new mesh (the example chair), to sample it as a reference and to
     search its turn onto a reference (the chair without a leg), interleaved; the ratio is a new
     mesh's cost with a search, or with both, over without."""
-    scorer = Scorer(metric=PLAIN, threads=threads, cache_size=0)
+    scorer = Scorer(metric=as_they_come.UNTURNED, threads=threads, cache_size=0)
     chair, no_leg = load_mesh(EXAMPLES / "chair.obj"), load_mesh(EXAMPLES / "chair_no_leg.obj")
     frame = frame_of(no_leg.vertices)
     reference = reference_surface(place(no_leg.vertices, frame), no_leg.faces, config)
@@ -179,7 +178,7 @@ def main() -> None:
     jod = human.add_human(bench, args.human) if args.human else None
     if args.retrieval:
         sets.retrieval(bench, list(sets.ALL_FAMILIES), sets.RETRIEVAL_PER_FAMILY)
-    default = DrkfsOnnx("default", metric_config(PLAIN), None, args.threads)
+    default = DrkfsOnnx("default", metric_config(as_they_come.UNTURNED), None, args.threads)
     configs = {least: turning_config(least, args) for least in args.least_degrees}
     aligned = [
         Recorded(DrkfsOnnx(f"aligned, none up to {least:g} degrees", config, None, args.threads))
@@ -210,7 +209,7 @@ def main() -> None:
     describe = costs["default"]["seconds_per_mesh"]
     results = {
         "command": command_line(parser, args),
-        "metric": PLAIN,
+        "metric": as_they_come.UNTURNED,
         "methods": rows,
         "seconds": {
             "describe_a_mesh": describe,

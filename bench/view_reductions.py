@@ -26,7 +26,6 @@ from drkfs_lab.benchmark.run import as_they_come_checks, as_they_come_line, tier
 from drkfs_onnx import check_mesh
 from drkfs_onnx.contract import match_rules
 from drkfs_onnx.contract.array_ops import NUMPY_OPS
-from drkfs_onnx.contract.versions import LATEST
 from drkfs_onnx.runtime import Scorer
 from drkfs_onnx.runtime.match import best_pairing, pairing_part, solid_views
 
@@ -99,12 +98,12 @@ def main() -> None:
     start = time.perf_counter()
     bench = sets.BenchSet()
     as_they_come.add_section(bench)
-    values = scores(bench, Scorer(threads=args.threads), print)
+    values = scores(bench, Scorer(metric=as_they_come.UNTURNED, threads=args.threads), print)
     recomposed = values[f"p = 1, weight {WEIGHTS[-1]:g}"]
     drift = max(abs(recomposed[i] - s) for i, s in values["the default"].items())
     results = {
         "command": "python bench/view_reductions.py" + (f" --out {args.out}" if args.out else ""),
-        "metric": LATEST,
+        "metric": as_they_come.UNTURNED,
         "recomposed_default_drift": drift,
         "methods": {
             name: {

@@ -50,6 +50,9 @@ TURN_AXES = ("x", "y", "z")
 TURNS = (1.0, 2.0, 3.0)  # degrees
 SMALL_HOLE = 0.03  # of the diagonal: a hole a viewer sees, in a surface left whole
 FACING = 0.5  # a face faces a camera: the cosine of its normal and the camera's direction
+# the version the studies of this section's turns asked (bench/tilted_rings.py, view_reductions.py,
+# turn_parts.py, turn_alignment.py): the default before drkfs-1.2 turned a mesh onto its reference
+UNTURNED = "drkfs-1.1"
 SEED = 2026
 
 

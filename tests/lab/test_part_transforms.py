@@ -21,8 +21,8 @@ def test_the_records_are_the_default_before_its_window_with_parts_in_full(study)
     config = study.recorded_config()
     assert (config.moderate_slope, config.moderate_from, config.moderate_to) == (1.0, 0.0, 0.0)
     window = {"moderate_slope": 0.6, "moderate_from": 0.04, "moderate_to": 0.18}
-    # the default but for its window and its light (openings seen dark since)
-    assert config.replace(**window) == PipelineConfig(**TWO_SIDED)
+    # the default but for its window, its light (openings seen dark since) and no turn (drkfs-1.2)
+    assert config.replace(**window) == PipelineConfig(align_degrees=0.0, **TWO_SIDED)
 
 
 def test_the_offline_score_is_the_least_pairing_of_transformed_part_plus_weighted_term(study):

@@ -63,8 +63,13 @@ def _recombined_score(
     """A, whose turned ring alone shows a bar, against B, which shows none: each ring pairing's
     descriptor part 1 across rings (a turn the mesh does not have), 0 for ring 0 against ring
     0 and 0.2 for ring 1 against ring 1; the solid change at weight 1."""
-    config = PipelineConfig(
-        image_size=48, num_views=1, turn_degrees=2.5, solid_weight=1.0, **FULL_PARTS
+    config = PipelineConfig(  # a recombined lever turns no mesh onto another
+        image_size=48,
+        num_views=1,
+        turn_degrees=2.5,
+        solid_weight=1.0,
+        align_degrees=0.0,
+        **FULL_PARTS,
     )
     parts = {(0, 0): 0.0, (1, 1): 0.2, (0, 1): 1.0, (1, 0): 1.0}
     monkeypatch.setattr(real_levers, "descriptor_part", lambda a, b, _: parts[a, b])
