@@ -19,7 +19,7 @@ from drkfs_lab.benchmark import as_they_come, sets
 from drkfs_lab.benchmark.methods import DrkfsOnnx, build_methods
 from drkfs_lab.benchmark.run import (
     as_they_come_checks,
-    kept_rows,
+    kept_from_run,
     score_with_peers,
     tier_accuracy,
 )
@@ -57,11 +57,7 @@ def main() -> None:
         return
     # an earlier run's rows kept are checked before any scoring
     labels = {f"{c.base}/{c.label}": c.kind for c in bench.comparisons}
-    kept, kept_summaries, kept_values = {"methods": [], "peers": {}}, {}, {}
-    if args.keep is not None:
-        kept, kept_summaries, kept_values = kept_rows(
-            json.loads(args.keep.read_text()), labels, wanted
-        )
+    kept, kept_summaries, kept_values = kept_from_run(args.keep, labels, wanted)
     methods = [m for m in build_methods(args.work / "models", args.threads)
                if set(m.outputs) & set(wanted)]  # fmt: skip
     if FILE_WINDING in wanted:

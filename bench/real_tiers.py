@@ -30,7 +30,7 @@ from drkfs_lab.benchmark.methods import build_methods
 from drkfs_lab.benchmark.real_tiers import HELDOUT_MESHES, TRAINING_MESHES, parse_relabels
 from drkfs_lab.benchmark.run import (
     OTHER_SIDE,
-    kept_rows,
+    kept_from_run,
     real_sides,
     real_summary,
     score_with_peers,
@@ -214,11 +214,7 @@ def main() -> None:
         return
     # an earlier run's rows kept are checked before any scoring
     labels = {f"{c.base}/{c.label}": c.kind for c in bench.comparisons}
-    kept, kept_summaries, kept_values = {"methods": [], "peers": {}}, {}, {}
-    if args.keep is not None:
-        kept, kept_summaries, kept_values = kept_rows(
-            json.loads(args.keep.read_text()), labels, wanted
-        )
+    kept, kept_summaries, kept_values = kept_from_run(args.keep, labels, wanted)
     methods = [m for m in build_methods(args.work / "models", args.threads)
                if set(m.outputs) & set(wanted)]  # fmt: skip
     scores, costs, notes = score_with_peers(bench, methods, print, wanted)

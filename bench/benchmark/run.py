@@ -445,6 +445,14 @@ def kept_rows(earlier: dict, labels: dict, scored: list[str]) -> tuple[dict, dic
     )
 
 
+def kept_from_run(path: Path | None, labels: dict, scored: list[str]) -> tuple[dict, dict, dict]:
+    """``kept_rows`` of the run a script's ``--keep`` names, read before any scoring; none kept
+    where it names none."""
+    if path is None:
+        return {"methods": [], "peers": {}}, {}, {}
+    return kept_rows(json.loads(path.read_text()), labels, scored)
+
+
 def run_bench(
     out: Path, quick: bool, threads: int = 2, progress=print, human: Path | None = None
 ) -> dict:
